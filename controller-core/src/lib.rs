@@ -1,0 +1,38 @@
+//! # controller-core
+//!
+//! The motion-control core of the gantry, shared verbatim by the STM32 firmware and the
+//! host simulator. `no_std`, no allocation, no panics.
+//!
+//! Every law is written once over the [`Real`] number trait, so the same code runs in
+//! `f32` (the firmware's type), `f64` (host reference) and fixed point.
+//!
+//! Module map:
+//! - [`real`]: the number trait, guarded division and fractional powers.
+//! - [`vec3`]: three-axis vectors.
+//! - [`plant`]: axis plant models used by the simulators (paper plant, eq. 5).
+//! - [`trajectory`]: reference paths with analytic first and second derivatives.
+//! - [`pid`], [`smc`]: the per-axis control laws; [`law`] selects between them.
+//! - [`contour`]: 3-D contour error and cross-coupling (paper eqs. 6-15).
+//! - [`gantry`]: the complete 3-axis control step the firmware runs every period.
+//! - [`metrics`]: ITSE, IAE, contour error statistics, chattering.
+//! - [`params`]: named parameter presets with their sources.
+#![no_std]
+#![forbid(unsafe_code)]
+// `!(x > y)` is deliberate throughout: it is also true for NaN, which is how NaN inputs are
+// caught and replaced before they reach an output.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod contour;
+pub mod gantry;
+pub mod law;
+pub mod metrics;
+pub mod params;
+pub mod pid;
+pub mod plant;
+pub mod real;
+pub mod smc;
+pub mod trajectory;
+pub mod vec3;
+
+pub use real::{Exponent, Real};
+pub use vec3::Vec3;

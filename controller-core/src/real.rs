@@ -1,0 +1,275 @@
+//! The number trait every law is written against.
+//!
+//! A law is written once over [`Real`]; `f32` is what the firmware runs, `f64` is the
+//! host's reference precision, and a saturating fixed-point type implements the same
+//! trait. Operations that can fail on real hardware are total here: division by (near)
+//! zero returns a caller-chosen fallback, roots of negative numbers follow the real odd
+//! root convention, and nothing returns NaN for finite input.
+
+use core::fmt::Debug;
+use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+
+/// A rational exponent `num/den`, `den` odd and positive, so that `sig(x)^(num/den)` is the
+/// real odd root and is defined for negative `x`. Every exponent of the paper's laws
+/// (5/9, -4/9, 1/3, 5/3) has this form, which lets fast implementations use cube roots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Exponent {
+    pub num: i16,
+    pub den: i16,
+}
+
+impl Exponent {
+    /// `num/den`; `None` unless `den` is odd and positive.
+    pub const fn new(num: i16, den: i16) -> Option<Self> {
+        if den > 0 && den % 2 == 1 {
+            Some(Self { num, den })
+        } else {
+            None
+        }
+    }
+
+    pub fn as_f32(self) -> f32 {
+        self.num as f32 / self.den as f32
+    }
+
+    pub fn as_f64(self) -> f64 {
+        self.num as f64 / self.den as f64
+    }
+
+    /// `self - 1`, used for the derivative of `|e|^(q/p)`.
+    pub const fn minus_one(self) -> Self {
+        Self {
+            num: self.num - self.den,
+            den: self.den,
+        }
+    }
+
+    /// `2 - self`, used by the nonsingular terminal surface.
+    pub const fn two_minus(self) -> Self {
+        Self {
+            num: 2 * self.den - self.num,
+            den: self.den,
+        }
+    }
+}
+
+/// The arithmetic the control laws need. Implementations must be total: no panic, no
+/// wrap-around, and no NaN or infinity produced from finite inputs.
+pub trait Real:
+    Copy
+    + Debug
+    + Default
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+{
+    const ZERO: Self;
+    const ONE: Self;
+
+    fn from_f32(x: f32) -> Self;
+    fn from_f64(x: f64) -> Self;
+    fn to_f32(self) -> f32;
+    fn to_f64(self) -> f64;
+
+    /// `self / d`, or `fallback` when `|d|` is too small for the quotient to be
+    /// representable (zero for floats; the type's resolution for fixed point).
+    fn div_or(self, d: Self, fallback: Self) -> Self;
+
+    /// Real cube root, odd: `cbrt(-8) = -2`.
+    fn cbrt(self) -> Self;
+
+    /// Square root of `max(self, 0)`.
+    fn sqrt_pos(self) -> Self;
+
+    /// `|self|^e`. For `e < 0` the base is floored at `floor` (> 0) so the result stays
+    /// bounded; for `e >= 0`, `0^e` is 0 (or 1 when e == 0).
+    fn pow_abs(self, e: Exponent, floor: Self) -> Self;
+
+    fn sin_cos(self) -> (Self, Self);
+
+    fn is_finite(self) -> bool;
+
+    fn abs(self) -> Self {
+        if self < Self::ZERO {
+            -self
+        } else {
+            self
+        }
+    }
+
+    /// -1, 0 or 1 (0 exactly at zero, as the reaching laws need).
+    fn sign(self) -> Self {
+        if self > Self::ZERO {
+            Self::ONE
+        } else if self < Self::ZERO {
+            -Self::ONE
+        } else {
+            Self::ZERO
+        }
+    }
+
+    fn min_of(self, o: Self) -> Self {
+        if o < self {
+            o
+        } else {
+            self
+        }
+    }
+
+    fn max_of(self, o: Self) -> Self {
+        if o > self {
+            o
+        } else {
+            self
+        }
+    }
+
+    /// Clamp to `[-limit, limit]` (`limit >= 0`).
+    fn clamp_sym(self, limit: Self) -> Self {
+        self.max_of(-limit).min_of(limit)
+    }
+
+    /// `sig(x)^e = sign(x) |x|^e`.
+    fn sig_pow(self, e: Exponent, floor: Self) -> Self {
+        self.sign() * self.pow_abs(e, floor)
+    }
+
+    /// Replace a non-finite value by zero: the last line of defence before an output.
+    fn finite_or_zero(self) -> Self {
+        if self.is_finite() {
+            self
+        } else {
+            Self::ZERO
+        }
+    }
+}
+
+macro_rules! impl_float_real {
+    ($t:ty, $cbrt:path, $sqrt:path, $pow:path, $sin:path, $cos:path, $as:ident) => {
+        impl Real for $t {
+            const ZERO: Self = 0.0;
+            const ONE: Self = 1.0;
+
+            fn from_f32(x: f32) -> Self {
+                x as $t
+            }
+            fn from_f64(x: f64) -> Self {
+                x as $t
+            }
+            fn to_f32(self) -> f32 {
+                self as f32
+            }
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            fn div_or(self, d: Self, fallback: Self) -> Self {
+                let q = self / d;
+                if d == 0.0 || !q.is_finite() {
+                    fallback
+                } else {
+                    q
+                }
+            }
+            fn cbrt(self) -> Self {
+                $cbrt(self)
+            }
+            fn sqrt_pos(self) -> Self {
+                if self > 0.0 {
+                    $sqrt(self)
+                } else {
+                    0.0
+                }
+            }
+            fn pow_abs(self, e: Exponent, floor: Self) -> Self {
+                let mut base = if self < 0.0 { -self } else { self };
+                if e.num < 0 {
+                    if !(base >= floor) {
+                        base = floor;
+                    }
+                } else if e.num == 0 {
+                    return 1.0;
+                } else if base == 0.0 {
+                    return 0.0;
+                }
+                let r = $pow(base, e.$as());
+                if r.is_finite() {
+                    r
+                } else {
+                    <$t>::MAX
+                }
+            }
+            fn sin_cos(self) -> (Self, Self) {
+                ($sin(self), $cos(self))
+            }
+            fn is_finite(self) -> bool {
+                <$t>::is_finite(self)
+            }
+        }
+    };
+}
+
+impl_float_real!(
+    f32,
+    libm::cbrtf,
+    libm::sqrtf,
+    libm::powf,
+    libm::sinf,
+    libm::cosf,
+    as_f32
+);
+impl_float_real!(
+    f64,
+    libm::cbrt,
+    libm::sqrt,
+    libm::pow,
+    libm::sin,
+    libm::cos,
+    as_f64
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const E59: Exponent = Exponent { num: 5, den: 9 };
+
+    #[test]
+    fn odd_root_of_negative_is_negative() {
+        assert_eq!((-8.0f64).cbrt(), -2.0);
+        let v = (-1.0f64).sig_pow(E59, 1e-9);
+        assert!((v + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn negative_exponent_is_floored() {
+        let m49 = E59.minus_one();
+        assert_eq!(m49, Exponent { num: -4, den: 9 });
+        let at_zero = 0.0f32.pow_abs(m49, 1e-4);
+        let at_floor = 1e-4f32.pow_abs(m49, 1e-4);
+        assert_eq!(at_zero, at_floor);
+        assert!((at_floor - libm::powf(1e-4, -4.0 / 9.0)).abs() < 1e-3);
+    }
+
+    #[test]
+    fn guarded_division() {
+        assert_eq!(1.0f32.div_or(0.0, 7.0), 7.0);
+        assert_eq!(1.0f32.div_or(1e-45, 7.0), 7.0);
+        assert_eq!(6.0f64.div_or(3.0, 7.0), 2.0);
+        assert_eq!(f32::NAN.finite_or_zero(), 0.0);
+    }
+
+    #[test]
+    fn exponent_requires_odd_denominator() {
+        assert!(Exponent::new(1, 2).is_none());
+        assert!(Exponent::new(5, 9).is_some());
+        assert_eq!(
+            Exponent::new(9, 5).unwrap().two_minus(),
+            Exponent { num: 1, den: 5 }
+        );
+    }
+}

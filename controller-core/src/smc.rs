@@ -1,0 +1,299 @@
+//! Sliding-mode position laws for the normalised axis (spec 2.2, 2.3).
+//!
+//! One implementation covers the paper's "SMC" (terminal surface + exponential reaching
+//! law) and "DSMC" (terminal surface + double-power reaching law + integral compensation
+//! `k4 ∫e dt`); the nonsingular terminal surface is a configuration option of the same law.
+//! With plant `θ'' = -a θ' - b θ + k u` and `e = q_d - q`, forcing `s' = -reach(s)` gives
+//!
+//! ```text
+//! terminal:     u = (1/k) [q_d'' + a q' + b q + α e' + β (q/p) |e|^(q/p-1) e' + reach + k4 ∫e]
+//! nonsingular:  u = (1/k) [q_d'' + a q' + b q + (β/γ) sig(e')^(2-γ)           + reach + k4 ∫e]
+//! ```
+
+use crate::law::{finish, AxisSignals, LawOutput, LawState};
+use crate::params::{
+    limit, non_negative, positive, ConfigError, ReachingConfig, SmcConfig, SurfaceConfig,
+};
+use crate::{Exponent, Real};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Surface<R> {
+    Terminal {
+        alpha: R,
+        beta: R,
+        qp: Exponent,
+        qp_minus_one: Exponent,
+        beta_qp: R,
+        floor: R,
+    },
+    Nonsingular {
+        inv_beta: R,
+        gamma: Exponent,
+        two_minus_gamma: Exponent,
+        beta_over_gamma: R,
+    },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Reaching<R> {
+    /// `inv_phi == 0` selects the pure `sign(s)`.
+    Exponential { k: R, epsilon: R, inv_phi: R },
+    DoublePower {
+        k1: R,
+        k2: R,
+        k3: R,
+        beta1: Exponent,
+        beta2: Exponent,
+        beta3: Exponent,
+    },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Smc<R> {
+    a: R,
+    b: R,
+    inv_k: R,
+    surface: Surface<R>,
+    reaching: Reaching<R>,
+    k4: R,
+    pub(crate) integral_limit: R,
+    u_max: R,
+}
+
+fn odd_pair(p: i16, q: i16, name: &'static str) -> Result<Exponent, ConfigError> {
+    if p <= 0 || q <= 0 || p % 2 == 0 || q % 2 == 0 {
+        return Err(ConfigError::BadExponent(name));
+    }
+    Exponent::new(q, p).ok_or(ConfigError::BadExponent(name))
+}
+
+fn unit_interval(e: Exponent, name: &'static str) -> Result<Exponent, ConfigError> {
+    if e.num > 0 && e.num < e.den {
+        Ok(e)
+    } else {
+        Err(ConfigError::BadExponent(name))
+    }
+}
+
+impl<R: Real> Smc<R> {
+    pub fn new(c: &SmcConfig) -> Result<Self, ConfigError> {
+        let f = R::from_f32;
+        let surface = match c.surface {
+            SurfaceConfig::Terminal {
+                alpha,
+                beta,
+                p,
+                q,
+                singular_floor,
+            } => {
+                let qp = unit_interval(odd_pair(p, q, "q/p")?, "q/p")?;
+                Surface::Terminal {
+                    alpha: f(positive(alpha, "alpha")?),
+                    beta: f(positive(beta, "beta")?),
+                    qp,
+                    qp_minus_one: qp.minus_one(),
+                    beta_qp: f(beta) * R::from_f64(qp.as_f64()),
+                    floor: f(positive(singular_floor, "singular_floor")?),
+                }
+            }
+            SurfaceConfig::Nonsingular { beta, p, q } => {
+                // γ = p/q must lie in (1, 2)
+                let gamma = odd_pair(q, p, "p/q")?;
+                if !(gamma.num > gamma.den && gamma.num < 2 * gamma.den) {
+                    return Err(ConfigError::BadExponent("p/q"));
+                }
+                let beta = positive(beta, "beta")?;
+                Surface::Nonsingular {
+                    inv_beta: R::from_f64(1.0 / beta as f64),
+                    gamma,
+                    two_minus_gamma: gamma.two_minus(),
+                    beta_over_gamma: R::from_f64(beta as f64 / gamma.as_f64()),
+                }
+            }
+        };
+        let reaching = match c.reaching {
+            ReachingConfig::Exponential {
+                k,
+                epsilon,
+                boundary_layer,
+            } => Reaching::Exponential {
+                k: f(positive(k, "k")?),
+                epsilon: f(non_negative(epsilon, "epsilon")?),
+                inv_phi: if non_negative(boundary_layer, "boundary_layer")? > 0.0 {
+                    f(1.0 / boundary_layer)
+                } else {
+                    R::ZERO
+                },
+            },
+            ReachingConfig::DoublePower {
+                k1,
+                k2,
+                k3,
+                beta2,
+                beta3,
+            } => {
+                let beta2 = unit_interval(beta2, "beta2")?;
+                if beta3.num <= 0 || Exponent::new(beta3.num, beta3.den).is_none() {
+                    return Err(ConfigError::BadExponent("beta3"));
+                }
+                Reaching::DoublePower {
+                    k1: f(positive(k1, "k1")?),
+                    k2: f(positive(k2, "k2")?),
+                    k3: f(positive(k3, "k3")?),
+                    beta1: beta2.two_minus(),
+                    beta2,
+                    beta3,
+                }
+            }
+        };
+        Ok(Self {
+            a: f(non_negative(c.plant.a, "plant.a")?),
+            b: f(non_negative(c.plant.b, "plant.b")?),
+            inv_k: R::from_f64(1.0 / positive(c.plant.k, "plant.k")? as f64),
+            surface,
+            reaching,
+            k4: f(non_negative(c.k4, "k4")?),
+            integral_limit: f(limit(c.integral_limit, "integral_limit")?),
+            u_max: f(limit(c.u_max, "u_max")?),
+        })
+    }
+
+    pub fn evaluate(&self, st: &LawState<R>, sig: &AxisSignals<R>) -> LawOutput<R> {
+        let (e, e_dot) = (sig.e, sig.e_dot);
+        let (s, u_surface) = match self.surface {
+            Surface::Terminal {
+                alpha,
+                beta,
+                qp,
+                qp_minus_one,
+                beta_qp,
+                floor,
+            } => (
+                e_dot + alpha * e + beta * e.sig_pow(qp, R::ZERO),
+                alpha * e_dot + beta_qp * e.pow_abs(qp_minus_one, floor) * e_dot,
+            ),
+            Surface::Nonsingular {
+                inv_beta,
+                gamma,
+                two_minus_gamma,
+                beta_over_gamma,
+            } => (
+                e + inv_beta * e_dot.sig_pow(gamma, R::ZERO),
+                beta_over_gamma * e_dot.sig_pow(two_minus_gamma, R::ZERO),
+            ),
+        };
+        let reach = match self.reaching {
+            Reaching::Exponential {
+                k,
+                epsilon,
+                inv_phi,
+            } => {
+                let switch = if inv_phi == R::ZERO {
+                    s.sign()
+                } else {
+                    (s * inv_phi).clamp_sym(R::ONE)
+                };
+                k * s + epsilon * switch
+            }
+            Reaching::DoublePower {
+                k1,
+                k2,
+                k3,
+                beta1,
+                beta2,
+                beta3,
+            } => {
+                k1 * s.sig_pow(beta1, R::ZERO)
+                    + k2 * s.sig_pow(beta2, R::ZERO)
+                    + k3 * e.pow_abs(beta3, R::ZERO) * s
+            }
+        };
+        let u = self.inv_k
+            * (sig.qd_ddot
+                + self.a * sig.q_dot
+                + self.b * sig.q
+                + u_surface
+                + reach
+                + self.k4 * st.integral);
+        finish(u, e, self.u_max, s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::{PAPER_DSMC, PAPER_SMC};
+
+    fn sig(e: f64, e_dot: f64) -> AxisSignals<f64> {
+        AxisSignals {
+            e,
+            e_dot,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn dsmc_matches_hand_computation() {
+        let l = Smc::<f64>::new(&PAPER_DSMC).unwrap();
+        let (e, ed) = (0.1f64, 0.2f64);
+        let s = ed + 10.0 * e + libm::pow(e, 5.0 / 9.0);
+        let ueq = 10.0 * ed + (5.0 / 9.0) * libm::pow(e, -4.0 / 9.0) * ed;
+        let reach = 20.0 * libm::pow(s, 5.0 / 3.0)
+            + 20.0 * libm::pow(s, 1.0 / 3.0)
+            + 200.0 * libm::pow(e, 1.0 / 3.0) * s;
+        let st = LawState { integral: 0.5 };
+        let out = l.evaluate(&st, &sig(e, ed));
+        assert!((out.s - s).abs() < 1e-12);
+        assert!(
+            (out.u - (ueq + reach + 20.0 * 0.5)).abs() < 1e-9,
+            "{}",
+            out.u
+        );
+    }
+
+    #[test]
+    fn singular_term_is_bounded_at_zero_error() {
+        let l = Smc::<f32>::new(&PAPER_SMC).unwrap();
+        let out = l.evaluate(&LawState::default(), &sig(0.0, 1.0).into_f32());
+        // α e' + (5/9) (1e-4)^(-4/9) e' + k s + ε = 10 + 33.3 + 200 + 33
+        assert!((out.u - 276.3).abs() < 0.5, "{}", out.u);
+    }
+
+    #[test]
+    fn nonsingular_option_validates_exponent() {
+        let mut c = PAPER_DSMC;
+        c.surface = SurfaceConfig::Nonsingular {
+            beta: 10.0,
+            p: 5,
+            q: 3,
+        };
+        assert!(Smc::<f32>::new(&c).is_ok());
+        c.surface = SurfaceConfig::Nonsingular {
+            beta: 10.0,
+            p: 7,
+            q: 3,
+        };
+        assert_eq!(Smc::<f32>::new(&c), Err(ConfigError::BadExponent("p/q")));
+        c.surface = SurfaceConfig::Terminal {
+            alpha: 1.0,
+            beta: 1.0,
+            p: 4,
+            q: 3,
+            singular_floor: 1e-4,
+        };
+        assert_eq!(Smc::<f32>::new(&c), Err(ConfigError::BadExponent("q/p")));
+    }
+
+    trait IntoF32 {
+        fn into_f32(self) -> AxisSignals<f32>;
+    }
+    impl IntoF32 for AxisSignals<f64> {
+        fn into_f32(self) -> AxisSignals<f32> {
+            AxisSignals {
+                e: self.e as f32,
+                e_dot: self.e_dot as f32,
+                ..Default::default()
+            }
+        }
+    }
+}
