@@ -9,6 +9,7 @@
 //! Module map:
 //! - [`real`]: the number trait, guarded division and fractional powers.
 //! - [`vec3`]: three-axis vectors.
+//! - [`ode`]: fixed-step RK4 over any state.
 //! - [`plant`]: axis plant models used by the simulators (paper plant, eq. 5).
 //! - [`trajectory`]: reference paths with analytic first and second derivatives.
 //! - [`pid`], [`smc`]: the per-axis control laws; [`law`] selects between them.
@@ -26,6 +27,7 @@ pub mod contour;
 pub mod gantry;
 pub mod law;
 pub mod metrics;
+pub mod ode;
 pub mod params;
 pub mod pid;
 pub mod plant;

@@ -5,6 +5,7 @@
 //! RK4 by [`rk4_step`], which takes the input as a function of time and state so that a
 //! continuous-time controller can be re-evaluated at every RK stage.
 
+use crate::ode::{rk4, OdeState};
 use crate::Real;
 
 /// Position and velocity of one axis.
@@ -44,6 +45,33 @@ pub trait AxisDynamics<R> {
     fn accel(&self, s: AxisState<R>, u: R, t: R) -> R;
 }
 
+impl<R: Real> OdeState<R> for AxisState<R> {
+    fn add_scaled(&self, d: &Self, h: R) -> Self {
+        Self {
+            pos: self.pos + d.pos * h,
+            vel: self.vel + d.vel * h,
+        }
+    }
+}
+
+impl<R: Real, const N: usize> OdeState<R> for [AxisState<R>; N] {
+    fn add_scaled(&self, d: &Self, h: R) -> Self {
+        let mut o = *self;
+        for (x, dx) in o.iter_mut().zip(d) {
+            *x = x.add_scaled(dx, h);
+        }
+        o
+    }
+}
+
+/// `d/dt` of one axis state under `accel`.
+pub fn axis_derivative<R: Real>(s: AxisState<R>, accel: R) -> AxisState<R> {
+    AxisState {
+        pos: s.vel,
+        vel: accel,
+    }
+}
+
 /// One RK4 step of a set of `N` axes from time `t` over `dt`. `input(t, states)` returns
 /// the per-axis input at an RK stage (a zero-order-hold caller returns a constant).
 pub fn rk4_step<R: Real, D: AxisDynamics<R>, const N: usize>(
@@ -53,43 +81,14 @@ pub fn rk4_step<R: Real, D: AxisDynamics<R>, const N: usize>(
     dt: R,
     mut input: impl FnMut(R, &[AxisState<R>; N]) -> [R; N],
 ) {
-    let half = R::from_f32(0.5);
-    let sixth = R::from_f64(1.0 / 6.0);
-    let two = R::from_f32(2.0);
-    let deriv = |s: &[AxisState<R>; N], u: &[R; N], tt: R| -> [AxisState<R>; N] {
-        let mut d = [AxisState::default(); N];
-        for i in 0..N {
-            d[i] = AxisState {
-                pos: s[i].vel,
-                vel: axes[i].accel(s[i], u[i], tt),
-            };
+    *states = rk4(states, t, dt, |tt, s| {
+        let u = input(tt, s);
+        let mut d = *s;
+        for (((di, si), ui), ax) in d.iter_mut().zip(s).zip(u).zip(axes) {
+            *di = axis_derivative(*si, ax.accel(*si, ui, tt));
         }
         d
-    };
-    let offset = |s: &[AxisState<R>; N], k: &[AxisState<R>; N], h: R| -> [AxisState<R>; N] {
-        let mut o = *s;
-        for i in 0..N {
-            o[i].pos += k[i].pos * h;
-            o[i].vel += k[i].vel * h;
-        }
-        o
-    };
-    let s0 = *states;
-    let u1 = input(t, &s0);
-    let k1 = deriv(&s0, &u1, t);
-    let s2 = offset(&s0, &k1, dt * half);
-    let u2 = input(t + dt * half, &s2);
-    let k2 = deriv(&s2, &u2, t + dt * half);
-    let s3 = offset(&s0, &k2, dt * half);
-    let u3 = input(t + dt * half, &s3);
-    let k3 = deriv(&s3, &u3, t + dt * half);
-    let s4 = offset(&s0, &k3, dt);
-    let u4 = input(t + dt, &s4);
-    let k4 = deriv(&s4, &u4, t + dt);
-    for i in 0..N {
-        states[i].pos += (k1[i].pos + two * k2[i].pos + two * k3[i].pos + k4[i].pos) * dt * sixth;
-        states[i].vel += (k1[i].vel + two * k2[i].vel + two * k3[i].vel + k4[i].vel) * dt * sixth;
-    }
+    });
 }
 
 /// A [`PaperAxis`] with a step disturbance `d_step` added to θ'' from `t_dist` on.
