@@ -14,6 +14,7 @@
 //! - [`trajectory`]: reference paths with analytic first and second derivatives.
 //! - [`pid`], [`smc`]: the per-axis control laws; [`law`] selects between them.
 //! - [`contour`]: 3-D contour error and cross-coupling (paper eqs. 6-15).
+//! - [`estimator`]: velocity from quantised positions (tracking observer, spec 6).
 //! - [`gantry`]: the complete 3-axis control step the firmware runs every period.
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering.
 //! - [`params`]: named parameter presets with their sources.
@@ -24,6 +25,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod contour;
+pub mod estimator;
 pub mod gantry;
 pub mod law;
 pub mod metrics;

@@ -20,6 +20,9 @@ pub enum ConfigError {
     Negative(&'static str),
     /// The named exponent is outside the range the law is defined for.
     BadExponent(&'static str),
+    /// The named parameters give an unstable discrete-time system at the configured
+    /// sample period (e.g. an estimator bandwidth too high for the control rate).
+    Unstable(&'static str),
 }
 
 impl core::fmt::Display for ConfigError {
@@ -29,6 +32,7 @@ impl core::fmt::Display for ConfigError {
             Self::NotPositive(n) => write!(f, "parameter `{n}` must be greater than zero"),
             Self::Negative(n) => write!(f, "parameter `{n}` must not be negative"),
             Self::BadExponent(n) => write!(f, "exponent `{n}` is out of range for this law"),
+            Self::Unstable(n) => write!(f, "`{n}` is unstable at this sample period"),
         }
     }
 }

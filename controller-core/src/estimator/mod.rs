@@ -1,0 +1,267 @@
+//! Axis velocity (and sub-count position) from quantised encoder counts (spec 6).
+//!
+//! The board measures only whole encoder counts once per control period; every law needs
+//! the axis velocity. The naive backward difference `(n[k] - n[k-1]) / Ts` resolves one
+//! count per period (1 unit/s for the paper simulation's 1e-4 units at 10 kHz; 6.25 mm/s
+//! for the 0.625 µm axis), which turns the sliding variables into quantisation noise. This
+//! module offers, selectable per axis by [`EstimatorConfig`]:
+//!
+//! - [`BackwardDifference`]: the naive baseline, kept for comparison;
+//! - [`Pll`]: the ODrive-style tracking loop (an alpha-beta observer) with gains from one
+//!   bandwidth parameter and a discrete stability check;
+//! - [`Kalman`]: a steady-state Kalman filter on position, velocity and an unknown
+//!   acceleration bias, driven by the *commanded* acceleration, so that known motion
+//!   causes no lag and the bandwidth can be set low, for noise only.
+//!
+//! All estimators take wide counts (`i64`, see [`WideCounter`] for undoing the hardware
+//! counter wrap) and keep their state *relative to the last measured count*, in counts and
+//! counts per period. The numbers the filters work with are therefore a few counts at most,
+//! whatever the absolute position: no precision is lost in `f32` or fixed point after long
+//! travel, and no count is ever lost. Conversion to plant units happens only at the
+//! output, through the [`EstimatorTiming`] scales.
+
+mod kalman;
+mod pll;
+mod wide;
+
+pub use kalman::{Kalman, KalmanConfig, PAPER_SIM_KALMAN};
+pub use pll::{Pll, PllConfig, PAPER_SIM_PLL};
+pub use wide::{CounterWidth, WideCounter};
+
+use crate::params::{positive, ConfigError};
+use crate::Real;
+
+/// Sample period and encoder resolution, shared by all estimators of a machine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct EstimatorTiming {
+    /// Control period (s).
+    pub period_s: f32,
+    /// Length of one encoder count in plant units (1e-4 for the paper simulation,
+    /// 0.625e-3 mm for the physical axis).
+    pub count_size: f32,
+}
+
+/// The paper simulation of issue 6: 10 kHz control, position quantised to 1e-4 units.
+pub const PAPER_SIM_TIMING: EstimatorTiming = EstimatorTiming {
+    period_s: 1e-4,
+    count_size: 1e-4,
+};
+
+/// Which estimator an axis uses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(tag = "kind", rename_all = "snake_case"))]
+pub enum EstimatorConfig {
+    BackwardDifference,
+    Pll(PllConfig),
+    Kalman(KalmanConfig),
+}
+
+impl EstimatorConfig {
+    /// Short snake_case name used in reports (`backward_difference`, `pll`, `kalman`).
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Self::BackwardDifference => "backward_difference",
+            Self::Pll(_) => "pll",
+            Self::Kalman(_) => "kalman",
+        }
+    }
+}
+
+/// One estimate, in plant units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Estimate<R> {
+    /// Position (units), sub-count resolution for the observers.
+    pub pos: R,
+    /// Velocity (units/s).
+    pub vel: R,
+}
+
+/// Unit conversions, precomputed once from [`EstimatorTiming`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Scales<R> {
+    /// units per count
+    pub(crate) pos: R,
+    /// (units/s) per (count/period)
+    pub(crate) vel: R,
+    /// (counts/period²) per (units/s²)
+    pub(crate) accel_in: R,
+    /// (units/s²) per (counts/period²)
+    pub(crate) accel_out: R,
+}
+
+impl<R: Real> Scales<R> {
+    pub(crate) fn new(t: &EstimatorTiming) -> Result<Self, ConfigError> {
+        let ts = positive(t.period_s, "period_s")? as f64;
+        let c = positive(t.count_size, "count_size")? as f64;
+        Ok(Self {
+            pos: R::from_f64(c),
+            vel: R::from_f64(c / ts),
+            accel_in: R::from_f64(ts * ts / c),
+            accel_out: R::from_f64(c / (ts * ts)),
+        })
+    }
+}
+
+/// Count increments beyond this per period are physically impossible (2^20 counts of
+/// 0.625 µm per 100 µs is 6.5 km/s); clamping keeps a corrupted reading from producing a
+/// value the number type cannot hold.
+const MAX_STEP_COUNTS: i64 = 1 << 20;
+
+/// `n - last` as a Real, clamped to [`MAX_STEP_COUNTS`].
+pub(crate) fn step_counts<R: Real>(n: i64, last: i64) -> R {
+    let d = n
+        .saturating_sub(last)
+        .clamp(-MAX_STEP_COUNTS, MAX_STEP_COUNTS);
+    R::from_f64(d as f64)
+}
+
+/// `(count + frac) * units_per_count` without forming a large count in `R`'s precision
+/// more than once.
+pub(crate) fn to_units<R: Real>(count: i64, frac: R, s: &Scales<R>) -> R {
+    R::from_f64(count as f64) * s.pos + frac * s.pos
+}
+
+/// Naive backward difference: one count per period of velocity resolution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BackwardDifference<R> {
+    scales: Scales<R>,
+    last: i64,
+    vel_cpp: R,
+}
+
+impl<R: Real> BackwardDifference<R> {
+    pub fn new(t: &EstimatorTiming, count: i64) -> Result<Self, ConfigError> {
+        Ok(Self {
+            scales: Scales::new(t)?,
+            last: count,
+            vel_cpp: R::ZERO,
+        })
+    }
+
+    pub fn update(&mut self, count: i64) -> Estimate<R> {
+        self.vel_cpp = step_counts(count, self.last);
+        self.last = count;
+        self.estimate()
+    }
+
+    pub fn estimate(&self) -> Estimate<R> {
+        Estimate {
+            pos: to_units(self.last, R::ZERO, &self.scales),
+            vel: self.vel_cpp * self.scales.vel,
+        }
+    }
+
+    pub fn reset(&mut self, count: i64) {
+        self.last = count;
+        self.vel_cpp = R::ZERO;
+    }
+}
+
+/// One axis's estimator, selected by configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum VelocityEstimator<R> {
+    BackwardDifference(BackwardDifference<R>),
+    Pll(Pll<R>),
+    Kalman(Kalman<R>),
+}
+
+impl<R: Real> VelocityEstimator<R> {
+    /// Build the configured estimator, at rest at wide count `count`. A rejected
+    /// configuration returns the reason and builds nothing.
+    pub fn new(
+        cfg: &EstimatorConfig,
+        t: &EstimatorTiming,
+        count: i64,
+    ) -> Result<Self, ConfigError> {
+        Ok(match cfg {
+            EstimatorConfig::BackwardDifference => {
+                Self::BackwardDifference(BackwardDifference::new(t, count)?)
+            }
+            EstimatorConfig::Pll(c) => Self::Pll(Pll::new(c, t, count)?),
+            EstimatorConfig::Kalman(c) => Self::Kalman(Kalman::new(c, t, count)?),
+        })
+    }
+
+    /// Feed the wide count measured this period and the acceleration commanded over the
+    /// period that just ended (units/s²; only the Kalman filter uses it, pass zero when it
+    /// is unknown). Returns the estimate at the sample instant.
+    pub fn update(&mut self, count: i64, accel_cmd: R) -> Estimate<R> {
+        match self {
+            Self::BackwardDifference(e) => e.update(count),
+            Self::Pll(e) => e.update(count),
+            Self::Kalman(e) => e.update(count, accel_cmd),
+        }
+    }
+
+    /// The latest estimate.
+    pub fn estimate(&self) -> Estimate<R> {
+        match self {
+            Self::BackwardDifference(e) => e.estimate(),
+            Self::Pll(e) => e.estimate(),
+            Self::Kalman(e) => e.estimate(),
+        }
+    }
+
+    /// Restart at rest at `count` (e.g. after homing or a fault).
+    pub fn reset(&mut self, count: i64) {
+        match self {
+            Self::BackwardDifference(e) => e.reset(count),
+            Self::Pll(e) => e.reset(count),
+            Self::Kalman(e) => e.reset(count),
+        }
+    }
+}
+
+/// Schur stability of `z² + a1 z + a0` (Jury): both roots strictly inside the unit circle.
+pub(crate) fn quadratic_is_stable(a1: f64, a0: f64) -> bool {
+    a0.abs() < 1.0 && 1.0 + a1 + a0 > 0.0 && 1.0 - a1 + a0 > 0.0
+}
+
+/// Schur stability of `z³ + a2 z² + a1 z + a0` (Jury).
+pub(crate) fn cubic_is_stable(a2: f64, a1: f64, a0: f64) -> bool {
+    let p1 = 1.0 + a2 + a1 + a0;
+    let pm1 = -1.0 + a2 - a1 + a0;
+    p1 > 0.0 && pm1 < 0.0 && a0.abs() < 1.0 && (a0 * a0 - 1.0).abs() > (a0 * a2 - a1).abs()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jury_tests_match_known_polynomials() {
+        // (z - 0.5)²
+        assert!(quadratic_is_stable(-1.0, 0.25));
+        // (z - 1.1)(z - 0.5)
+        assert!(!quadratic_is_stable(-1.6, 0.55));
+        // (z + 0.9)(z - 0.9): stable; (z + 1.0)(z - 0.5): marginal, rejected
+        assert!(quadratic_is_stable(0.0, -0.81));
+        assert!(!quadratic_is_stable(0.5, -0.5));
+        // (z - 0.5)³ = z³ - 1.5 z² + 0.75 z - 0.125
+        assert!(cubic_is_stable(-1.5, 0.75, -0.125));
+        // (z - 0.5)²(z + 1.2)
+        assert!(!cubic_is_stable(0.2, -0.95, 0.3));
+    }
+
+    #[test]
+    fn backward_difference_resolution_is_one_count_per_period() {
+        let mut b = BackwardDifference::<f64>::new(&PAPER_SIM_TIMING, 0).unwrap();
+        let e = b.update(1);
+        assert!((e.vel - 1.0).abs() < 1e-12, "{}", e.vel); // 1e-4 units / 1e-4 s
+        assert!((e.pos - 1e-4).abs() < 1e-11); // f32 config: 1e-4 is not exact
+    }
+
+    #[test]
+    fn rejects_bad_timing() {
+        let t = EstimatorTiming {
+            period_s: 0.0,
+            count_size: 1e-4,
+        };
+        assert_eq!(
+            VelocityEstimator::<f32>::new(&EstimatorConfig::BackwardDifference, &t, 0),
+            Err(ConfigError::NotPositive("period_s"))
+        );
+    }
+}
