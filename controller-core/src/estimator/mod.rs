@@ -20,10 +20,12 @@
 //! travel, and no count is ever lost. Conversion to plant units happens only at the
 //! output, through the [`EstimatorTiming`] scales.
 
+mod bank;
 mod kalman;
 mod pll;
 mod wide;
 
+pub use bank::{AccelModel, Estimators3};
 pub use kalman::{Kalman, KalmanConfig, PAPER_SIM_KALMAN};
 pub use pll::{Pll, PllConfig, PAPER_SIM_PLL};
 pub use wide::{CounterWidth, WideCounter};
