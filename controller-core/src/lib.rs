@@ -18,24 +18,33 @@
 //! - [`gantry`]: the complete 3-axis control step the firmware runs every period.
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering.
 //! - [`params`]: named parameter presets with their sources.
+//! - Seed methods (patent, XY-table paper): [`physical_plant`] (friction, load, torque
+//!   limit), [`dob_smc`], [`adaptive_smc`], [`variable_gain_ccc`], combined per axis by
+//!   [`seed_gantry`]; presets and their reasoning in [`seed_params`].
 #![no_std]
 #![forbid(unsafe_code)]
 // `!(x > y)` is deliberate throughout: it is also true for NaN, which is how NaN inputs are
 // caught and replaced before they reach an output.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod adaptive_smc;
 pub mod contour;
+pub mod dob_smc;
 pub mod estimator;
 pub mod gantry;
 pub mod law;
 pub mod metrics;
 pub mod ode;
 pub mod params;
+pub mod physical_plant;
 pub mod pid;
 pub mod plant;
 pub mod real;
+pub mod seed_gantry;
+pub mod seed_params;
 pub mod smc;
 pub mod trajectory;
+pub mod variable_gain_ccc;
 pub mod vec3;
 
 pub use real::{Exponent, Real};

@@ -37,6 +37,8 @@ pub enum Trajectory<R> {
         omega: R,
         z_rate: R,
     },
+    /// Piecewise-linear path through vertices with an exact stop at each (see [`Polyline`]).
+    Polyline(Polyline<R>),
 }
 
 impl<R: Real> Trajectory<R> {
@@ -106,6 +108,7 @@ impl<R: Real> Trajectory<R> {
                     acc: Vec3::new(-rww * sn, -rww * cs, R::ZERO),
                 }
             }
+            Self::Polyline(p) => p.sample(t),
         }
     }
 
@@ -143,6 +146,154 @@ impl<R: Real> Trajectory<R> {
                 omega: c(omega),
                 z_rate: c(z_rate),
             },
+            Self::Polyline(p) => Trajectory::Polyline(p.cast()),
+        }
+    }
+}
+
+/// Most vertices a [`Polyline`] holds (fixed storage: no allocation in the core).
+pub const POLYLINE_MAX_VERTICES: usize = 8;
+
+/// A piecewise-linear path (e.g. a square with sharp corners), traversed segment by
+/// segment with a trapezoidal speed profile (`accel` up to `speed`, cruise, `accel` down)
+/// that **stops exactly at every vertex**.
+///
+/// Corner choice: a sharp geometric corner cannot be followed at constant speed by an axis
+/// with finite torque (the velocity would jump, an infinite acceleration the analytic
+/// `q_d''` cannot express). Exact stop (a CNC's G61 mode) keeps the corners perfectly
+/// sharp and the reference velocity continuous; acceleration is piecewise constant
+/// (it jumps at the profile's phase changes). At a vertex the velocity is zero, so
+/// the tangent is undefined there and the contour models fall back as documented in
+/// [`crate::contour`]. A closed polyline returns to its first vertex and repeats; an open
+/// one holds its last vertex. Before `t = 0` it holds the first vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Polyline<R> {
+    vertices: [Vec3<R>; POLYLINE_MAX_VERTICES],
+    count: usize,
+    closed: bool,
+    speed: R,
+    accel: R,
+}
+
+impl<R: Real> Polyline<R> {
+    /// `None` unless 2..=POLYLINE_MAX_VERTICES vertices and `speed`, `accel` > 0.
+    pub fn new(vertices: &[Vec3<R>], closed: bool, speed: R, accel: R) -> Option<Self> {
+        if vertices.len() < 2
+            || vertices.len() > POLYLINE_MAX_VERTICES
+            || !(speed > R::ZERO)
+            || !(accel > R::ZERO)
+        {
+            return None;
+        }
+        let mut v = [Vec3::zero(); POLYLINE_MAX_VERTICES];
+        v.iter_mut().zip(vertices).for_each(|(d, s)| *d = *s);
+        Some(Self {
+            vertices: v,
+            count: vertices.len(),
+            closed,
+            speed,
+            accel,
+        })
+    }
+
+    /// Axis-aligned square in the XY plane, counter-clockwise from `corner`.
+    pub fn square(corner: Vec3<R>, side: R, speed: R, accel: R) -> Option<Self> {
+        let (x, y) = (
+            Vec3::new(side, R::ZERO, R::ZERO),
+            Vec3::new(R::ZERO, side, R::ZERO),
+        );
+        Self::new(
+            &[corner, corner + x, corner + x + y, corner + y],
+            true,
+            speed,
+            accel,
+        )
+    }
+
+    fn segments(&self) -> usize {
+        if self.closed {
+            self.count
+        } else {
+            self.count - 1
+        }
+    }
+
+    fn segment(&self, i: usize) -> (Vec3<R>, Vec3<R>) {
+        let a = self.vertices.get(i).copied().unwrap_or_default();
+        let j = if i + 1 >= self.count { 0 } else { i + 1 };
+        let b = self.vertices.get(j).copied().unwrap_or_default();
+        (a, b)
+    }
+
+    /// Peak speed and duration of a segment of length `len`.
+    fn profile(&self, len: R) -> (R, R) {
+        // trapezoid if the ramps fit, triangle (peak sqrt(L a)) otherwise
+        let v = self.speed.min_of((len * self.accel).sqrt_pos());
+        let t_ramp = v.div_or(self.accel, R::ZERO);
+        let cruise = (len - v * t_ramp).max_of(R::ZERO).div_or(v, R::ZERO);
+        (v, t_ramp + t_ramp + cruise)
+    }
+
+    /// Duration of one pass over all segments.
+    pub fn duration(&self) -> R {
+        let mut total = R::ZERO;
+        for i in 0..self.segments() {
+            let (a, b) = self.segment(i);
+            total += self.profile((b - a).norm()).1;
+        }
+        total
+    }
+
+    pub fn sample(&self, t: R) -> RefSample<R> {
+        let hold = |p: Vec3<R>| RefSample {
+            pos: p,
+            vel: Vec3::zero(),
+            acc: Vec3::zero(),
+        };
+        if !(t > R::ZERO) {
+            return hold(self.vertices.first().copied().unwrap_or_default());
+        }
+        let period = self.duration();
+        let mut tau = t;
+        if self.closed && period > R::ZERO {
+            let laps = libm::floor(t.to_f64() / period.to_f64());
+            tau = t - period * R::from_f64(laps);
+        }
+        let half = R::from_f32(0.5);
+        for i in 0..self.segments() {
+            let (a, b) = self.segment(i);
+            let len = (b - a).norm();
+            let (v, dur) = self.profile(len);
+            if tau < dur {
+                let dir = (b - a) * R::ONE.div_or(len, R::ZERO);
+                let t_ramp = v.div_or(self.accel, R::ZERO);
+                let (s, sd, sdd) = if tau < t_ramp {
+                    (half * self.accel * tau * tau, self.accel * tau, self.accel)
+                } else if tau < dur - t_ramp {
+                    (half * v * t_ramp + v * (tau - t_ramp), v, R::ZERO)
+                } else {
+                    let r = dur - tau;
+                    (len - half * self.accel * r * r, self.accel * r, -self.accel)
+                };
+                return RefSample {
+                    pos: a + dir * s,
+                    vel: dir * sd,
+                    acc: dir * sdd,
+                };
+            }
+            tau -= dur;
+        }
+        let last = if self.closed { 0 } else { self.count - 1 };
+        hold(self.vertices.get(last).copied().unwrap_or_default())
+    }
+
+    pub fn cast<S: Real>(&self) -> Polyline<S> {
+        Polyline {
+            vertices: self.vertices.map(|v| v.cast()),
+            count: self.count,
+            closed: self.closed,
+            speed: S::from_f64(self.speed.to_f64()),
+            accel: S::from_f64(self.accel.to_f64()),
         }
     }
 }
@@ -179,6 +330,48 @@ mod tests {
             phase: Vec3::new(0.0, 1.0, 0.0),
             offset: Vec3::zero(),
         });
+    }
+
+    #[test]
+    fn square_stops_at_corners_and_follows_the_sides() {
+        // side 40 at 50 mm/s, 1000 mm/s²: ramps 0.05 s over 1.25 mm, cruise 0.75 s
+        let sq = Polyline::<f64>::square(Vec3::zero(), 40.0, 50.0, 1000.0).unwrap();
+        assert!((sq.duration() - 4.0 * 0.85).abs() < 1e-12);
+        let tr = Trajectory::Polyline(sq);
+        let corner = tr.sample(0.85);
+        assert!((corner.pos - Vec3::new(40.0, 0.0, 0.0)).norm() < 1e-9);
+        assert!(corner.vel.norm() < 1e-9);
+        let mid = tr.sample(0.85 + 0.425);
+        assert!((mid.pos - Vec3::new(40.0, 20.0, 0.0)).norm() < 1e-9);
+        assert_eq!(mid.vel, Vec3::new(0.0, 50.0, 0.0));
+        // closed: repeats
+        assert!((tr.sample(3.4 + 0.1).pos - tr.sample(0.1).pos).norm() < 1e-9);
+        // derivatives away from the phase changes
+        for k in 1..300 {
+            let t = 0.0113 * k as f64;
+            let h = 1e-6;
+            let (a, b, c) = (tr.sample(t - h), tr.sample(t), tr.sample(t + h));
+            for i in 0..3 {
+                let v = (c.pos[i] - a.pos[i]) / (2.0 * h);
+                assert!((v - b.vel[i]).abs() < 1e-4, "vel axis {i} t {t}");
+                let acc = (c.vel[i] - a.vel[i]) / (2.0 * h);
+                // acceleration jumps at the phase changes: compare only where smooth
+                if (c.acc[i] - a.acc[i]).abs() < 1e-9 {
+                    assert!((acc - b.acc[i]).abs() < 1e-3, "acc axis {i} t {t}");
+                }
+            }
+        }
+        // short segment: triangular profile, peak sqrt(L a)
+        let p = Polyline::<f64>::new(
+            &[Vec3::zero(), Vec3::new(1.0, 0.0, 0.0)],
+            false,
+            50.0,
+            1000.0,
+        )
+        .unwrap();
+        assert!((p.duration() - 2.0 * libm::sqrt(1000.0) / 1000.0).abs() < 1e-12);
+        assert_eq!(p.sample(10.0).pos, Vec3::new(1.0, 0.0, 0.0));
+        assert!(Polyline::<f64>::new(&[Vec3::zero()], false, 1.0, 1.0).is_none());
     }
 
     #[test]
