@@ -1,0 +1,19 @@
+//! # host-sim
+//!
+//! Runs the gantry's controller core (the same `controller-core` code the firmware runs)
+//! against plant models on a PC.
+//!
+//! - [`engine`]: the simulation loop, in *continuous* mode (controller re-evaluated at
+//!   every RK4 stage, for comparison with the paper's Matlab runs) and *discrete* mode
+//!   (controller at a fixed sample rate with zero-order hold, position quantisation and
+//!   actuator saturation: what the firmware does).
+//! - [`scenario`]: scenario files (TOML) and their conversion into runs.
+//! - [`paper`]: the reference paper's experiments (Tables 1 and 3) and published numbers.
+//! - [`report`]: tables on the terminal, JSON and CSV output.
+//! - [`plots`]: PNG/SVG figures (bundled font: renders on a machine without fonts).
+
+pub mod engine;
+pub mod paper;
+pub mod plots;
+pub mod report;
+pub mod scenario;
