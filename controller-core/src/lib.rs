@@ -8,6 +8,8 @@
 //!
 //! Module map:
 //! - [`real`]: the number trait, guarded division and fractional powers.
+//! - [`powers`]: fast cube-root based fractional powers (f32 and the fixed-point core).
+//! - [`fixed`]: saturating fixed-point types implementing [`Real`].
 //! - [`vec3`]: three-axis vectors.
 //! - [`ode`]: fixed-step RK4 over any state.
 //! - [`plant`]: axis plant models used by the simulators (paper plant, eq. 5).
@@ -31,6 +33,7 @@ pub mod adaptive_smc;
 pub mod contour;
 pub mod dob_smc;
 pub mod estimator;
+pub mod fixed;
 pub mod gantry;
 pub mod law;
 pub mod metrics;
@@ -39,6 +42,7 @@ pub mod params;
 pub mod physical_plant;
 pub mod pid;
 pub mod plant;
+pub mod powers;
 pub mod real;
 pub mod seed_gantry;
 pub mod seed_params;
@@ -47,5 +51,5 @@ pub mod trajectory;
 pub mod variable_gain_ccc;
 pub mod vec3;
 
-pub use real::{Exponent, Real};
+pub use real::{Exponent, LibmF32, Real};
 pub use vec3::Vec3;

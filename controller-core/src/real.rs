@@ -7,7 +7,7 @@
 //! root convention, and nothing returns NaN for finite input.
 
 use core::fmt::Debug;
-use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+use core::ops::{Add, AddAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 /// A rational exponent `num/den`, `den` odd and positive, so that `sig(x)^(num/den)` is the
 /// real odd root and is defined for negative `x`. Every exponent of the paper's laws
@@ -150,7 +150,7 @@ pub trait Real:
 }
 
 macro_rules! impl_float_real {
-    ($t:ty, $cbrt:path, $sqrt:path, $pow:path, $sin:path, $cos:path, $as:ident) => {
+    ($t:ty, $cbrt:path, $sqrt:path, $pow_abs:path, $sin_cos:path) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
@@ -186,25 +186,10 @@ macro_rules! impl_float_real {
                 }
             }
             fn pow_abs(self, e: Exponent, floor: Self) -> Self {
-                let mut base = if self < 0.0 { -self } else { self };
-                if e.num < 0 {
-                    if !(base >= floor) {
-                        base = floor;
-                    }
-                } else if e.num == 0 {
-                    return 1.0;
-                } else if base == 0.0 {
-                    return 0.0;
-                }
-                let r = $pow(base, e.$as());
-                if r.is_finite() {
-                    r
-                } else {
-                    <$t>::MAX
-                }
+                $pow_abs(self, e, floor)
             }
             fn sin_cos(self) -> (Self, Self) {
-                ($sin(self), $cos(self))
+                $sin_cos(self)
             }
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
@@ -213,24 +198,107 @@ macro_rules! impl_float_real {
     };
 }
 
+/// `f64` keeps the generic libm `pow`: it is the host's reference precision.
+fn pow_abs_f64(x: f64, e: Exponent, floor: f64) -> f64 {
+    let mut base = if x < 0.0 { -x } else { x };
+    if e.num < 0 {
+        if !(base >= floor) {
+            base = floor;
+        }
+    } else if e.num == 0 {
+        return 1.0;
+    } else if base == 0.0 {
+        return 0.0;
+    }
+    let r = libm::pow(base, e.as_f64());
+    if r.is_finite() {
+        r
+    } else {
+        f64::MAX
+    }
+}
+
+// f32, the firmware's type, takes the cube-root fast path for den ∈ {1, 3, 9} (see
+// `powers`); `sincosf` shares one argument reduction between sin and cos.
 impl_float_real!(
     f32,
-    libm::cbrtf,
+    crate::powers::cbrt_f32,
     libm::sqrtf,
-    libm::powf,
-    libm::sinf,
-    libm::cosf,
-    as_f32
+    crate::powers::pow_abs_f32,
+    libm::sincosf
 );
-impl_float_real!(
-    f64,
-    libm::cbrt,
-    libm::sqrt,
-    libm::pow,
-    libm::sin,
-    libm::cos,
-    as_f64
-);
+impl_float_real!(f64, libm::cbrt, libm::sqrt, pow_abs_f64, libm::sincos);
+
+/// `f32` with the generic `libm::powf` for every fractional power: the reference the fast
+/// powers are compared with, and the `dsmc3_f32_libm` cost kernel. Identical to `f32` in
+/// everything else.
+#[derive(Clone, Copy, Debug, Default, PartialEq, PartialOrd)]
+pub struct LibmF32(pub f32);
+
+macro_rules! libm_f32_binop {
+    ($tr:ident, $f:ident, $op:tt, $tra:ident, $fa:ident) => {
+        impl $tr for LibmF32 {
+            type Output = Self;
+            #[inline(always)]
+            fn $f(self, o: Self) -> Self {
+                LibmF32(self.0 $op o.0)
+            }
+        }
+        impl $tra for LibmF32 {
+            #[inline(always)]
+            fn $fa(&mut self, o: Self) {
+                self.0 = self.0 $op o.0;
+            }
+        }
+    };
+}
+libm_f32_binop!(Add, add, +, AddAssign, add_assign);
+libm_f32_binop!(Sub, sub, -, SubAssign, sub_assign);
+libm_f32_binop!(Mul, mul, *, MulAssign, mul_assign);
+
+impl Neg for LibmF32 {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        LibmF32(-self.0)
+    }
+}
+
+impl Real for LibmF32 {
+    const ZERO: Self = LibmF32(0.0);
+    const ONE: Self = LibmF32(1.0);
+    fn from_f32(x: f32) -> Self {
+        LibmF32(x)
+    }
+    fn from_f64(x: f64) -> Self {
+        LibmF32(x as f32)
+    }
+    fn to_f32(self) -> f32 {
+        self.0
+    }
+    fn to_f64(self) -> f64 {
+        self.0 as f64
+    }
+    fn div_or(self, d: Self, fallback: Self) -> Self {
+        LibmF32(self.0.div_or(d.0, fallback.0))
+    }
+    fn cbrt(self) -> Self {
+        LibmF32(libm::cbrtf(self.0))
+    }
+    fn sqrt_pos(self) -> Self {
+        LibmF32(self.0.sqrt_pos())
+    }
+    fn pow_abs(self, e: Exponent, floor: Self) -> Self {
+        LibmF32(crate::powers::pow_abs_f32_libm(self.0, e, floor.0))
+    }
+    fn sin_cos(self) -> (Self, Self) {
+        let (s, c) = libm::sincosf(self.0);
+        (LibmF32(s), LibmF32(c))
+    }
+    fn is_finite(self) -> bool {
+        self.0.is_finite()
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -1,0 +1,300 @@
+//! Saturating fixed-point numbers for the control laws.
+//!
+//! [`Fx`] wraps a type of the `fixed` crate and implements [`Real`], so PID, SMC, DSMC,
+//! the contour error and the cross-coupling run in fixed point from the same generic code
+//! as `f32`. Every arithmetic operator saturates at the format's bounds: nothing wraps,
+//! nothing panics (the `fixed` crate's own operators would panic or wrap on overflow,
+//! which is why the newtype exists).
+//!
+//! Two formats are provided; the range analysis behind them is in `docs/fixed-point.md`:
+//! - [`FxQ16`] = Q16.16 in an `i32`: ±32768 with 1.5e-5 resolution. Every multiply is one
+//!   `SMULL` on the Cortex-M4. Covers the paper's normalised helix and a real axis in mm
+//!   except the squared tangent norm `|v|²` above 181 mm/s (see the docs).
+//! - [`FxQ32`] = Q32.32 in an `i64`: ±2.1e9 with 2.3e-10 resolution. Covers every signal
+//!   of a ±2 m, 1 m/s gantry in mm with margin; a multiply is ~40 instructions on the M4.
+//!
+//! Products truncate toward −∞ (arithmetic shift). Division, cube roots and the
+//! trigonometric functions use integer-only algorithms (`crate::powers`, [`trig`]).
+
+pub mod trig;
+
+use crate::powers::{cbrt_raw, div_raw, inv_cbrt_raw};
+use crate::{Exponent, Real};
+use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+use fixed::types::{I16F16, I32F32};
+
+/// A saturating fixed-point number (newtype over a `fixed` crate type).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Fx<F>(pub F);
+
+/// Q16.16: the cheap format (one `SMULL` per multiply).
+pub type FxQ16 = Fx<I16F16>;
+/// Q32.32: the wide format (covers a 2 m, 1 m/s gantry in mm throughout).
+pub type FxQ32 = Fx<I32F32>;
+
+macro_rules! impl_fx {
+    ($F:ty, $raw:ty, $wide:ty, $frac:expr) => {
+        impl Fx<$F> {
+            /// Fractional bits of the format.
+            pub const FRAC: u32 = $frac;
+            pub const MAX: Self = Fx(<$F>::MAX);
+            pub const MIN: Self = Fx(<$F>::MIN);
+            /// The smallest positive value (one LSB).
+            pub const DELTA: Self = Fx(<$F>::DELTA);
+
+            pub const fn from_bits(b: $raw) -> Self {
+                Fx(<$F>::from_bits(b))
+            }
+
+            pub const fn to_bits(self) -> $raw {
+                self.0.to_bits()
+            }
+
+            /// Saturate a magnitude (as produced by the integer routines) to the positive
+            /// range, then apply the sign.
+            #[inline(always)]
+            fn from_mag(m: u64, negative: bool) -> Self {
+                let m = if m > <$raw>::MAX as u64 {
+                    <$raw>::MAX
+                } else {
+                    m as $raw
+                };
+                Self::from_bits(if negative { -m } else { m })
+            }
+
+            #[inline(always)]
+            fn mag(self) -> u64 {
+                self.to_bits().unsigned_abs() as u64
+            }
+
+            /// `|self|^(1/den)` for den 3 or 9 (`inverse`: `|self|^(-1/den)`), or `None`
+            /// for other denominators.
+            #[inline(always)]
+            fn root(m: u64, den: i16, inverse: bool) -> Option<u64> {
+                match (den, inverse) {
+                    (1, false) => Some(m),
+                    (3, false) => Some(cbrt_raw(m, $frac)),
+                    (3, true) => Some(inv_cbrt_raw(m, $frac)),
+                    (9, false) => Some(cbrt_raw(cbrt_raw(m, $frac), $frac)),
+                    // x^(-1/9) = cbrt(x^(-1/3)): no division
+                    (9, true) => Some(cbrt_raw(inv_cbrt_raw(m, $frac), $frac)),
+                    _ => None,
+                }
+            }
+        }
+
+        impl Add for Fx<$F> {
+            type Output = Self;
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                Fx(self.0.saturating_add(o.0))
+            }
+        }
+
+        impl Sub for Fx<$F> {
+            type Output = Self;
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                Fx(self.0.saturating_sub(o.0))
+            }
+        }
+
+        impl Mul for Fx<$F> {
+            type Output = Self;
+            /// Full-width product, truncated toward −∞, saturated.
+            #[inline(always)]
+            fn mul(self, o: Self) -> Self {
+                let p = (self.to_bits() as $wide * o.to_bits() as $wide) >> $frac;
+                Self::from_bits(if p > <$raw>::MAX as $wide {
+                    <$raw>::MAX
+                } else if p < <$raw>::MIN as $wide {
+                    <$raw>::MIN
+                } else {
+                    p as $raw
+                })
+            }
+        }
+
+        impl Neg for Fx<$F> {
+            type Output = Self;
+            #[inline(always)]
+            fn neg(self) -> Self {
+                Fx(self.0.saturating_neg())
+            }
+        }
+
+        impl AddAssign for Fx<$F> {
+            #[inline(always)]
+            fn add_assign(&mut self, o: Self) {
+                *self = *self + o;
+            }
+        }
+
+        impl SubAssign for Fx<$F> {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: Self) {
+                *self = *self - o;
+            }
+        }
+
+        impl Real for Fx<$F> {
+            const ZERO: Self = Fx(<$F>::ZERO);
+            const ONE: Self = Fx(<$F>::ONE);
+
+            /// Saturating; NaN maps to 0.
+            fn from_f32(x: f32) -> Self {
+                if x.is_nan() {
+                    Self::ZERO
+                } else {
+                    Fx(<$F>::saturating_from_num(x))
+                }
+            }
+
+            fn from_f64(x: f64) -> Self {
+                if x.is_nan() {
+                    Self::ZERO
+                } else {
+                    Fx(<$F>::saturating_from_num(x))
+                }
+            }
+
+            fn to_f32(self) -> f32 {
+                self.0.to_num::<f32>()
+            }
+
+            fn to_f64(self) -> f64 {
+                self.0.to_num::<f64>()
+            }
+
+            fn div_or(self, d: Self, fallback: Self) -> Self {
+                let negative = (self.to_bits() < 0) != (d.to_bits() < 0);
+                match div_raw(self.mag(), d.mag(), $frac) {
+                    Some(q) if q <= <$raw>::MAX as u64 => Self::from_mag(q, negative),
+                    _ => fallback,
+                }
+            }
+
+            fn cbrt(self) -> Self {
+                Self::from_mag(cbrt_raw(self.mag(), $frac), self.to_bits() < 0)
+            }
+
+            fn sqrt_pos(self) -> Self {
+                if self.to_bits() > 0 {
+                    Fx(self.0.sqrt())
+                } else {
+                    Self::ZERO
+                }
+            }
+
+            fn pow_abs(self, e: Exponent, floor: Self) -> Self {
+                let mut m = self.mag();
+                if e.num < 0 {
+                    let fl = floor.mag().max(1);
+                    if m < fl {
+                        m = fl;
+                    }
+                } else if e.num == 0 {
+                    return Self::ONE;
+                } else if m == 0 {
+                    return Self::ZERO;
+                }
+                let n = e.num.unsigned_abs();
+                match Self::root(m, e.den, e.num < 0) {
+                    Some(r) => {
+                        let r = Self::from_mag(r, false);
+                        let mut acc = if n & 1 == 1 { r } else { Self::ONE };
+                        let mut b = r;
+                        let mut k = n >> 1;
+                        while k > 0 {
+                            b = b * b;
+                            if k & 1 == 1 {
+                                acc = acc * b;
+                            }
+                            k >>= 1;
+                        }
+                        if e.den == 1 && e.num < 0 {
+                            Self::ONE.div_or(acc, Self::MAX)
+                        } else {
+                            acc
+                        }
+                    }
+                    // Any other denominator: through the f32 reference (not used by the
+                    // paper's laws, kept so the trait stays total).
+                    None => {
+                        let v = libm::powf(Self::from_mag(m, false).to_f32(), e.as_f32());
+                        if v.is_finite() {
+                            Self::from_f32(v)
+                        } else {
+                            Self::MAX
+                        }
+                    }
+                }
+            }
+
+            fn sin_cos(self) -> (Self, Self) {
+                let (s, c) = trig::sin_cos_q31(self.to_bits() as i64, $frac);
+                (
+                    Self::from_bits(trig::q31_to(s, $frac) as $raw),
+                    Self::from_bits(trig::q31_to(c, $frac) as $raw),
+                )
+            }
+
+            fn is_finite(self) -> bool {
+                true
+            }
+        }
+    };
+}
+
+impl_fx!(I16F16, i32, i64, 16);
+impl_fx!(I32F32, i64, i128, 32);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn operators_saturate() {
+        let big = FxQ16::from_f32(30_000.0);
+        assert_eq!(big + big, FxQ16::MAX);
+        assert_eq!(-big - big, FxQ16::MIN);
+        assert_eq!(big * big, FxQ16::MAX);
+        assert_eq!(big * -big, FxQ16::MIN);
+        assert_eq!(-FxQ16::MIN, FxQ16::MAX);
+        assert_eq!(FxQ32::from_f64(1e12), FxQ32::MAX);
+        assert_eq!(FxQ32::from_f32(f32::NAN), FxQ32::ZERO);
+        let h = FxQ32::from_f64(1.5);
+        assert_eq!((h * h).to_f64(), 2.25);
+    }
+
+    #[test]
+    fn division_and_fallback() {
+        let a = FxQ16::from_f32(3.0);
+        let b = FxQ16::from_f32(-4.0);
+        assert_eq!(a.div_or(b, FxQ16::ONE).to_f32(), -0.75);
+        assert_eq!(a.div_or(FxQ16::ZERO, FxQ16::ONE), FxQ16::ONE);
+        // quotient not representable → fallback
+        assert_eq!(
+            FxQ16::from_f32(1000.0).div_or(FxQ16::DELTA, FxQ16::ZERO),
+            FxQ16::ZERO
+        );
+    }
+
+    #[test]
+    fn paper_powers_in_fixed_point() {
+        let e59 = Exponent { num: 5, den: 9 };
+        let m49 = Exponent { num: -4, den: 9 };
+        let x = FxQ32::from_f64(0.3);
+        let v = x.sig_pow(e59, FxQ32::ZERO).to_f64();
+        assert!((v - 0.3f64.powf(5.0 / 9.0)).abs() < 1e-8, "{v}");
+        let w = (-x).sig_pow(e59, FxQ32::ZERO).to_f64();
+        assert_eq!(w, -v);
+        let fl = FxQ16::from_f32(1e-4);
+        assert_eq!(
+            FxQ16::ZERO.pow_abs(m49, fl),
+            fl.pow_abs(m49, fl),
+            "negative exponent floors the base"
+        );
+        assert_eq!(FxQ16::from_f32(-27.0).cbrt().to_f32(), -3.0);
+    }
+}
