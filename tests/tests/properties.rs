@@ -1,0 +1,96 @@
+//! Property tests of the core: contour-error geometry, and no NaN/inf from any law.
+
+use controller_core::contour::{contour_error, cross_couple};
+use controller_core::gantry::{Gantry3, GantryConfig, Measured};
+use controller_core::params::{
+    LawConfig, PidConfig, SurfaceConfig, PAPER_DSMC, PAPER_PID, PAPER_SMC,
+};
+use controller_core::trajectory::RefSample;
+use controller_core::Vec3;
+use proptest::prelude::*;
+
+fn v3(r: f64) -> impl Strategy<Value = Vec3<f64>> {
+    (-r..r, -r..r, -r..r).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+}
+
+proptest! {
+    #[test]
+    fn contour_vector_is_orthogonal_and_no_longer_than_e(e in v3(10.0), d in v3(10.0)) {
+        prop_assume!(d.norm_sq() > 1e-9);
+        let c = contour_error(e, d, Vec3::zero(), 1e-12);
+        prop_assert!(c.dot(d).abs() <= 1e-9 * (1.0 + e.norm() * d.norm()));
+        prop_assert!(c.norm() <= e.norm() * (1.0 + 1e-12) + 1e-15);
+    }
+
+    #[test]
+    fn contour_is_zero_when_error_is_along_the_path(d in v3(10.0), k in -5.0f64..5.0) {
+        prop_assume!(d.norm_sq() > 1e-6);
+        let c = contour_error(d * k, d, Vec3::zero(), 1e-12);
+        prop_assert!(c.norm() <= 1e-12 * (1.0 + d.norm() * k.abs()));
+    }
+
+    #[test]
+    fn contour_is_finite_for_zero_or_tiny_direction(e in v3(1e6), tiny in -1e-30f32..1e-30) {
+        let e32: Vec3<f32> = e.cast();
+        let d = Vec3::new(tiny, 0.0, tiny);
+        let c = contour_error(e32, d, Vec3::zero(), 0.0);
+        prop_assert!(c.is_finite());
+        let cc = cross_couple(e32, e32, d, Vec3::zero(), 0.01, 0.0);
+        prop_assert!(cc.c.is_finite() && cc.c_dot.is_finite());
+    }
+}
+
+fn extreme() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        Just(0.0f32),
+        Just(-0.0f32),
+        Just(f32::MIN_POSITIVE),
+        Just(-1e-30f32),
+        Just(1e30f32),
+        Just(-1e30f32),
+        Just(f32::MAX),
+        Just(f32::MIN),
+        -1e3f32..1e3,
+    ]
+}
+
+fn laws() -> Vec<LawConfig> {
+    let mut nonsingular = PAPER_DSMC;
+    nonsingular.surface = SurfaceConfig::Nonsingular {
+        beta: 10.0,
+        p: 5,
+        q: 3,
+    };
+    let limited = PidConfig {
+        u_max: 100.0,
+        integral_limit: 1.0,
+        kv_ff: 1.0,
+        ka_ff: 1.0,
+        ..PAPER_PID
+    };
+    vec![
+        LawConfig::Pid(PAPER_PID),
+        LawConfig::Pid(limited),
+        LawConfig::Smc(PAPER_SMC),
+        LawConfig::Smc(PAPER_DSMC),
+        LawConfig::Smc(nonsingular),
+    ]
+}
+
+proptest! {
+    #[test]
+    fn no_law_emits_nan_or_inf(p in [extreme(), extreme(), extreme()], v in [extreme(), extreme(), extreme()],
+                               r in [extreme(), extreme(), extreme()], rv in [extreme(), extreme(), extreme()]) {
+        for law in laws() {
+            let mut g = Gantry3::<f32>::new(&GantryConfig::uniform(law, 0.01)).unwrap();
+            let reference = RefSample { pos: Vec3::from_array(r), vel: Vec3::from_array(rv), acc: Vec3::from_array(rv) };
+            let meas = Measured { pos: Vec3::from_array(p), vel: Vec3::from_array(v) };
+            for _ in 0..3 {
+                let out = g.step(&reference, &meas, 1e-4);
+                prop_assert!(out.u.is_finite(), "{:?} -> {:?}", law, out.u);
+                prop_assert!(out.s.is_finite());
+                prop_assert!(g.states().iter().all(|s| s.integral.is_finite()));
+            }
+        }
+    }
+}
