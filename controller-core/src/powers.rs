@@ -1,13 +1,16 @@
-//! Fast fractional powers `|x|^(num/den)` for the exponents of the paper's laws.
+//! Fast fractional powers `|x|^(num/den)` for the exponents of the paper's laws, and the
+//! `f32` sine/cosine the trajectory generator needs (libm's evaluates in soft `f64`).
 //!
 //! Every exponent the laws use has denominator 1, 3 or 9 (1/3, 5/3, 5/9, -4/9), so a
 //! power is an integer power of a cube root (den 3) or of a cube root of a cube root
 //! (den 9). A generic `powf` (log + exp, with argument reduction) costs hundreds of cycles
 //! on a Cortex-M4F; the cube roots here cost a few dozen instructions and no division.
 //!
-//! Both the `f32` and the fixed-point paths compute the *inverse* cube root `y = x^(-1/3)`
+//! Both the `f32` and the fixed-point paths compute the *inverse* root `y = x^(-1/3)`
 //! with a division-free iteration and derive `x^(1/3) = x y²` from it; negative exponents
-//! then need no division either (`x^(-1/9) = cbrt(x^(-1/3))`).
+//! then need no division either. For den 9, `f32` computes `x^(-1/9)` directly with the
+//! same kind of iteration (one root instead of two); fixed point takes the cube root of
+//! a cube root (`x^(-1/9) = cbrt(x^(-1/3))`).
 //!
 //! Iteration (third order): with `r = 1 - x y³`, `y ← y (1 + r/3 + 2r²/9)`, the first three
 //! terms of `y (1 - r)^(-1/3)`. Seeds: the `f32` path uses the exponent-bit trick
@@ -16,7 +19,8 @@
 //!
 //! Maximum relative errors (tested in this module and in `tests/tests/fixed_powers.rs`):
 //! - [`inv_cbrt_f32`], [`cbrt_f32`]: [`CBRT_F32_MAX_REL_ERR`] (a few ulp).
-//! - [`pow_abs_f32`] for den 3 and 9: `|num| * (den/3) * CBRT_F32_MAX_REL_ERR` plus one
+//! - [`inv_root9_f32`]: [`CBRT_F32_MAX_REL_ERR`] as well.
+//! - [`pow_abs_f32`] for den 3 and 9: about `|num|` times the root's error plus one
 //!   rounding per multiply; bounded by [`POW_F32_MAX_REL_ERR`] for |num| <= 5.
 //! - [`cbrt_norm`], the fixed-point core: [`CBRT_NORM_MAX_REL_ERR`] (about 2^-27:
 //!   a few LSB of the Q30 result); the fixed types round the result to their resolution.
@@ -75,18 +79,94 @@ pub fn cbrt_f32(x: f32) -> f32 {
     }
 }
 
-/// `b^n` by binary exponentiation (n >= 0).
+/// `b^n` (n >= 0): the small powers the laws use are unrolled, larger ones loop.
 #[inline(always)]
-fn ipow_f32(mut b: f32, mut n: u32) -> f32 {
-    let mut acc = 1.0f32;
-    while n > 0 {
-        if n & 1 == 1 {
-            acc *= b;
+fn ipow_f32(b: f32, n: u32) -> f32 {
+    match n {
+        0 => 1.0,
+        1 => b,
+        2 => b * b,
+        3 => b * b * b,
+        4 => {
+            let b2 = b * b;
+            b2 * b2
         }
-        b *= b;
-        n >>= 1;
+        5 => {
+            let b2 = b * b;
+            b2 * b2 * b
+        }
+        _ => {
+            let (mut acc, mut b, mut n) = (1.0f32, b, n);
+            while n > 0 {
+                if n & 1 == 1 {
+                    acc *= b;
+                }
+                b *= b;
+                n >>= 1;
+            }
+            acc
+        }
     }
-    acc
+}
+
+/// Largest `|x|` for which [`sin_cos_f32`] uses its own reduction (`n · PIO2_1` is then
+/// exact); beyond it, and for NaN/inf, it defers to `libm::sincosf`.
+const SIN_COS_FAST_MAX: f32 = 65_536.0;
+
+/// `π/2` in three parts (Cephes): `PIO2_1` has 8 significant bits so `n · PIO2_1` is exact.
+const PIO2_1: f32 = 1.570_312_5;
+const PIO2_2: f32 = 4.837_513e-4;
+const PIO2_3: f32 = 7.549_79e-8;
+
+/// Maximum absolute error of [`sin_cos_f32`] for `|x| <= 100` (tested; grows with `|x|`
+/// by the reduction's `|n| · 2^-47` and the input's own ulp).
+pub const SIN_COS_F32_MAX_ABS_ERR: f32 = 3.0e-7;
+
+/// `(sin x, cos x)` in `f32` arithmetic only. `libm::sincosf` evaluates in `f64`, which is
+/// soft-float on the Cortex-M4F (about 2,700 instructions per call there); this costs
+/// about 40. Cody-Waite reduction to `[-π/4, π/4]` and the Cephes minimax polynomials.
+#[inline]
+pub fn sin_cos_f32(x: f32) -> (f32, f32) {
+    if !(x.abs() <= SIN_COS_FAST_MAX) {
+        return libm::sincosf(x);
+    }
+    // round(x · 2/π) by the 1.5 · 2^23 trick (|x · 2/π| < 2^22 here)
+    const SHIFTER: f32 = 12_582_912.0;
+    let n = (x * core::f32::consts::FRAC_2_PI + SHIFTER) - SHIFTER;
+    let r = ((x - n * PIO2_1) - n * PIO2_2) - n * PIO2_3;
+    let z = r * r;
+    let s = ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1) * z * r + r;
+    let c = ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;
+    match (n as i32) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// Magic constant of the inverse-ninth-root bit trick: `bits(y0) = M - bits(x)/9`
+/// (max relative seed error 3.0 %, same sweep as [`INV_CBRT_MAGIC`]).
+const INV_ROOT9_MAGIC: u32 = 0x4687_6c98;
+
+/// `x^(-1/9)` for `x > 0` finite: bit-trick seed and two third-order steps of
+/// `y ← y (1 + r/9 + 5r²/81)`, `r = 1 - x y⁹` (one root instead of two cube roots).
+#[inline]
+pub fn inv_root9_f32(x: f32) -> f32 {
+    // Subnormals: scale by 2^63, whose ninth root is 2^7.
+    let (x, scale) = if x < f32::MIN_POSITIVE {
+        (x * 9.223_372e18, 128.0)
+    } else {
+        (x, 1.0)
+    };
+    let mut y = f32::from_bits(INV_ROOT9_MAGIC.wrapping_sub(x.to_bits() / 9));
+    for _ in 0..2 {
+        let y2 = y * y;
+        let y4 = y2 * y2;
+        let r = 1.0 - x * (y4 * y4 * y);
+        y += y * (r * (1.0 / 9.0 + r * (5.0 / 81.0)));
+    }
+    y * scale
 }
 
 /// `|x|^e` with the [`crate::Real::pow_abs`] contract: for `e < 0` the base is floored at
@@ -108,15 +188,32 @@ pub fn pow_abs_f32(x: f32, e: Exponent, floor: f32) -> f32 {
         return 0.0;
     }
     let n = e.num.unsigned_abs() as u32;
-    let r = match e.den {
-        1 if e.num > 0 => ipow_f32(base, n),
-        1 => 1.0 / ipow_f32(base, n),
-        3 if e.num > 0 => ipow_f32(cbrt_f32(base), n),
-        3 => ipow_f32(inv_cbrt_f32(base), n),
-        9 if e.num > 0 => ipow_f32(cbrt_f32(cbrt_f32(base)), n),
-        // x^(-1/9) = cbrt(x^(-1/3)): no division
-        9 => ipow_f32(cbrt_f32(inv_cbrt_f32(base)), n),
-        _ => libm::powf(base, e.as_f32()),
+    let r = if !(base <= f32::MAX) {
+        // inf or NaN: the reference handles the special cases
+        libm::powf(base, e.as_f32())
+    } else {
+        match e.den {
+            1 if e.num > 0 => ipow_f32(base, n),
+            1 => 1.0 / ipow_f32(base, n),
+            3 => {
+                let y = inv_cbrt_f32(base);
+                // x^(1/3) = x y², x^(-1/3) = y
+                ipow_f32(if e.num > 0 { base * y * y } else { y }, n)
+            }
+            9 => {
+                let y = inv_root9_f32(base);
+                // x^(1/9) = x y⁸, x^(-1/9) = y
+                let root = if e.num > 0 {
+                    let y2 = y * y;
+                    let y4 = y2 * y2;
+                    base * (y4 * y4)
+                } else {
+                    y
+                };
+                ipow_f32(root, n)
+            }
+            _ => libm::powf(base, e.as_f32()),
+        }
     };
     if r.is_finite() {
         r
@@ -329,8 +426,12 @@ mod tests {
         while x < 1.0e36 {
             let c = cbrt_f32(x) as f64;
             let y = inv_cbrt_f32(x) as f64;
+            let y9 = inv_root9_f32(x) as f64;
             let t = (x as f64).cbrt();
-            worst = worst.max(rel(c, t)).max(rel(y, 1.0 / t));
+            worst = worst
+                .max(rel(c, t))
+                .max(rel(y, 1.0 / t))
+                .max(rel(y9, (x as f64).powf(-1.0 / 9.0)));
             assert_eq!(cbrt_f32(-x), -cbrt_f32(x));
             x *= 1.000_731;
         }
@@ -356,6 +457,24 @@ mod tests {
             x *= 1.003;
         }
         assert!(worst <= POW_F32_MAX_REL_ERR as f64, "worst {worst:e}");
+    }
+
+    #[test]
+    fn f32_sin_cos_error_bound() {
+        let mut worst = 0.0f64;
+        for k in -100_000..=100_000 {
+            let x = k as f32 * 1.0e-3;
+            let (s, c) = sin_cos_f32(x);
+            let xd = x as f64;
+            worst = worst
+                .max((s as f64 - xd.sin()).abs())
+                .max((c as f64 - xd.cos()).abs());
+        }
+        assert!(worst <= SIN_COS_F32_MAX_ABS_ERR as f64, "worst {worst:e}");
+        assert!(worst > 1e-9);
+        // beyond the fast range: libm
+        assert_eq!(sin_cos_f32(1.0e6), libm::sincosf(1.0e6));
+        assert!(sin_cos_f32(f32::NAN).0.is_nan());
     }
 
     #[test]

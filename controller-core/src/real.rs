@@ -218,20 +218,22 @@ fn pow_abs_f64(x: f64, e: Exponent, floor: f64) -> f64 {
     }
 }
 
-// f32, the firmware's type, takes the cube-root fast path for den ∈ {1, 3, 9} (see
-// `powers`); `sincosf` shares one argument reduction between sin and cos.
+// f32, the firmware's type, takes the cube-root fast path for den ∈ {1, 3, 9} and an
+// f32-only sin/cos (libm's `sincosf` works in f64, soft-float on the Cortex-M4F); see
+// `powers`.
 impl_float_real!(
     f32,
     crate::powers::cbrt_f32,
     libm::sqrtf,
     crate::powers::pow_abs_f32,
-    libm::sincosf
+    crate::powers::sin_cos_f32
 );
 impl_float_real!(f64, libm::cbrt, libm::sqrt, pow_abs_f64, libm::sincos);
 
-/// `f32` with the generic `libm::powf` for every fractional power: the reference the fast
-/// powers are compared with, and the `dsmc3_f32_libm` cost kernel. Identical to `f32` in
-/// everything else.
+/// `f32` with libm's generic `powf` and `cbrtf` for every fractional power: the reference
+/// the fast powers are compared with, and the `dsmc3_f32_libm` cost kernel. Identical to
+/// `f32` in everything else (including sin/cos), so the two kernels differ by the powers
+/// alone.
 #[derive(Clone, Copy, Debug, Default, PartialEq, PartialOrd)]
 pub struct LibmF32(pub f32);
 
@@ -292,7 +294,8 @@ impl Real for LibmF32 {
         LibmF32(crate::powers::pow_abs_f32_libm(self.0, e, floor.0))
     }
     fn sin_cos(self) -> (Self, Self) {
-        let (s, c) = libm::sincosf(self.0);
+        // same sin/cos as f32: this type differs from f32 in the powers only
+        let (s, c) = crate::powers::sin_cos_f32(self.0);
         (LibmF32(s), LibmF32(c))
     }
     fn is_finite(self) -> bool {

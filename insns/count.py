@@ -1,0 +1,269 @@
+#!/usr/bin/env python3
+"""Run the Cortex-M4 kernels of insns/kernels in the unicorn emulator.
+
+Usage (normally through `cargo insns`, which builds the ELF and calls this):
+  count.py ELF count                    one line per kernel:
+                                        `<name> instructions=<N> cycles_est=<M>`
+  count.py ELF replay NAME IN N OUT     run `insns_replay_<NAME>` on N records read
+                                        from IN (f32 little-endian), write the raw
+                                        outputs to OUT
+
+Kernels are discovered by symbol: every `insns_kernel_<name>` with a matching
+`insns_setup_<name>`. The emulator first runs the binary's reset handler up to `main`
+(cortex-m-rt: .data/.bss initialisation, FPU enable), then calls each setup (not
+counted) and each kernel once (counted: every instruction from the kernel's entry to
+its return, callees included).
+
+Instruction count: instructions issued. Unicorn does not report instructions skipped
+inside an IT block; they are added back (the core still issues them, as no-ops).
+
+Cycle estimate (Cortex-M4 TRM, table 3-1; zero-wait-state memory, i.e. code and data
+in single-cycle SRAM/flash with ART hits, no interrupts, no bus contention):
+  1   every instruction not listed below (ALU, MUL, SMULL/UMULL/SMLAL/UMLAL/UMAAL,
+      VADD/VSUB/VMUL/VNEG/VABS/VCVT/VCMP/VMOV, VMRS, IT, not-taken branches)
+  2   LDR*/STR* (single register, incl. literal loads), MLA/MLS, VLDR/VSTR,
+      VMOV between two core registers and a double/two singles
+  3   LDRD/STRD
+  1+N LDM/STM/PUSH/POP, VLDM/VSTM/VPUSH/VPOP (N = registers transferred)
+  3   VMLA/VMLS/VNMLA/VNMLS/VFMA/VFMS/VFNMA/VFNMS (chained 3-cycle FP MAC)
+  12  SDIV/UDIV (upper bound of 2..12)
+  14  VDIV.F32, VSQRT.F32
+  +P  pipeline refill for every taken branch, BL/BLX, BX, POP/LDM into PC:
+      P = 3, the upper bound of the TRM's 1..3
+The estimate is therefore an upper bound for zero-wait-state memory; with the STM32F407
+at 168 MHz from flash (5 wait states, ART accelerator) straight-line code fetched from
+flash can cost more on ART misses.
+"""
+
+import struct
+import sys
+
+try:
+    from capstone import CS_ARCH_ARM, CS_MODE_MCLASS, CS_MODE_THUMB, Cs
+    from elftools.elf.elffile import ELFFile
+    from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
+    from unicorn import arm_const as A
+except ImportError as exc:  # pragma: no cover - environment problem
+    sys.stderr.write(
+        "insns: missing Python package (%s).\n"
+        "Install: python3 -m pip install unicorn capstone pyelftools\n" % exc
+    )
+    sys.exit(2)
+
+FLASH = (0x0800_0000, 1024 * 1024)
+RAM = (0x2000_0000, 128 * 1024)
+# Private peripheral bus (SCB: CPACR for the FPU enable in the reset handler).
+PPB = (0xE000_0000, 0x10_0000)
+# Return address for called functions: an unused, mapped flash word (emulation stops
+# when PC reaches it, before it executes).
+RET_ADDR = FLASH[0] + FLASH[1] - 0x100
+STACK_TOP = RAM[0] + RAM[1]
+# Scratch buffers for the replay: an extra RAM region (the FSMC window on the STM32F4),
+# so a replay of any length does not compete with the binary's RAM.
+REPLAY = (0x6000_0000, 16 * 1024 * 1024)
+REFILL = 3
+MAX_INSNS = 50_000_000
+
+
+def load(path):
+    with open(path, "rb") as f:
+        elf = ELFFile(f)
+        segs = [
+            (s["p_vaddr"], s["p_paddr"], s.data())
+            for s in elf.iter_segments()
+            if s["p_type"] == "PT_LOAD"
+        ]
+        symtab = elf.get_section_by_name(".symtab")
+        syms = {}
+        for s in symtab.iter_symbols():
+            if s.name and s["st_info"]["type"] == "STT_FUNC":
+                syms[s.name] = s["st_value"] & ~1
+    return segs, syms
+
+
+def make_emu(segs):
+    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+    for base, size in (FLASH, RAM, PPB, REPLAY):
+        uc.mem_map(base, size)
+    for vaddr, paddr, data in segs:
+        for a in {vaddr, paddr}:
+            if FLASH[0] <= a < FLASH[0] + FLASH[1] or RAM[0] <= a < RAM[0] + RAM[1]:
+                uc.mem_write(a, data)
+    return uc
+
+
+class Counter:
+    """Code hook: counts instructions, IT-skipped instructions and estimated cycles."""
+
+    def __init__(self, uc):
+        self.cs = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
+        self.uc = uc
+        self.cache = {}
+        self.reset()
+
+    def reset(self):
+        self.insns = 0
+        self.cycles = 0
+        self.prev = None  # (address, size, mnemonic, is_branch_like)
+        self.it_pending = []
+        self.active = False
+
+    def decode(self, addr, size):
+        d = self.cache.get(addr)
+        if d is None:
+            code = bytes(self.uc.mem_read(addr, size))
+            ins = next(self.cs.disasm(code, addr), None)
+            if ins is None:
+                d = ("?", "", 1)
+            else:
+                d = (ins.mnemonic, ins.op_str, ins.size)
+            self.cache[addr] = d
+        return d
+
+    def it_block(self, addr, mnemonic):
+        """Addresses of the instructions an IT instruction at addr conditions."""
+        n = len(mnemonic) - 1  # it, itt, ite, ittt, ...
+        out, a = [], addr + 2
+        for _ in range(n):
+            code = bytes(self.uc.mem_read(a, 4))
+            ins = next(self.cs.disasm(code, a), None)
+            size = ins.size if ins else 2
+            out.append(a)
+            a += size
+        return out
+
+    @staticmethod
+    def base_cycles(m, ops):
+        m = m.split(".")[0]
+        if m in ("sdiv", "udiv"):
+            return 12
+        if m in ("vdiv", "vsqrt"):
+            return 14
+        if m in ("vmla", "vmls", "vnmla", "vnmls", "vfma", "vfms", "vfnma", "vfnms"):
+            return 3
+        if m in ("push", "pop", "ldm", "stm", "ldmia", "stmia", "ldmdb", "stmdb",
+                 "vpush", "vpop", "vldmia", "vstmia", "vldmdb", "vstmdb", "vldm", "vstm"):
+            regs = ops[ops.find("{") + 1:ops.find("}")]
+            n = 0
+            for r in regs.split(","):
+                r = r.strip()
+                if "-" in r:  # register range d8-d11
+                    lo, hi = r.split("-")
+                    n += int(hi.strip()[1:]) - int(lo[1:]) + 1
+                elif r:
+                    n += 1
+            return 1 + n
+        if m in ("ldrd", "strd"):
+            return 3
+        if m.startswith("ldr") or m.startswith("str") or m in ("vldr", "vstr"):
+            return 2
+        if m in ("mla", "mls"):
+            return 2
+        if m == "vmov" and ops.count(",") >= 2:
+            return 2
+        return 1
+
+    def hook(self, uc, addr, size, _):
+        if not self.active:
+            return
+        m, ops, _ = self.decode(addr, size)
+        # IT bookkeeping: instructions of the block that were not reported were skipped.
+        if self.it_pending:
+            if addr in self.it_pending:
+                self.it_pending.remove(addr)
+            else:
+                skipped = len(self.it_pending)
+                self.insns += skipped
+                self.cycles += skipped
+                self.it_pending = []
+        # Taken branch (or any control transfer): refill penalty on the previous one.
+        if self.prev is not None:
+            pa, ps = self.prev
+            if addr != pa + ps:
+                self.cycles += REFILL
+        self.insns += 1
+        self.cycles += self.base_cycles(m, ops)
+        if m[:2] == "it" and set(m[2:]) <= {"t", "e"}:
+            self.it_pending = self.it_block(addr, m)
+        self.prev = (addr, size)
+        if self.insns > MAX_INSNS:
+            uc.emu_stop()
+
+    def finish(self):
+        """Account for the final return (taken branch) and unflushed IT entries."""
+        self.insns += len(self.it_pending)
+        self.cycles += len(self.it_pending) + REFILL
+        self.it_pending = []
+
+
+def call(uc, counter, addr, args=(), count=False):
+    regs = [A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R3]
+    for r, v in zip(regs, args):
+        uc.reg_write(r, v)
+    uc.reg_write(A.UC_ARM_REG_SP, STACK_TOP)
+    uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
+    counter.reset()
+    counter.active = count
+    uc.emu_start(addr | 1, RET_ADDR, count=MAX_INSNS)
+    counter.active = False
+    if uc.reg_read(A.UC_ARM_REG_PC) & ~1 != RET_ADDR:
+        raise RuntimeError("function at 0x%08x did not return" % addr)
+    return uc.reg_read(A.UC_ARM_REG_R0)
+
+
+def boot(elf_path):
+    segs, syms = load(elf_path)
+    uc = make_emu(segs)
+    counter = Counter(uc)
+    uc.hook_add(UC_HOOK_CODE, counter.hook)
+    # Reset handler up to main: initialises .data/.bss, enables the FPU.
+    sp0, reset = struct.unpack("<II", bytes(uc.mem_read(FLASH[0], 8)))
+    uc.reg_write(A.UC_ARM_REG_SP, sp0)
+    uc.emu_start(reset | 1, syms["main"], count=MAX_INSNS)
+    return uc, counter, syms
+
+
+def cmd_count(elf_path):
+    uc, counter, syms = boot(elf_path)
+    names = sorted(n[len("insns_kernel_"):] for n in syms if n.startswith("insns_kernel_"))
+    failed = False
+    for name in names:
+        setup = syms.get("insns_setup_" + name)
+        if setup is None or call(uc, counter, setup) != 1:
+            print("%s setup failed" % name)
+            failed = True
+            continue
+        call(uc, counter, syms["insns_kernel_" + name], count=True)
+        counter.finish()
+        print("%s instructions=%d cycles_est=%d" % (name, counter.insns, counter.cycles))
+    return 1 if failed else 0
+
+
+def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
+    uc, counter, syms = boot(elf_path)
+    data = open(in_path, "rb").read()
+    if len(data) != n * in_rec * 4:
+        raise SystemExit("replay input has %d bytes, expected %d" % (len(data), n * in_rec * 4))
+    out_addr = (REPLAY[0] + len(data) + 64) & ~7
+    if out_addr + n * out_rec * 8 > REPLAY[0] + REPLAY[1]:
+        raise SystemExit("replay too long for the emulated buffer region")
+    uc.mem_write(REPLAY[0], data)
+    ran = call(uc, counter, syms["insns_replay_" + name], (REPLAY[0], n, out_addr))
+    if ran != n:
+        raise SystemExit("replay ran %d of %d steps" % (ran, n))
+    with open(out_path, "wb") as f:
+        f.write(bytes(uc.mem_read(out_addr, n * out_rec * 8)))
+    return 0
+
+
+def main(argv):
+    if len(argv) >= 3 and argv[2] == "count":
+        return cmd_count(argv[1])
+    if len(argv) == 7 and argv[2] == "replay":
+        return cmd_replay(argv[1], argv[3], argv[4], int(argv[5]), argv[6])
+    sys.stderr.write(__doc__)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,140 @@
+//! The Cortex-M4 ELF that `cargo insns` runs in the emulator.
+//!
+//! Every kernel is exported as two C functions, `insns_setup_<name>()` (builds the state
+//! in a static slot; not counted) and `insns_kernel_<name>()` (one counted step). The
+//! replay entry points run a recorded input sequence for the bit-exactness check.
+//! `main` only references every export so the linker keeps them; the emulator calls the
+//! symbols directly after running the reset handler up to `main` (which initialises
+//! `.data`/`.bss` and enables the FPU).
+#![no_std]
+#![no_main]
+
+use core::cell::UnsafeCell;
+use core::mem::MaybeUninit;
+use cortex_m_rt::entry;
+use insns_kernels::{replay, Dsmc3, REPLAY_IN, REPLAY_OUT};
+
+use controller_core::fixed::{FxQ16, FxQ32};
+use controller_core::LibmF32;
+
+/// A statically allocated kernel state. Only the emulator calls into this binary, one
+/// function at a time, so there is never concurrent access.
+struct Slot<T>(UnsafeCell<MaybeUninit<T>>);
+
+// SAFETY: single-threaded use only (see the type's docs).
+unsafe impl<T> Sync for Slot<T> {}
+
+impl<T> Slot<T> {
+    const fn new() -> Self {
+        Self(UnsafeCell::new(MaybeUninit::uninit()))
+    }
+}
+
+/// Export a kernel: `kernel!(name, StateType, setup_expr, |state| step_expr)`.
+/// `setup_expr` evaluates to `Option<StateType>`; the exported setup returns 1 when it
+/// built the state and 0 otherwise (the runner then reports the kernel as failed and
+/// never calls its step).
+macro_rules! kernel {
+    ($name:ident, $state:ty, $setup:expr, |$s:ident| $step:expr) => {
+        mod $name {
+            use super::*;
+            static SLOT: Slot<$state> = Slot::new();
+
+            #[export_name = concat!("insns_setup_", stringify!($name))]
+            pub extern "C" fn setup() -> u32 {
+                match $setup {
+                    Some(v) => {
+                        // SAFETY: single-threaded; see `Slot`.
+                        unsafe { (*SLOT.0.get()).write(v) };
+                        1
+                    }
+                    None => 0,
+                }
+            }
+
+            #[export_name = concat!("insns_kernel_", stringify!($name))]
+            pub extern "C" fn kernel() {
+                // SAFETY: the runner only calls this after `setup` returned 1.
+                let $s = unsafe { (*SLOT.0.get()).assume_init_mut() };
+                core::hint::black_box($step);
+            }
+        }
+    };
+}
+
+kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
+kernel!(dsmc3_f32_libm, Dsmc3<LibmF32>, Dsmc3::<LibmF32>::setup(), |k| k
+    .step());
+kernel!(dsmc3_fixed, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k.step());
+kernel!(dsmc3_fixed_q16, Dsmc3<FxQ16>, Dsmc3::<FxQ16>::setup(), |k| k
+    .step());
+
+/// Replay `n` records from `inp` (REPLAY_IN f32 each) through the Q32.32 controller,
+/// writing REPLAY_OUT raw u64 per record to `out`. Returns the steps run.
+///
+/// # Safety
+/// `inp` and `out` must point to `n` records of the sizes above.
+#[no_mangle]
+pub unsafe extern "C" fn insns_replay_fixed(inp: *const f32, n: u32, out: *mut u64) -> u32 {
+    let (i, o) = unsafe { buffers(inp, n, out) };
+    replay::<FxQ32>(i, o) as u32
+}
+
+/// As [`insns_replay_fixed`], Q16.16.
+///
+/// # Safety
+/// As [`insns_replay_fixed`].
+#[no_mangle]
+pub unsafe extern "C" fn insns_replay_fixed_q16(inp: *const f32, n: u32, out: *mut u64) -> u32 {
+    let (i, o) = unsafe { buffers(inp, n, out) };
+    replay::<FxQ16>(i, o) as u32
+}
+
+/// As [`insns_replay_fixed`], `f32` with the fast powers.
+///
+/// # Safety
+/// As [`insns_replay_fixed`].
+#[no_mangle]
+pub unsafe extern "C" fn insns_replay_f32(inp: *const f32, n: u32, out: *mut u64) -> u32 {
+    let (i, o) = unsafe { buffers(inp, n, out) };
+    replay::<f32>(i, o) as u32
+}
+
+/// As [`insns_replay_fixed`], `f32` with libm's `powf`.
+///
+/// # Safety
+/// As [`insns_replay_fixed`].
+#[no_mangle]
+pub unsafe extern "C" fn insns_replay_f32_libm(inp: *const f32, n: u32, out: *mut u64) -> u32 {
+    let (i, o) = unsafe { buffers(inp, n, out) };
+    replay::<LibmF32>(i, o) as u32
+}
+
+/// # Safety
+/// See [`insns_replay_fixed`].
+unsafe fn buffers<'a>(inp: *const f32, n: u32, out: *mut u64) -> (&'a [f32], &'a mut [u64]) {
+    let n = n as usize;
+    unsafe {
+        (
+            core::slice::from_raw_parts(inp, n * REPLAY_IN),
+            core::slice::from_raw_parts_mut(out, n * REPLAY_OUT),
+        )
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    // Nothing to do: the emulator runs the reset handler up to here, then calls the
+    // exported functions itself (exported symbols survive LTO and section GC).
+    loop {
+        core::hint::black_box(());
+    }
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    // The emulator stops on this symbol and reports the kernel as failed.
+    loop {
+        core::hint::black_box(());
+    }
+}
