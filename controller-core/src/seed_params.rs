@@ -169,41 +169,44 @@ pub const DOB_SMC_X: DobSmcConfig = dob_smc_for(&GANTRY_X);
 
 /// Adaptive SMC (spec 2.5). λ = ω; k_d = 2Jω so the s-loop is twice as fast as the
 /// surface; k = 10 mN·m covers the unmodelled Stribeck excess (0.3 · 40 mN·m at the
-/// lowest speeds) with T_load = 0 in the friction scenario. Boundary layer Φ = 1 mm/s:
-/// above the velocity observer's noise, so noise alone does not drive the estimates.
-/// Initial estimates are a deliberately poor guess (J 25 % low, friction unknown);
-/// bounds span 0.3×..3× the truth. Gains γ make each estimate's time constant about
-/// 1-2 s on the excitation of the friction scenario.
+/// lowest speeds) with T_load = 0 in the friction scenario. Boundary layer Φ = 0.3 mm/s:
+/// the estimates only move while |s| > Φ, so Φ must be small against the error a wrong
+/// estimate causes, yet above the 100 Hz velocity observer's noise (a few 0.01 mm/s at
+/// 10 kHz and 0.625 µm counts). Φ = 1 mm/s froze the estimates at 60 % of the truth.
+/// Initial estimates are a deliberately poor guess (J 25 % low, B and friction unknown =
+/// 0); bounds span 0.3×..3× the truth. The gains γ were raised until each estimate
+/// settles within ~2 s on the 5 mm / 2 Hz sine of the friction scenario (regressor sizes
+/// there: x_d'' ~ 800 mm/s², x' ~ 60 mm/s, μ ~ 1); they scale as 1/regressor².
 pub const fn adaptive_for(axis: &PhysicalAxisConfig) -> AdaptiveSmcConfig {
     let j = axis.inertia;
     AdaptiveSmcConfig {
         lambda: LOOP_OMEGA,
-        boundary_layer: 1.0,
+        boundary_layer: 0.3,
         kd: 2.0 * j * LOOP_OMEGA,
         k: 10.0,
         inertia: EstimateConfig {
             initial: 0.75 * j,
             min: 0.3 * j,
             max: 3.0 * j,
-            gamma: 2e-6,
+            gamma: 6e-4,
         },
         viscous: EstimateConfig {
             initial: 0.0,
             min: 0.0,
             max: 3.0 * axis.viscous,
-            gamma: 2e-4,
+            gamma: 0.06,
         },
         coulomb_pos: EstimateConfig {
             initial: 0.0,
             min: 0.0,
             max: 3.0 * axis.coulomb_pos_mnm,
-            gamma: 20.0,
+            gamma: 600.0,
         },
         coulomb_neg: EstimateConfig {
             initial: 0.0,
             min: 3.0 * axis.coulomb_neg_mnm,
             max: 0.0,
-            gamma: 20.0,
+            gamma: 600.0,
         },
         u_max: axis.torque_max_mnm,
     }

@@ -5,11 +5,13 @@
 //! does. Metrics are taken on the *true* plant state against the `f64` reference.
 
 use anyhow::{bail, Result};
+use controller_core::estimator::{EstimatorConfig, EstimatorTiming, PllConfig, VelocityEstimator};
 use controller_core::gantry::{Gantry3, GantryConfig, GantryOutput, Measured};
 use controller_core::law::LawState;
 use controller_core::metrics::{distance_to_path, Itse, MaxRms, TotalVariation};
 use controller_core::ode::{rk4, OdeState};
 use controller_core::plant::{axis_derivative, rk4_step, AxisDynamics, AxisState};
+use controller_core::trajectory::RefSample;
 use controller_core::trajectory::Trajectory;
 use controller_core::{Real, Vec3};
 use serde::{Deserialize, Serialize};
@@ -26,7 +28,7 @@ pub enum Numeric {
 }
 
 /// Where the controller's axis velocities come from in discrete mode.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum VelocitySource {
     /// The plant's true velocity (not available on hardware; the reference case).
@@ -34,6 +36,9 @@ pub enum VelocitySource {
     Exact,
     /// `(q[k] - q[k-1]) / Ts` of the quantised positions.
     BackwardDifference,
+    /// controller-core's PLL estimator on the encoder counts (needs `position_quantum`
+    /// > 0), fed with the reference acceleration as the firmware does.
+    Pll(PllConfig),
 }
 
 /// Controller at a fixed rate with zero-order hold, as the firmware runs it.
@@ -273,6 +278,19 @@ pub fn run<D: AxisDynamics<f64>>(spec: &RunSpec, plants: &[D; 3]) -> Result<RunR
     }
 }
 
+/// A controller the discrete loop can run: [`Gantry3`] and the seed methods'
+/// [`controller_core::seed_gantry::SeedController`] (see [`crate::seeds`]).
+pub trait DiscreteController<R: Real> {
+    /// One control period; the output's `u`, `s` and `errors.contour` are recorded.
+    fn step_discrete(&mut self, r: &RefSample<R>, m: &Measured<R>, dt: R) -> GantryOutput<R>;
+}
+
+impl<R: Real> DiscreteController<R> for Gantry3<R> {
+    fn step_discrete(&mut self, r: &RefSample<R>, m: &Measured<R>, dt: R) -> GantryOutput<R> {
+        self.step(r, m, dt)
+    }
+}
+
 /// Run with the controller in number type `R`.
 pub fn run_as<R: Real, D: AxisDynamics<f64>>(spec: &RunSpec, plants: &[D; 3]) -> Result<RunResult> {
     let mut gantry = Gantry3::<R>::new(&spec.controller)
@@ -317,50 +335,86 @@ pub fn run_as<R: Real, D: AxisDynamics<f64>>(spec: &RunSpec, plants: &[D; 3]) ->
                 }
             }
         }
-        Mode::Discrete(d) => {
-            if d.plant_substeps == 0 {
-                bail!("plant_substeps must be at least 1");
-            }
-            if !(d.position_quantum >= 0.0) || d.actuator_limit.is_nan() || d.actuator_limit <= 0.0
-            {
-                bail!("position_quantum must be >= 0 and actuator_limit > 0");
-            }
-            let ts = 1.0 / d.rate_hz;
-            let n = steps(spec.horizon_s, ts)?;
-            let sub = ts / d.plant_substeps as f64;
-            let mut plant = spec.initial;
-            let mut prev_q: Option<Vec3<f64>> = None;
-            let quantise = |v: f64| {
-                if d.position_quantum > 0.0 {
-                    (v / d.position_quantum).round() * d.position_quantum
-                } else {
-                    v
+        Mode::Discrete(d) => return discrete_loop(spec, &d, plants, &traj, &mut gantry),
+    }
+    Ok(rec.finish())
+}
+
+/// The discrete mode's loop for any [`DiscreteController`]: `spec.mode` must be
+/// [`Mode::Discrete`] (passed as `d`); `spec.controller` is not used, `ctl` is.
+pub fn discrete_loop<R: Real, D: AxisDynamics<f64>, C: DiscreteController<R>>(
+    spec: &RunSpec,
+    d: &DiscreteSpec,
+    plants: &[D; 3],
+    traj: &Trajectory<R>,
+    ctl: &mut C,
+) -> Result<RunResult> {
+    let mut rec = Recorder::new(spec);
+    if d.plant_substeps == 0 {
+        bail!("plant_substeps must be at least 1");
+    }
+    if !(d.position_quantum >= 0.0) || d.actuator_limit.is_nan() || d.actuator_limit <= 0.0 {
+        bail!("position_quantum must be >= 0 and actuator_limit > 0");
+    }
+    let ts = 1.0 / d.rate_hz;
+    let n = steps(spec.horizon_s, ts)?;
+    let sub = ts / d.plant_substeps as f64;
+    let mut plant = spec.initial;
+    let mut prev_q: Option<Vec3<f64>> = None;
+    let mut pll = Vec::new();
+    if let VelocitySource::Pll(c) = d.velocity {
+        if !(d.position_quantum > 0.0) {
+            bail!("the PLL velocity source needs position_quantum > 0");
+        }
+        let timing = EstimatorTiming {
+            period_s: ts as f32,
+            count_size: d.position_quantum as f32,
+        };
+        for st in &plant {
+            let c0 = (st.pos / d.position_quantum).round() as i64;
+            pll.push(
+                VelocityEstimator::<R>::new(&EstimatorConfig::Pll(c), &timing, c0)
+                    .map_err(|e| anyhow::anyhow!("invalid PLL configuration: {e}"))?,
+            );
+        }
+    }
+    let quantise = |v: f64| {
+        if d.position_quantum > 0.0 {
+            (v / d.position_quantum).round() * d.position_quantum
+        } else {
+            v
+        }
+    };
+    for k in 0..n {
+        let t = k as f64 * ts;
+        let q = positions(&plant).map(quantise);
+        let r = traj.sample(R::from_f64(t));
+        let mut m = measured::<R>(q, Vec3::zero());
+        match d.velocity {
+            VelocitySource::Exact => m.vel = velocities(&plant).cast(),
+            VelocitySource::BackwardDifference => {
+                if let Some(p) = prev_q {
+                    m.vel = (q - p).scale(1.0 / ts).cast();
                 }
-            };
-            for k in 0..n {
-                let t = k as f64 * ts;
-                let q = positions(&plant).map(quantise);
-                let v = match d.velocity {
-                    VelocitySource::Exact => velocities(&plant),
-                    VelocitySource::BackwardDifference => match prev_q {
-                        Some(p) => (q - p).scale(1.0 / ts),
-                        None => Vec3::zero(),
-                    },
-                };
-                prev_q = Some(q);
-                let r = traj.sample(R::from_f64(t));
-                let out = gantry.step(&r, &measured::<R>(q, v), R::from_f64(ts));
-                let u = out
-                    .u
-                    .cast::<f64>()
-                    .map(|x| x.clamp(-d.actuator_limit, d.actuator_limit));
-                rec.record(t, ts, &plant, u.to_array(), &out);
-                for j in 0..d.plant_substeps {
-                    rk4_step(plants, &mut plant, t + j as f64 * sub, sub, |_, _| {
-                        u.to_array()
-                    });
+            }
+            VelocitySource::Pll(_) => {
+                for (i, e) in pll.iter_mut().enumerate() {
+                    let c = (plant[i].pos / d.position_quantum).round() as i64;
+                    m.vel[i] = e.update(c, r.acc[i]).vel;
                 }
             }
+        }
+        prev_q = Some(q);
+        let out = ctl.step_discrete(&r, &m, R::from_f64(ts));
+        let u = out
+            .u
+            .cast::<f64>()
+            .map(|x| x.clamp(-d.actuator_limit, d.actuator_limit));
+        rec.record(t, ts, &plant, u.to_array(), &out);
+        for j in 0..d.plant_substeps {
+            rk4_step(plants, &mut plant, t + j as f64 * sub, sub, |_, _| {
+                u.to_array()
+            });
         }
     }
     Ok(rec.finish())

@@ -9,6 +9,7 @@
 //!   actuator saturation: what the firmware does).
 //! - [`scenario`]: scenario files (TOML) and their conversion into runs.
 //! - [`paper`]: the reference paper's experiments (Tables 1 and 3) and published numbers.
+//! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry.
 //! - [`report`]: tables on the terminal, JSON and CSV output.
 //! - [`plots`]: PNG/SVG figures (bundled font: renders on a machine without fonts).
 
@@ -17,3 +18,4 @@ pub mod paper;
 pub mod plots;
 pub mod report;
 pub mod scenario;
+pub mod seeds;

@@ -39,6 +39,9 @@ enum Command {
     Paper,
     /// Run one scenario file (e.g. host-sim/scenarios/helix_discrete_10khz.toml).
     Run { file: PathBuf },
+    /// Compare the seed methods (DOB-SMC, cross-coupling, adaptive friction SMC) on the
+    /// physical gantry: host-sim/scenarios/seeds_*.toml (docs/seed-methods.md).
+    Seeds,
 }
 
 fn main() -> Result<()> {
@@ -46,6 +49,7 @@ fn main() -> Result<()> {
     match cli.command.as_ref().unwrap_or(&Command::Paper) {
         Command::Paper => paper(&cli),
         Command::Run { file } => single(&cli, file),
+        Command::Seeds => seeds(&cli),
     }
 }
 
@@ -112,5 +116,26 @@ fn single(cli: &Cli, file: &PathBuf) -> Result<()> {
         std::fs::create_dir_all(&cli.out)?;
         write_trace_csv(&cli.out.join(format!("{}.csv", sc.name)), &r)?;
     }
+    Ok(())
+}
+
+fn seeds(cli: &Cli) -> Result<()> {
+    let started = Instant::now();
+    let rep = host_sim::seeds::run_builtin()?;
+    print!("{}", host_sim::seeds::table(&rep));
+    if let Some(j) = &cli.json {
+        write_json(j, &rep.to_json())?;
+        println!("\nJSON: {}", j.display());
+    }
+    if !cli.no_plots {
+        let dir = cli.out.join("seeds");
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        for (name, r) in &rep.traces {
+            write_trace_csv(&dir.join(format!("{name}.csv")), r)?;
+        }
+        println!("\nTraces (CSV) in {}", dir.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
 }
