@@ -394,7 +394,7 @@ pub fn run_builtin() -> Result<SeedsReport> {
 /// The comparison table printed by `host-sim seeds` (contour µm, ITSE mm²·s, torque mN·m).
 pub fn table(rep: &SeedsReport) -> String {
     let mut s = String::new();
-    s.push_str("| scenario | law | contour max µm | contour RMS µm | ITSE x | ITSE y | ITSE z | peak torque x/y/z mN·m | chattering x/y kN·m/s |\n");
+    s.push_str("| scenario | law | contour max µm | contour RMS µm | ITSE x | ITSE y | ITSE z | peak torque x/y/z mN·m | chattering x/y N·m/s |\n");
     s.push_str("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
     for (sc, laws) in &rep.scenarios {
         for (law, f) in laws {
@@ -408,8 +408,8 @@ pub fn table(rep: &SeedsReport) -> String {
                 f.peak_torque[0],
                 f.peak_torque[1],
                 f.peak_torque[2],
-                f.chattering[0] * 1e-6,
-                f.chattering[1] * 1e-6,
+                f.chattering[0] * 1e-3,
+                f.chattering[1] * 1e-3,
             ));
         }
     }
