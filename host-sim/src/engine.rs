@@ -363,7 +363,7 @@ pub fn discrete_loop<R: Real, D: AxisDynamics<f64>, C: DiscreteController<R>>(
     let mut prev_q: Option<Vec3<f64>> = None;
     let mut pll = Vec::new();
     if let VelocitySource::Pll(c) = d.velocity {
-        if !(d.position_quantum > 0.0) {
+        if d.position_quantum.is_nan() || d.position_quantum <= 0.0 {
             bail!("the PLL velocity source needs position_quantum > 0");
         }
         let timing = EstimatorTiming {
