@@ -7,6 +7,8 @@
 //!   every RK4 stage, for comparison with the paper's Matlab runs) and *discrete* mode
 //!   (controller at a fixed sample rate with zero-order hold, position quantisation and
 //!   actuator saturation: what the firmware does).
+//! - [`estimators`]: velocity sources (exact, backward difference, PLL, Kalman) compared
+//!   on the paper helix (issue 6).
 //! - [`scenario`]: scenario files (TOML) and their conversion into runs.
 //! - [`paper`]: the reference paper's experiments (Tables 1 and 3) and published numbers.
 //! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry.
@@ -14,6 +16,7 @@
 //! - [`plots`]: PNG/SVG figures (bundled font: renders on a machine without fonts).
 
 pub mod engine;
+pub mod estimators;
 pub mod paper;
 pub mod plots;
 pub mod report;

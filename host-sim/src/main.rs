@@ -39,6 +39,16 @@ enum Command {
     Paper,
     /// Run one scenario file (e.g. host-sim/scenarios/helix_discrete_10khz.toml).
     Run { file: PathBuf },
+    /// Velocity sources (exact, backward difference, PLL, Kalman) x PID/SMC/DSMC on the
+    /// paper helix at 10 kHz with 1e-4 quantisation (docs/velocity-estimation.md).
+    Estimators {
+        /// Add the paper's 10 s load disturbance on X (table 3).
+        #[arg(long)]
+        disturbance: bool,
+        /// Simulated time (s); the paper's helix runs 15 s.
+        #[arg(long, default_value_t = 15.0)]
+        horizon_s: f64,
+    },
     /// Compare the seed methods (DOB-SMC, cross-coupling, adaptive friction SMC) on the
     /// physical gantry: host-sim/scenarios/seeds_*.toml (docs/seed-methods.md).
     Seeds,
@@ -49,6 +59,10 @@ fn main() -> Result<()> {
     match cli.command.as_ref().unwrap_or(&Command::Paper) {
         Command::Paper => paper(&cli),
         Command::Run { file } => single(&cli, file),
+        Command::Estimators {
+            disturbance,
+            horizon_s,
+        } => estimators(&cli, *disturbance, *horizon_s),
         Command::Seeds => seeds(&cli),
     }
 }
@@ -135,6 +149,29 @@ fn seeds(cli: &Cli) -> Result<()> {
             write_trace_csv(&dir.join(format!("{name}.csv")), r)?;
         }
         println!("\nTraces (CSV) in {}", dir.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn estimators(cli: &Cli, disturbance: bool, horizon_s: f64) -> Result<()> {
+    use host_sim::estimators::{compare, default_sources, table};
+    let started = Instant::now();
+    let sc = match &cli.scenario {
+        Some(p) => load_toml::<PaperScenario>(p)?,
+        None => PaperScenario::builtin()?,
+    };
+    let sources = default_sources(sc.plant);
+    let c = compare(&sc, &sources, horizon_s, disturbance)?;
+    println!(
+        "paper helix, 10 kHz, 1e-4 quantisation, |u| <= 500, {horizon_s} s{}; contour over t >= {} s",
+        if disturbance { ", load disturbance on X at 10 s" } else { "" },
+        sc.table3.contour_from_s
+    );
+    print!("{}", table(&c, &sources));
+    if let Some(j) = &cli.json {
+        write_json(j, &c)?;
+        println!("JSON: {}", j.display());
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
