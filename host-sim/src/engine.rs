@@ -25,6 +25,12 @@ pub enum Numeric {
     F32,
     /// Host reference precision.
     F64,
+    /// Saturating fixed point Q32.32 (`controller_core::fixed::FxQ32`): the format the
+    /// range analysis in docs/fixed-point.md chooses.
+    Fixed,
+    /// Saturating fixed point Q16.16 (`FxQ16`): one `SMULL` per multiply, too coarse for
+    /// the integrator at kHz rates (see docs/fixed-point.md); for comparison.
+    FixedQ16,
 }
 
 /// Where the controller's axis velocities come from in discrete mode.
@@ -275,6 +281,8 @@ pub fn run<D: AxisDynamics<f64>>(spec: &RunSpec, plants: &[D; 3]) -> Result<RunR
     match spec.numeric {
         Numeric::F32 => run_as::<f32, D>(spec, plants),
         Numeric::F64 => run_as::<f64, D>(spec, plants),
+        Numeric::Fixed => run_as::<controller_core::fixed::FxQ32, D>(spec, plants),
+        Numeric::FixedQ16 => run_as::<controller_core::fixed::FxQ16, D>(spec, plants),
     }
 }
 
@@ -319,8 +327,8 @@ pub fn run_as<R: Real, D: AxisDynamics<f64>>(spec: &RunSpec, plants: &[D; 3]) ->
                 x = rk4(&x, t, dt_s, |tt, s| {
                     let o = eval(&gantry, tt, s);
                     let mut d = *s;
-                    for i in 0..3 {
-                        let acc = plants[i].accel(s.plant[i], o.u[i].to_f64(), tt);
+                    for (i, plant) in plants.iter().enumerate() {
+                        let acc = plant.accel(s.plant[i], o.u[i].to_f64(), tt);
                         d.plant[i] = axis_derivative(s.plant[i], acc);
                         d.integral[i] = o.integral_rate[i].to_f64();
                     }
