@@ -15,6 +15,10 @@
 //! - [`report`]: tables on the terminal, JSON and CSV output.
 //! - [`plots`]: PNG/SVG figures (bundled font: renders on a machine without fonts).
 
+// `!(x > 0.0)` is deliberate: it also rejects NaN, which is how bad numbers in scenario
+// files are caught.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod engine;
 pub mod estimators;
 pub mod paper;

@@ -38,6 +38,12 @@ fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow!("plotting failed: {e:?}")
 }
 
+/// A figure's contents: called with a sink that takes its panels in order.
+type Draw<'a> = &'a dyn Fn(&mut dyn FnMut(Panel) -> Result<()>) -> Result<()>;
+
+/// A named, coloured 3-D path.
+type Path3 = (String, RGBColor, Vec<(f64, f64, f64)>);
+
 /// One named series of (x, y) points.
 struct Series {
     name: String,
@@ -107,12 +113,7 @@ fn line_panel<DB: DrawingBackend>(
 }
 
 /// Render `draw` as `<stem>.png` and `<stem>.svg`.
-fn both(
-    dir: &Path,
-    stem: &str,
-    size: (u32, u32),
-    draw: &dyn Fn(&mut dyn FnMut(Panel) -> Result<()>) -> Result<()>,
-) -> Result<usize> {
+fn both(dir: &Path, stem: &str, size: (u32, u32), draw: Draw) -> Result<usize> {
     let png = dir.join(format!("{stem}.png"));
     let svg = dir.join(format!("{stem}.svg"));
     {
@@ -142,14 +143,11 @@ enum Panel {
     },
     Helix3d {
         title: String,
-        paths: Vec<(String, RGBColor, Vec<(f64, f64, f64)>)>,
+        paths: Vec<Path3>,
     },
 }
 
-fn render<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    draw: &dyn Fn(&mut dyn FnMut(Panel) -> Result<()>) -> Result<()>,
-) -> Result<()> {
+fn render<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, draw: Draw) -> Result<()> {
     let mut panels = Vec::new();
     draw(&mut |p| {
         panels.push(p);
@@ -173,7 +171,7 @@ fn render<DB: DrawingBackend>(
 fn helix_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
-    paths: &[(String, RGBColor, Vec<(f64, f64, f64)>)],
+    paths: &[Path3],
 ) -> Result<()> {
     let mut z1 = 1.0f64;
     for (_, _, p) in paths {

@@ -6,6 +6,15 @@ use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 
+/// Fixed-point for ordinary values, scientific for the tiny ones the sliding-mode laws reach.
+fn num(v: f64) -> String {
+    if v != 0.0 && v.abs() < 1e-3 {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.6}")
+    }
+}
+
 fn ratio(ours: f64, paper: f64) -> String {
     if paper > 0.0 {
         format!("{:>7.2}x", ours / paper)
@@ -42,12 +51,12 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
             let p = sc.published.table1.get(&l.name);
             let _ = writeln!(
                 s,
-                "  {:<6} {:>12.6} {:>12} {} | {:>12.6} {:>12} {} | {:>12.1}",
+                "  {:<6} {:>12} {:>12} {} | {:>12} {:>12} {} | {:>12.1}",
                 l.name,
-                row.itse,
+                num(row.itse),
                 p.map(|p| format!("{:.6}", p.itse)).unwrap_or_default(),
                 p.map(|p| ratio(row.itse, p.itse)).unwrap_or_default(),
-                row.robustness,
+                num(row.robustness),
                 p.map(|p| format!("{:.6}", p.robustness))
                     .unwrap_or_default(),
                 p.map(|p| ratio(row.robustness, p.robustness))
@@ -86,11 +95,11 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
             let f = |v: Option<f64>| v.map(|v| format!("{v:.6}")).unwrap_or_else(|| "-".into());
             let _ = writeln!(
                 s,
-                "  {:<12} {:>10.6} {:>10.6} {:>10.6} | {:>10} {:>10} {:>10} | {:>11.3e} {:>11.3e}",
+                "  {:<12} {:>10} {:>10} {:>10} | {:>10} {:>10} {:>10} | {:>11.3e} {:>11.3e}",
                 name,
-                row.x,
-                row.y,
-                row.z,
+                num(row.x),
+                num(row.y),
+                num(row.z),
                 f(p.map(|p| p.x)),
                 f(p.map(|p| p.y)),
                 f(p.map(|p| p.z)),
