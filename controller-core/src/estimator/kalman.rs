@@ -185,8 +185,8 @@ impl<R: Real> Kalman<R> {
 
     /// `accel_cmd`: acceleration commanded over the period that just ended (units/s²).
     pub fn update(&mut self, count: i64, accel_cmd: R) -> Estimate<R> {
-        let limit = R::from_f64(MAX_STEP_COUNTS as f64);
-        let half = R::from_f64(0.5);
+        let limit = R::from_f32(MAX_STEP_COUNTS as f32);
+        let half = R::from_f32(0.5);
         let acc = accel_cmd.finite_or_zero() * self.scales.accel_in + self.bias;
         let pred = self.rel + self.vel + acc * half - step_counts::<R>(count, self.last);
         let vel_pred = self.vel + acc;

@@ -99,7 +99,7 @@ impl<R: Real> Pll<R> {
     }
 
     pub fn update(&mut self, count: i64) -> Estimate<R> {
-        let limit = R::from_f64(MAX_STEP_COUNTS as f64);
+        let limit = R::from_f32(MAX_STEP_COUNTS as f32);
         // prediction, re-expressed relative to the new count
         let pred = self.rel + self.vel - step_counts::<R>(count, self.last);
         let innov = -pred;

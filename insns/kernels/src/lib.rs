@@ -11,9 +11,10 @@
 //! cross-coupling, DSMC on three axes, integrator update).
 #![no_std]
 
+use controller_core::estimator::{EstimatorConfig, EstimatorTiming, Estimators3};
 use controller_core::fixed::{FxQ16, FxQ32};
 use controller_core::gantry::{Gantry3, GantryConfig, GantryOutput, Measured};
-use controller_core::params::{LawConfig, PAPER_DSMC, PAPER_LAMBDA};
+use controller_core::params::{LawConfig, PAPER_DSMC, PAPER_LAMBDA, PAPER_PLANT};
 use controller_core::trajectory::Trajectory;
 use controller_core::{LibmF32, Real, Vec3};
 
@@ -84,6 +85,59 @@ impl<R: Real> Dsmc3<R> {
     pub fn step(&mut self) -> GantryOutput<R> {
         let r = self.traj.sample(self.t);
         self.gantry.step(&r, &self.meas, self.dt)
+    }
+}
+
+/// Wide encoder counts of the estimator kernels' axes: different on every axis, one of
+/// them far from the origin, as after long travel.
+pub const ESTIMATOR_COUNTS: [i64; 3] = [12_345, -6_789, 50_000_000];
+
+/// Count increments per period of the estimator kernels (a moving axis).
+pub const ESTIMATOR_STEP_COUNTS: [i64; 3] = [3, -2, 5];
+
+/// State of one estimator kernel: the three axes' velocity estimators exactly as the
+/// control interrupt runs them ([`Estimators3`]: wide counts in, positions and velocities
+/// out, the applied output fed back for the Kalman filter's commanded acceleration).
+pub struct Estimator3<R> {
+    bank: Estimators3<R>,
+    counts: [i64; 3],
+    u: Vec3<R>,
+}
+
+impl<R: Real> Estimator3<R> {
+    /// The paper-simulation preset of `cfg` on all three axes with the paper plant as the
+    /// acceleration model, at [`KERNEL_PERIOD_S`] and 1e-4-unit counts; one update is run
+    /// so the state is populated.
+    pub fn setup(cfg: EstimatorConfig) -> Option<Self> {
+        let timing = EstimatorTiming {
+            period_s: KERNEL_PERIOD_S,
+            count_size: 1e-4,
+        };
+        let bank = Estimators3::new(
+            &[cfg; 3],
+            &[Some(PAPER_PLANT); 3],
+            &timing,
+            ESTIMATOR_COUNTS,
+        )
+        .ok()?;
+        let mut k = Self {
+            bank,
+            counts: ESTIMATOR_COUNTS,
+            u: Vec3::new(R::from_f32(120.0), R::from_f32(-80.0), R::from_f32(40.0)),
+        };
+        k.step();
+        Some(k)
+    }
+
+    /// One period on three axes: advance the counts, update, feed back the output.
+    #[inline(never)]
+    pub fn step(&mut self) -> Measured<R> {
+        for (c, d) in self.counts.iter_mut().zip(ESTIMATOR_STEP_COUNTS) {
+            *c += d;
+        }
+        let m = self.bank.update(self.counts);
+        self.bank.applied(self.u);
+        m
     }
 }
 

@@ -12,8 +12,9 @@
 use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
-use insns_kernels::{replay, Dsmc3, REPLAY_IN, REPLAY_OUT};
+use insns_kernels::{replay, Dsmc3, Estimator3, REPLAY_IN, REPLAY_OUT};
 
+use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
 use controller_core::fixed::{FxQ16, FxQ32};
 use controller_core::LibmF32;
 
@@ -68,6 +69,18 @@ kernel!(dsmc3_f32_libm, Dsmc3<LibmF32>, Dsmc3::<LibmF32>::setup(), |k| k
 kernel!(dsmc3_fixed, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k.step());
 kernel!(dsmc3_fixed_q16, Dsmc3<FxQ16>, Dsmc3::<FxQ16>::setup(), |k| k
     .step());
+kernel!(
+    estimator_pll,
+    Estimator3<f32>,
+    Estimator3::<f32>::setup(EstimatorConfig::Pll(PAPER_SIM_PLL)),
+    |k| k.step()
+);
+kernel!(
+    estimator_kalman,
+    Estimator3<f32>,
+    Estimator3::<f32>::setup(EstimatorConfig::Kalman(PAPER_SIM_KALMAN)),
+    |k| k.step()
+);
 
 /// Replay `n` records from `inp` (REPLAY_IN f32 each) through the Q32.32 controller,
 /// writing REPLAY_OUT raw u64 per record to `out`. Returns the steps run.
