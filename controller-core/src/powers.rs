@@ -251,12 +251,38 @@ pub fn pow_abs_f32_libm(x: f32, e: Exponent, floor: f32) -> f32 {
 /// Seeds of `f^(-1/3)` in Q30 for `f ∈ [i/32, (i+1)/32)`, i = 4..31 (geometric mean of the
 /// interval's end values; max relative seed error 2.6 % at i = 4).
 const INV_CBRT_SEED_Q30: [u32; 32] = [
-    0x4000_0000, 0x4000_0000, 0x4000_0000, 0x4000_0000, 0x7b53_b8c2, 0x7344_ad0a,
-    0x6cfb_6979, 0x67e1_4804, 0x639e_6858, 0x5ffb_60c7, 0x5cd3_2d0e, 0x5a0b_f267,
-    0x5792_faa7, 0x555a_54ea, 0x5357_5d18, 0x5181_c8ec, 0x4fd3_05b2, 0x4e45_c8bf,
-    0x4cd5_c0dc, 0x4b7f_5da4, 0x4a3f_a5ec, 0x4914_18b8, 0x47fa_95aa, 0x46f1_4ae0,
-    0x45f6_a6db, 0x4509_4d63, 0x4428_0eae, 0x4351_e048, 0x4285_d74e, 0x41c3_23c0,
-    0x4109_0ca2, 0x4056_ecc6,
+    0x4000_0000,
+    0x4000_0000,
+    0x4000_0000,
+    0x4000_0000,
+    0x7b53_b8c2,
+    0x7344_ad0a,
+    0x6cfb_6979,
+    0x67e1_4804,
+    0x639e_6858,
+    0x5ffb_60c7,
+    0x5cd3_2d0e,
+    0x5a0b_f267,
+    0x5792_faa7,
+    0x555a_54ea,
+    0x5357_5d18,
+    0x5181_c8ec,
+    0x4fd3_05b2,
+    0x4e45_c8bf,
+    0x4cd5_c0dc,
+    0x4b7f_5da4,
+    0x4a3f_a5ec,
+    0x4914_18b8,
+    0x47fa_95aa,
+    0x46f1_4ae0,
+    0x45f6_a6db,
+    0x4509_4d63,
+    0x4428_0eae,
+    0x4351_e048,
+    0x4285_d74e,
+    0x41c3_23c0,
+    0x4109_0ca2,
+    0x4056_ecc6,
 ];
 
 /// `a * b >> s` for u32 operands (one UMULL).
@@ -302,7 +328,7 @@ pub fn cbrt_norm(f: u32) -> u32 {
 #[inline(always)]
 fn normalise3(m: u64, frac: u32) -> (u32, i32) {
     let bits = 64 - m.leading_zeros() as i32; // m ∈ [2^(bits-1), 2^bits)
-    // Choose e ∈ {bits, bits+1, bits+2} with e - frac ≡ 0 (mod 3); then m / 2^e ∈ [1/8, 1).
+                                              // Choose e ∈ {bits, bits+1, bits+2} with e - frac ≡ 0 (mod 3); then m / 2^e ∈ [1/8, 1).
     let rem = (bits - frac as i32).rem_euclid(3);
     let e = bits + if rem == 0 { 0 } else { 3 - rem };
     let sh = 32 - e; // f = m · 2^(32 - e)
@@ -391,8 +417,8 @@ pub fn div_raw(a: u64, b: u64, frac: u32) -> Option<u64> {
         (b << (32 - bb)) as u32
     };
     let y = recip_norm(g) as u64; // 1/g in Q30
-    // a / b = a · y · 2^-30 · 2^(32 - bb); raw quotient = that · 2^frac.
-    // Normalise a to its top 32 bits to keep the product in u64.
+                                  // a / b = a · y · 2^-30 · 2^(32 - bb); raw quotient = that · 2^frac.
+                                  // Normalise a to its top 32 bits to keep the product in u64.
     let ab = 64 - a.leading_zeros() as i32;
     let (a_top, a_sh) = if ab > 32 {
         (a >> (ab - 32), ab - 32)
@@ -400,7 +426,7 @@ pub fn div_raw(a: u64, b: u64, frac: u32) -> Option<u64> {
         (a, 0)
     };
     let p = a_top * y; // < 2^63
-    // 1/b = (y / 2^30) 2^-bb, so the raw quotient is a_top y 2^(a_sh + frac - 30 - bb).
+                       // 1/b = (y / 2^30) 2^-bb, so the raw quotient is a_top y 2^(a_sh + frac - 30 - bb).
     let sh = a_sh + frac as i32 - 30 - bb;
     let q = shift_sat(p, sh);
     if q == u64::MAX >> 1 {
@@ -436,7 +462,10 @@ mod tests {
             x *= 1.000_731;
         }
         assert!(worst <= CBRT_F32_MAX_REL_ERR as f64, "worst {worst:e}");
-        assert!(worst > 1e-8, "the bound must be tight enough to mean something");
+        assert!(
+            worst > 1e-8,
+            "the bound must be tight enough to mean something"
+        );
         assert_eq!(cbrt_f32(0.0), 0.0);
         assert_eq!(cbrt_f32(-27.0), -3.0);
         assert!(cbrt_f32(f32::NAN).is_nan());
@@ -483,7 +512,10 @@ mod tests {
         assert_eq!(pow_abs_f32(0.0, m49, 1e-4), pow_abs_f32(1e-4, m49, 1e-4));
         assert_eq!(pow_abs_f32(0.0, Exponent { num: 5, den: 9 }, 0.0), 0.0);
         assert_eq!(pow_abs_f32(-3.0, Exponent { num: 0, den: 1 }, 0.0), 1.0);
-        assert_eq!(pow_abs_f32(1e30, Exponent { num: 5, den: 1 }, 0.0), f32::MAX);
+        assert_eq!(
+            pow_abs_f32(1e30, Exponent { num: 5, den: 1 }, 0.0),
+            f32::MAX
+        );
         // fallback path (den 5) agrees with libm exactly
         let e15 = Exponent { num: 1, den: 5 };
         assert_eq!(pow_abs_f32(7.0, e15, 0.0), libm::powf(7.0, 0.2));

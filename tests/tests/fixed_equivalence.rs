@@ -41,7 +41,11 @@ fn fixed_point_helix_stays_within_one_percent_itse_and_one_count_of_f32() {
         );
         // a run that did not track would make the comparison meaningless (y starts one
         // unit off the path: the paper's helix starts at (0, 1, 0), the plant at rest at 0)
-        assert!(f.itse[i] < 0.5, "axis {i} does not track: ITSE {}", f.itse[i]);
+        assert!(
+            f.itse[i] < 0.5,
+            "axis {i} does not track: ITSE {}",
+            f.itse[i]
+        );
     }
     let d_contour = (x.contour_max - f.contour_max).abs();
     assert!(

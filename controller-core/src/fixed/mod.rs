@@ -23,6 +23,20 @@ use crate::{Exponent, Real};
 use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 use fixed::types::{I16F16, I32F32};
 
+/// Relative error bound of one fixed-point root (cube root, inverse cube root) and of
+/// [`Real::div_or`]'s reciprocal, before the format's own rounding: see `crate::powers`.
+pub const FX_ROOT_MAX_REL_ERR: f64 = crate::powers::CBRT_NORM_MAX_REL_ERR;
+
+/// Relative error bound of [`Real::pow_abs`] in fixed point for den ∈ {1, 3, 9} and
+/// |num| <= 5, before rounding: a den-9 root is two roots (4/3 of one root's error) and
+/// the integer power multiplies the root's error by |num|: 5 · 4/3 · 1e-8 ≈ 7e-8.
+pub const FX_POW_MAX_REL_ERR: f64 = 7.0e-8;
+
+/// Rounding allowance of the fixed-point routines, in LSB of the format: each root and
+/// quotient rounds once to the format (0.5 LSB) and the den-9 path rounds twice; the
+/// integer power's multiplications truncate (1 LSB each, at most three for |num| <= 5).
+pub const FX_ROUTINE_MAX_LSB: f64 = 4.0;
+
 /// A saturating fixed-point number (newtype over a `fixed` crate type).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Fx<F>(pub F);

@@ -64,11 +64,20 @@ macro_rules! kernel {
 }
 
 kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
-kernel!(dsmc3_f32_libm, Dsmc3<LibmF32>, Dsmc3::<LibmF32>::setup(), |k| k
+kernel!(
+    dsmc3_f32_libm,
+    Dsmc3<LibmF32>,
+    Dsmc3::<LibmF32>::setup(),
+    |k| k.step()
+);
+kernel!(dsmc3_fixed, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k
     .step());
-kernel!(dsmc3_fixed, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k.step());
-kernel!(dsmc3_fixed_q16, Dsmc3<FxQ16>, Dsmc3::<FxQ16>::setup(), |k| k
-    .step());
+kernel!(
+    dsmc3_fixed_q16,
+    Dsmc3<FxQ16>,
+    Dsmc3::<FxQ16>::setup(),
+    |k| k.step()
+);
 kernel!(
     estimator_pll,
     Estimator3<f32>,
