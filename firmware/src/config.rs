@@ -41,7 +41,7 @@ pub const CONTROL_PERIOD_S: f32 = 1.0 / CONTROL_RATE_HZ as f32;
 pub const PWM_FREQUENCY_HZ: u32 = 20_000;
 
 /// Encoder resolution: 2000-line encoder read x4 = 8000 counts/rev on a 5 mm lead screw.
-pub const MM_PER_COUNT: f32 = 5.0 / 8000.0;
+pub const MM_PER_COUNT: f64 = 5.0 / 8000.0;
 
 /// Interval between telemetry log lines, milliseconds.
 pub const TELEMETRY_PERIOD_MS: u32 = 100;
@@ -79,9 +79,11 @@ pub fn board_loop() -> LoopConfig {
         gantry: GantryConfig::uniform(law, PAPER_LAMBDA),
         estimator: [EstimatorConfig::Pll(BOARD_PLL); AXES],
         accel_model: [None; AXES],
+        rate_hz: CONTROL_RATE_HZ,
+        length_per_count: MM_PER_COUNT,
         timing: EstimatorTiming {
             period_s: CONTROL_PERIOD_S,
-            count_size: MM_PER_COUNT,
+            count_size: MM_PER_COUNT as f32,
         },
         path: PathPlan::HelixFromArmPosition {
             radius: 10.0,

@@ -26,14 +26,13 @@ use controller_core::estimator::{
     CounterWidth, EstimatorConfig, EstimatorTiming, Estimators3, WideCounter,
 };
 use controller_core::gantry::{Gantry3, GantryConfig};
-use controller_core::metrics::{Itse, MaxRms, TotalVariation};
 use controller_core::params::{ConfigError, PlantParams};
 use controller_core::trajectory::{RefSample, Trajectory};
 use controller_core::Vec3;
 
 use crate::io::GantryIo;
 use crate::safety::{Axis, FaultReason, Request, SafetyMonitor, SafetyState};
-use crate::telemetry::{Figures, Snapshot};
+use crate::telemetry::{RunMetrics, Snapshot};
 use crate::AXES;
 
 /// Encoder counter widths of the board: TIM2 and TIM5 are 32-bit, TIM3 16-bit.
@@ -68,7 +67,14 @@ pub struct LoopConfig {
     /// Axis model giving the commanded acceleration to the estimators that use it
     /// (Kalman); `None`: not used.
     pub accel_model: [Option<PlantParams>; AXES],
-    /// Control period and length of one encoder count (plant units: mm on the machine).
+    /// Control rate, Hz. The trajectory time is `k / rate` evaluated in `f64` and rounded
+    /// once to `f32`: exact for any run length (an `f32` period count would lose whole
+    /// periods after 2^24 of them, 28 min at 10 kHz) and identical to host-sim's.
+    pub rate_hz: u32,
+    /// Length of one encoder count in plant units (mm on the machine). Positions are
+    /// `count × length` evaluated in `f64` and rounded once to `f32`, as host-sim does.
+    pub length_per_count: f64,
+    /// Period and count size as the velocity estimators see them.
     pub timing: EstimatorTiming,
     /// Reference path.
     pub path: PathPlan,
@@ -82,46 +88,11 @@ pub struct LoopConfig {
     pub path_duration_s: f32,
 }
 
-/// Whole-run accumulators (controller-core metrics) of what the controller sees.
-#[derive(Clone, Copy, Debug, Default)]
-struct RunMetrics {
-    itse: [Itse<f32>; AXES],
-    tracking: [MaxRms<f32>; AXES],
-    contour: MaxRms<f32>,
-    variation: [TotalVariation<f32>; AXES],
-}
-
-impl RunMetrics {
-    fn add(&mut self, t_s: f32, dt_s: f32, tracking: &[f32; AXES], contour: f32, u: &[f32; AXES]) {
-        for i in 0..AXES {
-            self.itse[i].add(t_s, tracking[i], dt_s);
-            self.tracking[i].add(tracking[i]);
-            self.variation[i].add(u[i]);
-        }
-        self.contour.add(contour);
-    }
-
-    fn figures(&self) -> Figures {
-        let mut f = Figures {
-            samples: self.contour.count(),
-            contour_max: self.contour.max,
-            contour_rms: self.contour.rms(),
-            ..Figures::default()
-        };
-        for i in 0..AXES {
-            f.itse[i] = self.itse[i].value;
-            f.tracking_max[i] = self.tracking[i].max;
-            f.tracking_rms[i] = self.tracking[i].rms();
-            f.effort_variation[i] = self.variation[i].value;
-        }
-        f
-    }
-}
-
 /// The control loop state owned by the control interrupt.
 pub struct ControlLoop {
     cfg: LoopConfig,
     period_s: f32,
+    period_s_f64: f64,
     gantry: Gantry3<f32>,
     counters: [WideCounter; AXES],
     estimators: Estimators3<f32>,
@@ -151,6 +122,7 @@ impl ControlLoop {
         };
         Ok(Self {
             period_s: cfg.timing.period_s,
+            period_s_f64: 1.0 / f64::from(cfg.rate_hz.max(1)),
             gantry: Gantry3::new(&cfg.gantry)?,
             counters,
             estimators,
@@ -158,7 +130,7 @@ impl ControlLoop {
             safety: SafetyMonitor::new(cfg.following_error_limit),
             traj_periods: 0,
             metrics: RunMetrics::default(),
-            snapshot: Snapshot::BOOT,
+            snapshot: Snapshot::boot(),
             cfg,
         })
     }
@@ -210,7 +182,10 @@ impl ControlLoop {
         if enabling {
             self.estimators.reset(counts);
         }
-        let meas = self.estimators.update(counts);
+        let mut meas = self.estimators.update(counts);
+        for (p, n) in counts.iter().enumerate() {
+            meas.pos[p] = (*n as f64 * self.cfg.length_per_count) as f32;
+        }
 
         // 4. Control.
         let mut effort = [0.0; AXES];
@@ -221,7 +196,7 @@ impl ControlLoop {
             if enabling {
                 self.on_enable(meas.pos);
             }
-            let t_s = self.traj_periods as f32 * self.period_s;
+            let t_s = self.traj_time_s();
             let r = self.reference_at(t_s);
             let out = self.gantry.step(&r, &meas, self.period_s);
             tracking = out.errors.tracking.to_array();
@@ -251,9 +226,10 @@ impl ControlLoop {
 
         // 5. Telemetry (plain copies).
         let finished = self.horizon_reached();
+        let traj_t_s = self.traj_time_s();
         let s = &mut self.snapshot;
         s.period = s.period.wrapping_add(1);
-        s.traj_t_s = self.traj_periods as f32 * self.period_s;
+        s.traj_t_s = traj_t_s;
         s.state = state;
         s.pos = meas.pos.to_array();
         s.reference = reference;
@@ -261,14 +237,19 @@ impl ControlLoop {
         s.contour = contour;
         s.effort = effort;
         s.counts = counts;
-        s.figures = self.metrics.figures();
+        s.metrics = self.metrics;
         s.finished = finished;
         &self.snapshot
     }
 
+    /// Trajectory time of the current period, seconds.
+    fn traj_time_s(&self) -> f32 {
+        (f64::from(self.traj_periods) * self.period_s_f64) as f32
+    }
+
     fn horizon_reached(&self) -> bool {
         match self.cfg.horizon_s {
-            Some(h) => self.traj_periods as f32 * self.period_s >= h,
+            Some(h) => self.traj_time_s() >= h,
             None => false,
         }
     }

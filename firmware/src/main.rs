@@ -129,7 +129,7 @@ mod app {
         }
         (
             Shared {
-                telemetry: Snapshot::BOOT,
+                telemetry: Snapshot::boot(),
                 plant_figures: firmware::telemetry::Figures::default(),
             },
             Local {
@@ -202,7 +202,7 @@ mod app {
                 crate::qemu::finish(&snap, &plant);
                 #[cfg(not(feature = "qemu"))]
                 {
-                    crate::logger::figures("run", &snap.figures);
+                    crate::logger::figures("run", &snap.metrics.figures());
                     let _ = plant;
                     break;
                 }

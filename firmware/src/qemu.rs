@@ -2,17 +2,17 @@
 //! HardFault handler that exit non-zero instead of hanging (panic-probe would hang).
 //!
 //! Exit codes (passed to the host through semihosting `SYS_EXIT`):
-//! 0 = figures within bounds, 1 = figures out of bounds, 2 = invalid configuration,
+//! 0 = figures agree with host-sim, 1 = they do not, 2 = invalid configuration,
 //! 3 = the run ended in a fault state, 101 = panic, 102 = HardFault.
 
 use firmware::safety::SafetyState;
-use firmware::scenario::{Verdict, BOUNDS, BOUNDS_SOURCE};
+use firmware::scenario::{Verdict, HOST_SIM, REL_TOLERANCE};
 use firmware::telemetry::{Figures, Snapshot};
 
-/// Figures within bounds.
+/// Figures agree with host-sim.
 pub const EXIT_PASS: i32 = 0;
-/// Figures outside the bounds.
-pub const EXIT_OUT_OF_BOUNDS: i32 = 1;
+/// Figures disagree with host-sim.
+pub const EXIT_DISAGREES: i32 = 1;
 /// Rejected configuration.
 pub const EXIT_CONFIG: i32 = 2;
 /// The run ended in a latched fault.
@@ -29,22 +29,22 @@ pub fn exit(code: i32) -> ! {
 
 /// Prints the final figures and the verdict, then exits with it.
 pub fn finish(s: &Snapshot, plant: &Figures) -> ! {
-    crate::logger::figures("controller (measured)", &s.figures);
+    crate::logger::figures("controller (measured)", &s.metrics.figures());
     crate::logger::figures("plant (true state)", plant);
     defmt::info!(
-        "bounds ({=str}): ITSE<=[{=f32}, {=f32}, {=f32}] max|e|<=[{=f32}, {=f32}, {=f32}] contour max<={=f32} rms<={=f32}",
-        BOUNDS_SOURCE,
-        BOUNDS.itse[0],
-        BOUNDS.itse[1],
-        BOUNDS.itse[2],
-        BOUNDS.tracking_max[0],
-        BOUNDS.tracking_max[1],
-        BOUNDS.tracking_max[2],
-        BOUNDS.contour_max,
-        BOUNDS.contour_rms
+        "host-sim    (reference): ITSE=[{=f64}, {=f64}, {=f64}] max|e|=[{=f64}, {=f64}, {=f64}] contour max={=f64} rms={=f64}; tolerance {=f64} relative",
+        HOST_SIM.itse[0],
+        HOST_SIM.itse[1],
+        HOST_SIM.itse[2],
+        HOST_SIM.tracking_max[0],
+        HOST_SIM.tracking_max[1],
+        HOST_SIM.tracking_max[2],
+        HOST_SIM.contour_max,
+        HOST_SIM.contour_rms,
+        REL_TOLERANCE
     );
     defmt::info!(
-        "control ISR: {=u32} periods, {=u32} overruns (QEMU does not model timer rates)",
+        "control ISR: {=u32} periods, {=u32} overruns of the emulated period",
         s.period,
         s.timing.overruns
     );
@@ -52,13 +52,13 @@ pub fn finish(s: &Snapshot, plant: &Figures) -> ! {
         defmt::error!("QEMU run FAILED: ended in fault {}", reason);
         exit(EXIT_FAULT);
     }
-    let verdict = Verdict::check(plant, &BOUNDS);
+    let verdict = Verdict::check(plant, &HOST_SIM);
     if verdict.passed() {
-        defmt::info!("QEMU run PASSED: figures within host-sim bounds");
+        defmt::info!("QEMU run PASSED: figures agree with host-sim");
         exit(EXIT_PASS)
     } else {
-        defmt::error!("QEMU run FAILED: out of bounds {}", verdict);
-        exit(EXIT_OUT_OF_BOUNDS)
+        defmt::error!("QEMU run FAILED: disagrees with host-sim {}", verdict);
+        exit(EXIT_DISAGREES)
     }
 }
 

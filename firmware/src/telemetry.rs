@@ -5,8 +5,58 @@
 //! turns it into defmt log lines at its own pace. Values lost between two log lines are
 //! not needed: the running [`Figures`] carry the whole-run statistics.
 
+use controller_core::metrics::{Itse, MaxRms, TotalVariation};
+
 use crate::safety::SafetyState;
 use crate::AXES;
+
+/// Whole-run accumulators (controller-core metrics) of what the controller sees. The
+/// control interrupt only adds samples; square roots and divisions for the RMS values are
+/// left to whoever turns them into [`Figures`] (the low-priority logger).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RunMetrics {
+    itse: [Itse<f32>; AXES],
+    tracking: [MaxRms<f32>; AXES],
+    contour: MaxRms<f32>,
+    variation: [TotalVariation<f32>; AXES],
+}
+
+impl RunMetrics {
+    /// Adds one period: time, period, tracking error per axis, contour-error magnitude,
+    /// applied effort per axis.
+    pub fn add(
+        &mut self,
+        t_s: f32,
+        dt_s: f32,
+        tracking: &[f32; AXES],
+        contour: f32,
+        u: &[f32; AXES],
+    ) {
+        for i in 0..AXES {
+            self.itse[i].add(t_s, tracking[i], dt_s);
+            self.tracking[i].add(tracking[i]);
+            self.variation[i].add(u[i]);
+        }
+        self.contour.add(contour);
+    }
+
+    /// The figures so far.
+    pub fn figures(&self) -> Figures {
+        let mut f = Figures {
+            samples: self.contour.count(),
+            contour_max: self.contour.max,
+            contour_rms: self.contour.rms(),
+            ..Figures::default()
+        };
+        for i in 0..AXES {
+            f.itse[i] = self.itse[i].value;
+            f.tracking_max[i] = self.tracking[i].max;
+            f.tracking_rms[i] = self.tracking[i].rms();
+            f.effort_variation[i] = self.variation[i].value;
+        }
+        f
+    }
+}
 
 /// Whole-run tracking and contour figures (from controller-core's metric accumulators),
 /// in the trajectory's length unit (mm on the machine, the paper's normalised unit in
@@ -44,7 +94,6 @@ pub struct Timing {
 
 /// Everything the logger needs, copied out of the control interrupt each period.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct Snapshot {
     /// Control periods since boot.
     pub period: u32,
@@ -64,8 +113,8 @@ pub struct Snapshot {
     pub effort: [f32; AXES],
     /// Wide encoder positions, counts.
     pub counts: [i64; AXES],
-    /// Run statistics.
-    pub figures: Figures,
+    /// Run statistics (accumulators; [`RunMetrics::figures`] evaluates them).
+    pub metrics: RunMetrics,
     /// Interrupt timing.
     pub timing: Timing,
     /// True once a finite-horizon run (the QEMU scenario) has completed.
@@ -74,30 +123,20 @@ pub struct Snapshot {
 
 impl Snapshot {
     /// The snapshot before the first control period.
-    pub const BOOT: Self = Self {
-        period: 0,
-        traj_t_s: 0.0,
-        state: SafetyState::Disabled,
-        pos: [0.0; AXES],
-        reference: [0.0; AXES],
-        tracking: [0.0; AXES],
-        contour: 0.0,
-        effort: [0.0; AXES],
-        counts: [0; AXES],
-        figures: Figures {
-            samples: 0,
-            itse: [0.0; AXES],
-            tracking_max: [0.0; AXES],
-            tracking_rms: [0.0; AXES],
-            contour_max: 0.0,
-            contour_rms: 0.0,
-            effort_variation: [0.0; AXES],
-        },
-        timing: Timing {
-            overruns: 0,
-            last_cycles: 0,
-            max_cycles: 0,
-        },
-        finished: false,
-    };
+    pub fn boot() -> Self {
+        Self {
+            period: 0,
+            traj_t_s: 0.0,
+            state: SafetyState::Disabled,
+            pos: [0.0; AXES],
+            reference: [0.0; AXES],
+            tracking: [0.0; AXES],
+            contour: 0.0,
+            effort: [0.0; AXES],
+            counts: [0; AXES],
+            metrics: RunMetrics::default(),
+            timing: Timing::default(),
+            finished: false,
+        }
+    }
 }
