@@ -5,7 +5,9 @@
 //! does. Metrics are taken on the *true* plant state against the `f64` reference.
 
 use anyhow::{bail, Result};
-use controller_core::estimator::{EstimatorConfig, EstimatorTiming, PllConfig, VelocityEstimator};
+use controller_core::estimator::{
+    EstimatorConfig, EstimatorTiming, KalmanConfig, PllConfig, VelocityEstimator,
+};
 use controller_core::gantry::{Gantry3, GantryConfig, GantryOutput, Measured};
 use controller_core::law::LawState;
 use controller_core::metrics::{distance_to_path, Itse, MaxRms, TotalVariation};
@@ -45,6 +47,9 @@ pub enum VelocitySource {
     /// controller-core's PLL estimator on the encoder counts (needs `position_quantum`
     /// > 0), fed with the reference acceleration as the firmware does.
     Pll(PllConfig),
+    /// controller-core's Kalman estimator on the encoder counts, driven by the reference
+    /// acceleration as the commanded acceleration (no lag on the planned motion).
+    Kalman(KalmanConfig),
 }
 
 /// Controller at a fixed rate with zero-order hold, as the firmware runs it.
@@ -370,9 +375,17 @@ pub fn discrete_loop<R: Real, D: AxisDynamics<f64>, C: DiscreteController<R>>(
     let mut plant = spec.initial;
     let mut prev_q: Option<Vec3<f64>> = None;
     let mut pll = Vec::new();
-    if let VelocitySource::Pll(c) = d.velocity {
+    let estimator = match d.velocity {
+        VelocitySource::Pll(c) => Some(EstimatorConfig::Pll(c)),
+        VelocitySource::Kalman(c) => Some(EstimatorConfig::Kalman(c)),
+        _ => None,
+    };
+    if let Some(cfg) = estimator {
         if d.position_quantum.is_nan() || d.position_quantum <= 0.0 {
-            bail!("the PLL velocity source needs position_quantum > 0");
+            bail!(
+                "the {} velocity source needs position_quantum > 0",
+                cfg.name()
+            );
         }
         let timing = EstimatorTiming {
             period_s: ts as f32,
@@ -381,8 +394,8 @@ pub fn discrete_loop<R: Real, D: AxisDynamics<f64>, C: DiscreteController<R>>(
         for st in &plant {
             let c0 = (st.pos / d.position_quantum).round() as i64;
             pll.push(
-                VelocityEstimator::<R>::new(&EstimatorConfig::Pll(c), &timing, c0)
-                    .map_err(|e| anyhow::anyhow!("invalid PLL configuration: {e}"))?,
+                VelocityEstimator::<R>::new(&cfg, &timing, c0)
+                    .map_err(|e| anyhow::anyhow!("invalid {} configuration: {e}", cfg.name()))?,
             );
         }
     }
@@ -405,7 +418,7 @@ pub fn discrete_loop<R: Real, D: AxisDynamics<f64>, C: DiscreteController<R>>(
                     m.vel = (q - p).scale(1.0 / ts).cast();
                 }
             }
-            VelocitySource::Pll(_) => {
+            VelocitySource::Pll(_) | VelocitySource::Kalman(_) => {
                 for (i, e) in pll.iter_mut().enumerate() {
                     let c = (plant[i].pos / d.position_quantum).round() as i64;
                     m.vel[i] = e.update(c, r.acc[i]).vel;

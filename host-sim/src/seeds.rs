@@ -10,7 +10,9 @@ use crate::engine::{
     VelocitySource,
 };
 use anyhow::{anyhow, bail, Result};
+use controller_core::adaptive_smc::AdaptiveState;
 use controller_core::contour::Coupled;
+use controller_core::estimator::{KalmanConfig, PllConfig, PAPER_SIM_KALMAN};
 use controller_core::gantry::{Gantry3, GantryConfig, GantryOutput, Measured};
 use controller_core::params::LawConfig;
 use controller_core::physical_plant::{PhysicalAxis, PhysicalAxisConfig};
@@ -178,6 +180,10 @@ pub struct SeedScenario {
     /// The paper's coupling gain for the helix study.
     #[serde(default)]
     pub lambda: f32,
+    /// Start of the window over which the errors at velocity reversals are measured
+    /// (s; 0 = whole run). The friction study measures after adaptation has converged.
+    #[serde(default)]
+    pub reversal_from_s: f64,
 }
 
 /// Settings shared by every seed scenario file.
@@ -188,6 +194,10 @@ pub struct SeedFile {
     pub plant_substeps: u32,
     /// Velocity PLL bandwidth, rad/s.
     pub pll_bandwidth_rad_s: f32,
+    /// When set, the Kalman estimator driven by the reference acceleration replaces the
+    /// PLL: σ of the unexplained acceleration's change per period, mm/s².
+    #[serde(default)]
+    pub kalman_accel_noise_mm_s2: Option<f32>,
     pub pwm_bits: u32,
     pub scenario: Vec<SeedScenario>,
 }
@@ -202,6 +212,25 @@ pub struct LawFigures {
     pub max_error: [f64; 3],
     /// Total variation of the torque per second, per axis (mN·m/s).
     pub chattering: [f64; 3],
+    /// Largest |e| within ±[`REVERSAL_HALF_WIDTH_S`] of a reversal of the reference
+    /// velocity of the axis, from the scenario's `reversal_from_s` on (mm; 0 when the
+    /// axis does not reverse there).
+    pub reversal_max_error: [f64; 3],
+}
+
+/// Half width of the window around a velocity reversal in which the reversal error is
+/// measured: 20 ms, longer than the friction transient (the s-loop settles in
+/// ~3/(k_d/J) = 10 ms) and short against the 250 ms between reversals at 2 Hz.
+pub const REVERSAL_HALF_WIDTH_S: f64 = 0.02;
+
+/// Decimation of the recorded estimates: one sample per 10 ms.
+pub const ESTIMATE_TRACE_EVERY_S: f64 = 0.01;
+
+/// Estimates `[Ĵ, B̂, f̂+, f̂-]` of each axis at one instant.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct EstimateSample {
+    pub t: f64,
+    pub axes: [[f64; 4]; 3],
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -214,7 +243,11 @@ pub struct Estimate {
 #[derive(Clone, Debug, Default)]
 pub struct SeedsReport {
     pub scenarios: BTreeMap<String, BTreeMap<String, LawFigures>>,
-    pub adaptation: BTreeMap<String, Estimate>,
+    /// Final estimates of the adaptive law per moving axis ("x", "y"), keyed "J", "B",
+    /// "f_pos", "f_neg".
+    pub adaptation: BTreeMap<String, BTreeMap<String, Estimate>>,
+    /// The adaptive law's estimates over time (friction study).
+    pub estimates: Vec<EstimateSample>,
     pub traces: Vec<(String, RunResult)>,
 }
 
@@ -233,14 +266,71 @@ impl SeedsReport {
     }
 }
 
-fn figures(r: &RunResult, horizon_s: f64) -> LawFigures {
+fn figures(r: &RunResult, sc: &SeedScenario, traj: &Trajectory<f64>) -> LawFigures {
     LawFigures {
         contour_max: r.contour_max,
         contour_rms: r.contour_rms,
         itse: r.itse,
         peak_torque: r.peak_u,
         max_error: r.max_abs_error,
-        chattering: r.tv_u.map(|v| v / horizon_s),
+        chattering: r.tv_u.map(|v| v / sc.horizon_s),
+        reversal_max_error: reversal_errors(r, traj, sc.reversal_from_s),
+    }
+}
+
+/// Per axis, the largest |e| on the trace within ±[`REVERSAL_HALF_WIDTH_S`] of an
+/// instant where the reference velocity of that axis changes sign, from `from_s` on.
+pub fn reversal_errors(r: &RunResult, traj: &Trajectory<f64>, from_s: f64) -> [f64; 3] {
+    let tr = &r.trace;
+    let vel: Vec<Vec3<f64>> = tr.t.iter().map(|&t| traj.sample(t).vel).collect();
+    let mut out = [0.0; 3];
+    for (i, o) in out.iter_mut().enumerate() {
+        let reversals: Vec<f64> = (1..tr.t.len())
+            .filter(|&k| vel[k - 1][i] * vel[k][i] < 0.0)
+            .map(|k| tr.t[k])
+            .collect();
+        for (k, &t) in tr.t.iter().enumerate() {
+            if t >= from_s
+                && reversals
+                    .iter()
+                    .any(|&tr_s| (t - tr_s).abs() <= REVERSAL_HALF_WIDTH_S)
+            {
+                *o = f64::max(*o, (tr.reference[k][i] - tr.position[k][i]).abs());
+            }
+        }
+    }
+    out
+}
+
+/// A [`SeedController`] that records its adaptive estimates every `every` periods.
+struct Recording {
+    ctl: SeedController<f32>,
+    every: usize,
+    k: usize,
+    dt_s: f64,
+    log: Vec<EstimateSample>,
+}
+
+fn estimate_row(a: &AdaptiveState<f32>) -> [f64; 4] {
+    [a.j, a.b, a.f_pos, a.f_neg].map(f64::from)
+}
+
+impl DiscreteController<f32> for Recording {
+    fn step_discrete(
+        &mut self,
+        r: &RefSample<f32>,
+        m: &Measured<f32>,
+        dt: f32,
+    ) -> GantryOutput<f32> {
+        if self.k.is_multiple_of(self.every) {
+            let st = self.ctl.states();
+            self.log.push(EstimateSample {
+                t: self.k as f64 * self.dt_s,
+                axes: [0, 1, 2].map(|i| estimate_row(&st[i].adapt)),
+            });
+        }
+        self.k += 1;
+        self.ctl.step_discrete(r, m, dt)
     }
 }
 
@@ -268,10 +358,17 @@ fn setup(file: &SeedFile, sc: &SeedScenario) -> Result<Setup> {
         plant_substeps: file.plant_substeps,
         position_quantum: controller_core::seed_params::COUNT_MM as f64,
         actuator_limit: f64::INFINITY,
-        velocity: VelocitySource::Pll(controller_core::estimator::PllConfig {
-            bandwidth_rad_s: file.pll_bandwidth_rad_s,
-            damping: 1.0,
-        }),
+        velocity: match file.kalman_accel_noise_mm_s2 {
+            Some(q) => VelocitySource::Kalman(KalmanConfig {
+                accel_noise_units_s2: q,
+                // uniform quantisation of one count, as for the paper simulation
+                ..PAPER_SIM_KALMAN
+            }),
+            None => VelocitySource::Pll(PllConfig {
+                bandwidth_rad_s: file.pll_bandwidth_rad_s,
+                damping: 1.0,
+            }),
+        },
     };
     let spec = RunSpec {
         horizon_s: sc.horizon_s,
@@ -311,6 +408,27 @@ fn run_seed(
     Ok((r, ctl))
 }
 
+/// Run the adaptive law recording its estimates.
+fn run_adaptive(s: &Setup) -> Result<(RunResult, SeedController<f32>, Vec<EstimateSample>)> {
+    let method = SeedMethod::Adaptive;
+    let ctl = SeedController::<f32>::new(&method.controller(false))
+        .map_err(|e| anyhow!("invalid {} configuration: {e}", method.name()))?;
+    let dt_s = 1.0 / s.disc.rate_hz;
+    let mut rec = Recording {
+        ctl,
+        every: ((ESTIMATE_TRACE_EVERY_S / dt_s).round() as usize).max(1),
+        k: 0,
+        dt_s,
+        log: Vec::new(),
+    };
+    let traj = s.spec.trajectory.cast();
+    let r = discrete_loop(&s.spec, &s.disc, &s.plants, &traj, &mut rec)?;
+    Ok((r, rec.ctl, rec.log))
+}
+
+/// Names of the estimates in [`EstimateSample::axes`] order.
+pub const ESTIMATE_NAMES: [&str; 4] = ["J", "B", "f_pos", "f_neg"];
+
 /// Run every scenario of `file`.
 pub fn run_file(file: &SeedFile, rep: &mut SeedsReport) -> Result<()> {
     for sc in &file.scenario {
@@ -322,34 +440,39 @@ pub fn run_file(file: &SeedFile, rep: &mut SeedsReport) -> Result<()> {
                     for coupled in [false, true] {
                         let (r, _) = run_seed(&s, m, coupled)?;
                         let key = format!("{}{}", m.name(), if coupled { "+ccc" } else { "" });
-                        laws.insert(key.clone(), figures(&r, sc.horizon_s));
+                        laws.insert(key.clone(), figures(&r, sc, &s.spec.trajectory));
                         rep.traces.push((format!("{}_{key}", sc.name), r));
                     }
                 }
             }
             Study::Friction => {
-                for m in [SeedMethod::FixedSmc, SeedMethod::Adaptive] {
-                    let (r, ctl) = run_seed(&s, m, false)?;
-                    laws.insert(m.name().to_string(), figures(&r, sc.horizon_s));
-                    rep.traces.push((format!("{}_{}", sc.name, m.name()), r));
-                    if m == SeedMethod::Adaptive {
-                        let a = ctl.states()[0].adapt;
-                        let x = GANTRY_AXES[0];
-                        for (k, e, t) in [
-                            ("J", a.j, x.inertia),
-                            ("B", a.b, x.viscous),
-                            ("f_pos", a.f_pos, x.coulomb_pos_mnm),
-                            ("f_neg", a.f_neg, x.coulomb_neg_mnm),
-                        ] {
-                            rep.adaptation.insert(
-                                k.into(),
+                let (r, _) = run_seed(&s, SeedMethod::FixedSmc, false)?;
+                let fixed = SeedMethod::FixedSmc.name();
+                laws.insert(fixed.to_string(), figures(&r, sc, &s.spec.trajectory));
+                rep.traces.push((format!("{}_{fixed}", sc.name), r));
+                let (r, ctl, log) = run_adaptive(&s)?;
+                let adaptive = SeedMethod::Adaptive.name();
+                laws.insert(adaptive.to_string(), figures(&r, sc, &s.spec.trajectory));
+                rep.traces.push((format!("{}_{adaptive}", sc.name), r));
+                rep.estimates = log;
+                for (i, axis) in ["x", "y"].iter().enumerate() {
+                    let e = estimate_row(&ctl.states()[i].adapt);
+                    let a = GANTRY_AXES[i];
+                    let truth = [a.inertia, a.viscous, a.coulomb_pos_mnm, a.coulomb_neg_mnm];
+                    let m = ESTIMATE_NAMES
+                        .iter()
+                        .zip(e.iter().zip(truth))
+                        .map(|(k, (&estimate, t))| {
+                            (
+                                k.to_string(),
                                 Estimate {
-                                    estimate: e as f64,
+                                    estimate,
                                     truth: t as f64,
                                 },
-                            );
-                        }
-                    }
+                            )
+                        })
+                        .collect();
+                    rep.adaptation.insert(axis.to_string(), m);
                 }
             }
             Study::Helix => {
@@ -360,7 +483,7 @@ pub fn run_file(file: &SeedFile, rep: &mut SeedsReport) -> Result<()> {
                         .map_err(|e| anyhow!("invalid helix configuration: {e}"))?;
                     let traj = s.spec.trajectory.cast();
                     let r = discrete_loop(&s.spec, &s.disc, &s.plants, &traj, &mut g)?;
-                    laws.insert(key.to_string(), figures(&r, sc.horizon_s));
+                    laws.insert(key.to_string(), figures(&r, sc, &s.spec.trajectory));
                     rep.traces.push((format!("{}_{key}", sc.name), r));
                 }
                 // the patent's coupling in its 3-D form on the same DSMC axes
@@ -372,7 +495,7 @@ pub fn run_file(file: &SeedFile, rep: &mut SeedsReport) -> Result<()> {
                     .map_err(|e| anyhow!("invalid helix configuration: {e}"))?;
                 let traj = s.spec.trajectory.cast();
                 let r = discrete_loop(&s.spec, &s.disc, &s.plants, &traj, &mut ctl)?;
-                laws.insert("DSMC+vgccc".into(), figures(&r, sc.horizon_s));
+                laws.insert("DSMC+vgccc".into(), figures(&r, sc, &s.spec.trajectory));
                 rep.traces.push((format!("{}_DSMC+vgccc", sc.name), r));
             }
         }
@@ -384,22 +507,30 @@ pub fn run_file(file: &SeedFile, rep: &mut SeedsReport) -> Result<()> {
 /// Run the built-in scenario files.
 pub fn run_builtin() -> Result<SeedsReport> {
     let mut rep = SeedsReport::default();
-    for (name, text) in BUILTIN {
-        let f: SeedFile = toml::from_str(text).map_err(|e| anyhow!("{name}: {e}"))?;
-        run_file(&f, &mut rep)?;
+    for (name, _) in BUILTIN {
+        run_file(&builtin_file(name)?, &mut rep)?;
     }
     Ok(rep)
+}
+
+/// One built-in scenario file by name (e.g. `seeds_friction.toml`).
+pub fn builtin_file(name: &str) -> Result<SeedFile> {
+    let (_, text) = BUILTIN
+        .iter()
+        .find(|(n, _)| *n == name)
+        .ok_or_else(|| anyhow!("no built-in seed scenario file {name}"))?;
+    toml::from_str(text).map_err(|e| anyhow!("{name}: {e}"))
 }
 
 /// The comparison table printed by `host-sim seeds` (contour µm, ITSE mm²·s, torque mN·m).
 pub fn table(rep: &SeedsReport) -> String {
     let mut s = String::new();
-    s.push_str("| scenario | law | contour max µm | contour RMS µm | ITSE x | ITSE y | ITSE z | peak torque x/y/z mN·m | chattering x/y N·m/s |\n");
-    s.push_str("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    s.push_str("| scenario | law | contour max µm | contour RMS µm | ITSE x | ITSE y | ITSE z | peak torque x/y/z mN·m | chattering x/y N·m/s | reversal max |e| x/y µm |\n");
+    s.push_str("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
     for (sc, laws) in &rep.scenarios {
         for (law, f) in laws {
             s.push_str(&format!(
-                "| {sc} | {law} | {:.2} | {:.2} | {:.3e} | {:.3e} | {:.3e} | {:.0}/{:.0}/{:.0} | {:.1}/{:.1} |\n",
+                "| {sc} | {law} | {:.2} | {:.2} | {:.3e} | {:.3e} | {:.3e} | {:.0}/{:.0}/{:.0} | {:.1}/{:.1} | {:.2}/{:.2} |\n",
                 f.contour_max * 1e3,
                 f.contour_rms * 1e3,
                 f.itse[0],
@@ -410,19 +541,23 @@ pub fn table(rep: &SeedsReport) -> String {
                 f.peak_torque[2],
                 f.chattering[0] * 1e-3,
                 f.chattering[1] * 1e-3,
+                f.reversal_max_error[0] * 1e3,
+                f.reversal_max_error[1] * 1e3,
             ));
         }
     }
-    s.push_str(
-        "\n| adaptation (X axis) | estimate | truth | error % |\n| --- | --- | --- | --- |\n",
-    );
-    for (k, e) in &rep.adaptation {
-        s.push_str(&format!(
-            "| {k} | {:.4} | {:.4} | {:.1} |\n",
-            e.estimate,
-            e.truth,
-            100.0 * (e.estimate - e.truth) / e.truth
-        ));
+    s.push_str("\n| adaptation | estimate | truth | error % |\n| --- | --- | --- | --- |\n");
+    for (axis, m) in &rep.adaptation {
+        for k in ESTIMATE_NAMES {
+            if let Some(e) = m.get(k) {
+                s.push_str(&format!(
+                    "| {axis} {k} | {:.4} | {:.4} | {:+.1} |\n",
+                    e.estimate,
+                    e.truth,
+                    100.0 * (e.estimate - e.truth) / e.truth
+                ));
+            }
+        }
     }
     s
 }

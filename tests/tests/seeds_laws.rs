@@ -18,6 +18,8 @@ use controller_core::seed_params::{
 };
 use controller_core::trajectory::{Polyline, RefSample, Trajectory};
 use controller_core::Vec3;
+use host_sim::seeds::{self, SeedsReport};
+use std::sync::OnceLock;
 
 const TS: f64 = FIRMWARE_PERIOD_S as f64;
 const SUBSTEPS: usize = 4;
@@ -222,42 +224,60 @@ fn cross_coupling_lowers_contour_error_on_circle_and_square_for_every_law() {
     }
 }
 
-fn sine() -> Trajectory<f64> {
-    Trajectory::Sine {
-        amp: Vec3::new(5.0, 2.5, 0.0),
-        omega: 2.0 * core::f64::consts::PI * 2.0,
-        phase: Vec3::new(0.0, 0.7, 0.0),
-        offset: Vec3::zero(),
-    }
+/// The friction study exactly as `host-sim seeds` runs it (seeds_friction.toml: 5 mm at
+/// 2 Hz on X and Y, 8 s, Kalman velocity with the reference acceleration, 12-bit PWM),
+/// run once and shared by the tests below.
+fn friction_report() -> &'static SeedsReport {
+    static REP: OnceLock<SeedsReport> = OnceLock::new();
+    REP.get_or_init(|| {
+        let mut rep = SeedsReport::default();
+        seeds::run_file(
+            &seeds::builtin_file("seeds_friction.toml").unwrap(),
+            &mut rep,
+        )
+        .unwrap();
+        rep
+    })
 }
 
 #[test]
-fn adaptive_estimates_converge_within_10_percent_on_an_exciting_trajectory() {
-    // 1000 rad/s PLL: velocity noise correlates with the B regressor x' and biases B̂
-    let r = simulate_with(
-        pll(1000.0),
-        &SeedMethod::Adaptive.controller(false),
-        &GANTRY_AXES,
-        &sine(),
-        6.0,
-    );
-    // X only: Y moves 2.5 mm and its B̂ ends at half the truth (open point, see report)
-    for (i, axis) in GANTRY_AXES.iter().take(1).enumerate() {
-        let a = r.ctl.states()[i].adapt;
-        // B within 20 % only: with the PLL (no acceleration feed-forward) the velocity
-        // regressor lags, and B̂ trades against f̂± (viscous torque is 16 mN·m at the peak
-        // speed against 40 mN·m of Coulomb friction). Issue 5 asks for 10 %: open point.
-        for (name, est, truth, tol) in [
-            ("J", a.j, axis.inertia, 0.1),
-            ("B", a.b, axis.viscous, 0.2),
-            ("f+", a.f_pos, axis.coulomb_pos_mnm, 0.1),
-            ("f-", a.f_neg, axis.coulomb_neg_mnm, 0.1),
-        ] {
+fn adaptive_estimates_end_within_10_percent_of_the_truth_on_x_and_y() {
+    // issue 5: J, B, f+, f- within 10 % on a persistently exciting trajectory, on every
+    // moving axis (measured: all within 4 %)
+    let rep = friction_report();
+    for axis in ["x", "y"] {
+        let m = &rep.adaptation[axis];
+        for k in ["J", "B", "f_pos", "f_neg"] {
+            let e = &m[k];
             assert!(
-                (est - truth).abs() < tol * truth.abs(),
-                "axis {i} {name}: estimate {est}, truth {truth}"
+                (e.estimate - e.truth).abs() < 0.1 * e.truth.abs(),
+                "{axis} {k}: estimate {}, truth {}",
+                e.estimate,
+                e.truth
             );
         }
+    }
+    // the recorded history ends on the reported values' run and starts at the guesses
+    let first = rep.estimates.first().unwrap();
+    assert_eq!(first.t, 0.0);
+    assert_eq!(first.axes[0][1], 0.0, "B̂ starts unknown");
+    assert!(rep.estimates.last().unwrap().t > 7.9);
+}
+
+#[test]
+fn adaptive_law_tracks_velocity_reversals_better_than_the_fixed_smc() {
+    // largest |e| within ±20 ms of every velocity reversal over t in [6 s, 8 s], after
+    // adaptation has converged; both laws start from the same poor guesses (J 25 % low,
+    // B = f± = 0), the fixed SMC keeps them. Measured: adaptive 0.6 / 0.2 µm, fixed
+    // 13.6 / 9.5 µm on X / Y.
+    let rep = friction_report();
+    let laws = &rep.scenarios["friction_sine"];
+    let (adaptive, fixed) = (&laws["ASMC"], &laws["SMC"]);
+    for i in 0..2 {
+        let (a, f) = (adaptive.reversal_max_error[i], fixed.reversal_max_error[i]);
+        assert!(f > 0.0 && a > 0.0, "axis {i}: reversals measured");
+        assert!(a < 0.2 * f, "axis {i}: adaptive {a} mm vs fixed {f} mm");
+        assert!(a < 0.002, "axis {i}: adaptive reversal error {a} mm");
     }
 }
 
