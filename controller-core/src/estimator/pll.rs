@@ -43,7 +43,7 @@ fn one() -> f32 {
 }
 
 /// PLL for the paper simulation (10 kHz, 1e-4-unit counts): ω = 500 rad/s, ζ = 1. Chosen
-/// from the bandwidth sweep in docs/velocity-estimation.md (300-4000 rad/s): there the lag
+/// from the bandwidth sweep in docs/velocity-estimation.md (100-4000 rad/s): there the lag
 /// on the helix's 1 unit/s² (≈ 2/ω = 4e-3 units/s) and the quantisation noise give DSMC
 /// its smallest contour error.
 pub const PAPER_SIM_PLL: PllConfig = PllConfig {
