@@ -334,13 +334,13 @@ impl DiscreteController<f32> for Recording {
     }
 }
 
-struct Setup {
-    spec: RunSpec,
-    disc: DiscreteSpec,
-    plants: [Drive; 3],
+pub(crate) struct Setup {
+    pub(crate) spec: RunSpec,
+    pub(crate) disc: DiscreteSpec,
+    pub(crate) plants: [Drive; 3],
 }
 
-fn setup(file: &SeedFile, sc: &SeedScenario) -> Result<Setup> {
+pub(crate) fn setup(file: &SeedFile, sc: &SeedScenario) -> Result<Setup> {
     let traj = sc.path.trajectory()?;
     let mut axes = GANTRY_AXES;
     if sc.load_step_mnm != 0.0 {
