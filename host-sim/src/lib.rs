@@ -11,7 +11,8 @@
 //!   on the paper helix (issue 6).
 //! - [`scenario`]: scenario files (TOML) and their conversion into runs.
 //! - [`paper`]: the reference paper's experiments (Tables 1 and 3) and published numbers.
-//! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry.
+//! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry;
+//!   [`seed_plots`] draws their figures.
 //! - [`report`]: tables on the terminal, JSON and CSV output.
 //! - [`plots`]: PNG/SVG figures (bundled font: renders on a machine without fonts).
 
@@ -25,4 +26,5 @@ pub mod paper;
 pub mod plots;
 pub mod report;
 pub mod scenario;
+pub mod seed_plots;
 pub mod seeds;

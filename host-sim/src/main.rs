@@ -148,7 +148,11 @@ fn seeds(cli: &Cli) -> Result<()> {
         for (name, r) in &rep.traces {
             write_trace_csv(&dir.join(format!("{name}.csv")), r)?;
         }
-        println!("\nTraces (CSV) in {}", dir.display());
+        let files = host_sim::seed_plots::seed_figures(&dir, &rep)?;
+        println!(
+            "\nTraces (CSV) and {files} figures (PNG + SVG) in {}",
+            dir.display()
+        );
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())

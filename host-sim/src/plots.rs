@@ -15,7 +15,7 @@ use std::sync::Once;
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
-fn register_font() -> Result<()> {
+pub(crate) fn register_font() -> Result<()> {
     static ONCE: Once = Once::new();
     let mut res = Ok(());
     ONCE.call_once(|| {
@@ -39,16 +39,16 @@ fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
 }
 
 /// A figure's contents: called with a sink that takes its panels in order.
-type Draw<'a> = &'a dyn Fn(&mut dyn FnMut(Panel) -> Result<()>) -> Result<()>;
+pub(crate) type Draw<'a> = &'a dyn Fn(&mut dyn FnMut(Panel) -> Result<()>) -> Result<()>;
 
 /// A named, coloured 3-D path.
-type Path3 = (String, RGBColor, Vec<(f64, f64, f64)>);
+pub(crate) type Path3 = (String, RGBColor, Vec<(f64, f64, f64)>);
 
 /// One named series of (x, y) points.
-struct Series {
-    name: String,
-    color: RGBColor,
-    points: Vec<(f64, f64)>,
+pub(crate) struct Series {
+    pub(crate) name: String,
+    pub(crate) color: RGBColor,
+    pub(crate) points: Vec<(f64, f64)>,
 }
 
 fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
@@ -113,7 +113,7 @@ fn line_panel<DB: DrawingBackend>(
 }
 
 /// Render `draw` as `<stem>.png` and `<stem>.svg`.
-fn both(dir: &Path, stem: &str, size: (u32, u32), draw: Draw) -> Result<usize> {
+pub(crate) fn both(dir: &Path, stem: &str, size: (u32, u32), draw: Draw) -> Result<usize> {
     let png = dir.join(format!("{stem}.png"));
     let svg = dir.join(format!("{stem}.svg"));
     {
@@ -134,7 +134,7 @@ fn both(dir: &Path, stem: &str, size: (u32, u32), draw: Draw) -> Result<usize> {
 }
 
 /// A figure is a vertical stack of panels, or a single 3-D view.
-enum Panel {
+pub(crate) enum Panel {
     Lines {
         title: String,
         xl: String,
