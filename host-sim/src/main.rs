@@ -8,7 +8,7 @@ use host_sim::paper::{run_paper, PaperScenario};
 use host_sim::plots;
 use host_sim::report::{paper_tables, write_json, write_trace_csv};
 use host_sim::scenario::{load_toml, paper_plants, RunScenario};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -96,7 +96,7 @@ fn paper(cli: &Cli) -> Result<()> {
     Ok(())
 }
 
-fn single(cli: &Cli, file: &PathBuf) -> Result<()> {
+fn single(cli: &Cli, file: &Path) -> Result<()> {
     let sc: RunScenario = load_toml(file)?;
     let plants = paper_plants(&sc.plant, &sc.disturbances)?;
     let r = run(&sc.spec()?, &plants)?;
