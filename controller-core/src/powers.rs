@@ -291,16 +291,24 @@ fn mulu(a: u32, b: u32, s: u32) -> u32 {
     ((a as u64 * b as u64) >> s) as u32
 }
 
+/// `a * b >> s` for i32 operands (one SMULL); the caller guarantees the result fits.
+#[inline(always)]
+fn smul(a: i32, b: i32, s: u32) -> i32 {
+    ((a as i64 * b as i64) >> s) as i32
+}
+
 /// One third-order step for Q32 `f` and Q30 `y`. Returns the new `y` (Q30).
 #[inline(always)]
 fn inv_cbrt_step_q(f: u32, y: u32) -> u32 {
     // t = f y³ in Q30; every partial product stays below 2^32 because f < 1, y <= 2.
     let t = mulu(mulu(mulu(f, y, 32), y, 30), y, 30);
     let r = (1i32 << 30).wrapping_sub(t as i32); // Q30, |r| < 0.06 after the seed
-    let r2 = ((r as i64 * r as i64) >> 30) as i32;
-    // c = r/3 + 2r²/9 in Q30 (1/3 = 0x5555_5555 / 2^32, 2/9 = 0x38E3_8E39 / 2^32)
-    let c = ((r as i64 * 0x5555_5555) >> 32) + ((r2 as i64 * 0x38E3_8E39) >> 32);
-    (y as i64 + ((y as i64 * c) >> 30)) as u32
+    let r2 = smul(r, r, 30);
+    // c = r/3 + 2r²/9 in Q30 (1/3 = 0x5555_5555 / 2^32, 2/9 = 0x38E3_8E39 / 2^32); |c| is
+    // below 2^27, so every product here is one 32 x 32 -> 64 SMULL
+    let c = smul(r, 0x5555_5555, 32) + smul(r2, 0x38E3_8E39, 32);
+    // y c: y (<= 2^31) halved to fit an i32, the lost bit only touches the small correction
+    y.wrapping_add(smul((y >> 1) as i32, c, 29) as u32)
 }
 
 /// `f^(-1/3)` in Q30 for `f` in Q32 with `f ∈ [2^29, 2^32)` (i.e. [1/8, 1)); result in
@@ -393,7 +401,7 @@ pub fn recip_norm(f: u32) -> u32 {
         // y ← y (2 - f y); e = 1 - f y in Q30 (small, signed)
         let fy = mulu(f, y, 32);
         let e = (1i32 << 30).wrapping_sub(fy as i32);
-        y = (y as i64 + ((y as i64 * e as i64) >> 30)) as u32;
+        y = y.wrapping_add(smul((y >> 1) as i32, e, 29) as u32);
     }
     y
 }
