@@ -29,9 +29,11 @@ use controller_core::gantry::{Gantry3, GantryConfig, GantryOutput, Measured};
 use controller_core::params::{LawConfig, PlantParams};
 use controller_core::plant::AxisState;
 use controller_core::trajectory::{RefSample, Trajectory};
-use controller_core::Real;
+use controller_core::{Real, Vec3};
 use serde::Serialize;
 use std::collections::BTreeMap;
+
+pub mod physical;
 
 /// Issue 6's setting: 10 kHz control.
 pub const RATE_HZ: f64 = 10_000.0;
@@ -102,21 +104,23 @@ impl From<&RunResult> for Figures {
 /// `law -> source -> figures`.
 pub type Comparison = BTreeMap<String, BTreeMap<String, Figures>>;
 
-/// The gantry controller with its velocities from [`Estimators3`], as on the firmware.
-pub struct Estimating<R: Real> {
-    inner: Gantry3<R>,
+/// A controller (the gantry controller, or a seed method's on the physical axes) with its
+/// velocities from [`Estimators3`], as on the firmware.
+pub struct Estimating<R: Real, C = Gantry3<R>> {
+    inner: C,
     estimators: Estimators3<R>,
     quantum: f64,
-    u_limit: R,
+    /// Per axis: the drive's limit, so the estimators are told the command applied.
+    u_limit: Vec3<R>,
 }
 
-impl<R: Real> Estimating<R> {
+impl<R: Real, C> Estimating<R, C> {
     fn counts(&self, pos: [f64; 3]) -> [i64; 3] {
         pos.map(|p| (p / self.quantum).round() as i64)
     }
 }
 
-impl<R: Real> DiscreteController<R> for Estimating<R> {
+impl<R: Real, C: DiscreteController<R>> DiscreteController<R> for Estimating<R, C> {
     fn step_discrete(&mut self, r: &RefSample<R>, m: &Measured<R>, dt: R) -> GantryOutput<R> {
         // the engine's positions are whole counts times the quantum: recover the counts
         let counts = self.counts(m.pos.to_array().map(|p| p.to_f64()));
@@ -125,10 +129,13 @@ impl<R: Real> DiscreteController<R> for Estimating<R> {
             pos: m.pos,
             vel: est.vel,
         };
-        let out = self.inner.step(r, &meas, dt);
+        let out = self.inner.step_discrete(r, &meas, dt);
         // the drive applies the saturated command; that is what accelerates the axis
-        self.estimators
-            .applied(out.u.map(|u| u.clamp_sym(self.u_limit)));
+        let mut applied = out.u;
+        for i in 0..3 {
+            applied[i] = applied[i].clamp_sym(self.u_limit[i]);
+        }
+        self.estimators.applied(applied);
         out
     }
 }
@@ -203,7 +210,7 @@ pub fn run_one(
                 inner: gantry,
                 estimators,
                 quantum: POSITION_QUANTUM,
-                u_limit: ACTUATOR_LIMIT as f32,
+                u_limit: Vec3::splat(ACTUATOR_LIMIT as f32),
             };
             discrete_loop(&spec, &d, &plants, &traj, &mut ctl)
         }
@@ -262,21 +269,27 @@ pub fn compare(
 
 /// A terminal table of the comparison.
 pub fn table(c: &Comparison, sources: &[Source]) -> String {
+    let names: Vec<&str> = sources.iter().map(|s| s.name()).collect();
+    table_named(c, &names)
+}
+
+/// The table with the sources in the order of `names`.
+fn table_named(c: &Comparison, names: &[&str]) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<6} {:<20} {:>12} {:>12} {:>36} {:>30}",
+        "{:<7} {:<20} {:>12} {:>12} {:>36} {:>30}",
         "law", "velocity source", "contour max", "contour rms", "ITSE x y z", "TV(u) x y z"
     );
     for (law, by_src) in c {
-        for src in sources {
-            if let Some(f) = by_src.get(src.name()) {
+        for src in names {
+            if let Some(f) = by_src.get(*src) {
                 let _ = writeln!(
                     s,
-                    "{:<6} {:<20} {:>12.3e} {:>12.3e} {:>11.3e} {:>11.3e} {:>11.3e} {:>9.2e} {:>9.2e} {:>9.2e}",
+                    "{:<7} {:<20} {:>12.3e} {:>12.3e} {:>11.3e} {:>11.3e} {:>11.3e} {:>9.2e} {:>9.2e} {:>9.2e}",
                     law,
-                    src.name(),
+                    src,
                     f.contour_max,
                     f.contour_rms,
                     f.itse[0],

@@ -40,7 +40,8 @@ enum Command {
     /// Run one scenario file (e.g. host-sim/scenarios/helix_discrete_10khz.toml).
     Run { file: PathBuf },
     /// Velocity sources (exact, backward difference, PLL, Kalman) x PID/SMC/DSMC on the
-    /// paper helix at 10 kHz with 1e-4 quantisation (docs/velocity-estimation.md).
+    /// paper helix at 10 kHz with 1e-4 quantisation, and x PID/DSMC/DOB-SMC on the
+    /// physical gantry's helix with 0.625 µm counts (docs/velocity-estimation.md).
     Estimators {
         /// Add the paper's 10 s load disturbance on X (table 3).
         #[arg(long)]
@@ -173,8 +174,22 @@ fn estimators(cli: &Cli, disturbance: bool, horizon_s: f64) -> Result<()> {
         sc.table3.contour_from_s
     );
     print!("{}", table(&c, &sources));
+    use host_sim::estimators::physical::{
+        compare_physical, default_physical_sources, physical_table, PHYSICAL_LAWS,
+    };
+    let psources = default_physical_sources();
+    let p = compare_physical(&PHYSICAL_LAWS, &psources, None)?;
+    println!(
+        "\nphysical gantry, seeds helix (r 20 mm, 50 mm/s, 150 mN·m load step on X at 1.5 s), \
+         10 kHz, 0.625 µm counts, 3 s; lengths mm, torques mN·m"
+    );
+    print!("{}", physical_table(&p, &psources));
     if let Some(j) = &cli.json {
-        write_json(j, &c)?;
+        let mut v = serde_json::to_value(&c)?;
+        if let Some(m) = v.as_object_mut() {
+            m.insert("physical".into(), serde_json::to_value(&p)?);
+        }
+        write_json(j, &v)?;
         println!("JSON: {}", j.display());
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
