@@ -14,6 +14,9 @@
 //! sources wrap the gantry controller in [`Estimating`], which turns the engine's
 //! quantised positions back into counts. Figures: contour error max and RMS over
 //! `t >= contour_from_s`, per-axis ITSE and total variation of `u` (chattering).
+//!
+//! [`physical`] runs the same comparison on the physical gantry (friction axes, 0.625 µm
+//! counts) for PID, DSMC and DOB-SMC.
 
 use crate::engine::{
     discrete_loop, DiscreteController, DiscreteSpec, MetricSpec, Mode, Numeric, RunResult, RunSpec,

@@ -30,9 +30,9 @@ pub const SCENARIO_NAME: &str = "helix";
 
 /// PLL on the physical axis: 1000 rad/s, critically damped. Of the sweep 628 / 1000 /
 /// 2000 / 4000 rad/s on this helix (docs/velocity-estimation.md) it gave the lowest DSMC
-/// and PID contour max with chattering within 1.5x that with the exact velocity; 2000
-/// rad/s (the seeds scenarios' value) triples the chattering for 2 % less DOB-SMC contour
-/// error, 628 rad/s (the board's) raises DOB-SMC's by 45 %.
+/// contour max with chattering within 1.5x that with the exact velocity; 2000 rad/s (the
+/// seeds scenarios' value) triples the chattering for 12 % less DOB-SMC contour error
+/// (without the load step), 628 rad/s (the board's) raises DOB-SMC's by 25 % over 1000.
 pub const PHYSICAL_PLL: PllConfig = PllConfig {
     bandwidth_rad_s: 1000.0,
     damping: 1.0,
@@ -43,7 +43,8 @@ pub const PHYSICAL_PLL: PllConfig = PllConfig {
 /// reversal on X), yet the contour error hardly depends on σ: of 30 / 100 / 300 / 1000 /
 /// 3000 / 10000 mm/s² (docs/velocity-estimation.md) DSMC's contour max stays within
 /// 28.1..28.4 µm while the chattering grows ~σ^0.5, so the smallest, 30 mm/s², is taken
-/// (DOB-SMC's contour max is 8 % above its exact-velocity value there, 0.5 % at 1000).
+/// (DOB-SMC's contour max is 8 % above its exact-velocity value there, 0.5 % at 1000,
+/// without the load step; 7 % with it).
 /// Measurement noise: uniform quantisation of one count.
 pub const PHYSICAL_KALMAN: KalmanConfig = KalmanConfig {
     accel_noise_units_s2: 30.0,
