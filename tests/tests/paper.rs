@@ -40,13 +40,11 @@ const CONTINUOUS: Mode = Mode::Continuous { dt_s: 1e-4 };
 fn pid_helix_itse_within_8_percent_of_table3() {
     let r = helix(LawConfig::Pid(PAPER_PID), PAPER_LAMBDA, CONTINUOUS, &[]);
     let paper = [0.01551, 0.01749, 3.248];
-    for i in 0..3 {
-        let rel = (r.itse[i] - paper[i]).abs() / paper[i];
+    for (i, (ours, paper)) in r.itse.iter().zip(paper).enumerate() {
+        let rel = (ours - paper).abs() / paper;
         assert!(
             rel < 0.08,
-            "axis {i}: ITSE {} vs paper {} ({:.1} %)",
-            r.itse[i],
-            paper[i],
+            "axis {i}: ITSE {ours} vs paper {paper} ({:.1} %)",
             rel * 100.0
         );
     }
