@@ -35,6 +35,7 @@ at 168 MHz from flash (5 wait states, ART accelerator) straight-line code fetche
 flash can cost more on ART misses.
 """
 
+import os
 import struct
 import sys
 
@@ -104,6 +105,7 @@ class Counter:
     def reset(self):
         self.insns = 0
         self.cycles = 0
+        self.it_skipped = 0  # instructions added back from IT blocks
         self.prev = None  # (address, size, mnemonic, is_branch_like)
         self.it_pending = []
         self.active = False
@@ -173,6 +175,7 @@ class Counter:
                 self.it_pending.remove(addr)
             else:
                 skipped = len(self.it_pending)
+                self.it_skipped += skipped
                 self.insns += skipped
                 self.cycles += skipped
                 self.it_pending = []
@@ -192,6 +195,7 @@ class Counter:
     def finish(self):
         """Account for the final return (taken branch) and unflushed IT entries."""
         self.insns += len(self.it_pending)
+        self.it_skipped += len(self.it_pending)
         self.cycles += len(self.it_pending) + REFILL
         self.it_pending = []
 
@@ -236,6 +240,8 @@ def cmd_count(elf_path):
         call(uc, counter, syms["insns_kernel_" + name], count=True)
         counter.finish()
         print("%s instructions=%d cycles_est=%d" % (name, counter.insns, counter.cycles))
+        if os.environ.get("INSNS_VERBOSE"):
+            print("  (%d of them skipped in IT blocks and added back)" % counter.it_skipped)
     return 1 if failed else 0
 
 
