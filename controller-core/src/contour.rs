@@ -63,14 +63,20 @@ pub fn cross_couple<R: Real>(
     lambda: R,
     min_norm_sq: R,
 ) -> Coupled<R> {
-    let pick = if dir.norm_sq() > min_norm_sq {
-        dir
-    } else {
-        fallback_dir
+    // |d|² once for both projections (this runs every control period on three axes).
+    let (d, n2) = match (dir, dir.norm_sq()) {
+        (d, n2) if n2 > min_norm_sq => (d, n2),
+        _ => (fallback_dir, fallback_dir.norm_sq()),
     };
-    let contour = normal_component(tracking, pick, min_norm_sq).unwrap_or_else(Vec3::zero);
-    let contour_rate =
-        normal_component(tracking_rate, pick, min_norm_sq).unwrap_or_else(Vec3::zero);
+    let normal = |v: Vec3<R>| {
+        if n2 > min_norm_sq {
+            v - d * v.dot(d).div_or(n2, R::ZERO)
+        } else {
+            Vec3::zero()
+        }
+    };
+    let contour = normal(tracking);
+    let contour_rate = normal(tracking_rate);
     Coupled {
         tracking,
         contour,

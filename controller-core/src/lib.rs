@@ -14,6 +14,7 @@
 //! - [`ode`]: fixed-step RK4 over any state.
 //! - [`plant`]: axis plant models used by the simulators (paper plant, eq. 5).
 //! - [`trajectory`]: reference paths with analytic first and second derivatives.
+//! - [`shared_root`]: several powers of one base from a single root.
 //! - [`pid`], [`smc`]: the per-axis control laws; [`law`] selects between them.
 //! - [`contour`]: 3-D contour error and cross-coupling (paper eqs. 6-15).
 //! - [`estimator`]: velocity from quantised positions (tracking observer, spec 6).
@@ -46,6 +47,7 @@ pub mod powers;
 pub mod real;
 pub mod seed_gantry;
 pub mod seed_params;
+pub mod shared_root;
 pub mod smc;
 pub mod trajectory;
 pub mod variable_gain_ccc;

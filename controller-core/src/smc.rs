@@ -14,22 +14,24 @@ use crate::law::{finish, AxisSignals, LawOutput, LawState};
 use crate::params::{
     limit, non_negative, positive, ConfigError, ReachingConfig, SmcConfig, SurfaceConfig,
 };
+use crate::shared_root::PowerSet;
 use crate::{Exponent, Real};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Surface<R> {
+    /// `e_powers` = [q/p, β3] (β3 of the double-power law, else q/p again).
     Terminal {
         alpha: R,
         beta: R,
-        qp: Exponent,
+        e_powers: PowerSet<2>,
         qp_minus_one: Exponent,
         beta_qp: R,
         floor: R,
     },
+    /// `e_dot_powers` = [γ, 2 - γ].
     Nonsingular {
         inv_beta: R,
-        gamma: Exponent,
-        two_minus_gamma: Exponent,
+        e_dot_powers: PowerSet<2>,
         beta_over_gamma: R,
     },
 }
@@ -38,12 +40,13 @@ enum Surface<R> {
 enum Reaching<R> {
     /// `inv_phi == 0` selects the pure `sign(s)`.
     Exponential { k: R, epsilon: R, inv_phi: R },
+    /// `s_powers` = [β1, β2]; `|e|^β3` comes from the surface's shared root when the
+    /// surface is terminal.
     DoublePower {
         k1: R,
         k2: R,
         k3: R,
-        beta1: Exponent,
-        beta2: Exponent,
+        s_powers: PowerSet<2>,
         beta3: Exponent,
     },
 }
@@ -78,6 +81,10 @@ fn unit_interval(e: Exponent, name: &'static str) -> Result<Exponent, ConfigErro
 impl<R: Real> Smc<R> {
     pub fn new(c: &SmcConfig) -> Result<Self, ConfigError> {
         let f = R::from_f32;
+        let beta3_cfg = match c.reaching {
+            ReachingConfig::DoublePower { beta3, .. } => Some(beta3),
+            ReachingConfig::Exponential { .. } => None,
+        };
         let surface = match c.surface {
             SurfaceConfig::Terminal {
                 alpha,
@@ -90,7 +97,7 @@ impl<R: Real> Smc<R> {
                 Surface::Terminal {
                     alpha: f(positive(alpha, "alpha")?),
                     beta: f(positive(beta, "beta")?),
-                    qp,
+                    e_powers: PowerSet::new([qp, beta3_cfg.unwrap_or(qp)]),
                     qp_minus_one: qp.minus_one(),
                     beta_qp: f(beta) * R::from_f64(qp.as_f64()),
                     floor: f(positive(singular_floor, "singular_floor")?),
@@ -105,8 +112,7 @@ impl<R: Real> Smc<R> {
                 let beta = positive(beta, "beta")?;
                 Surface::Nonsingular {
                     inv_beta: R::from_f64(1.0 / beta as f64),
-                    gamma,
-                    two_minus_gamma: gamma.two_minus(),
+                    e_dot_powers: PowerSet::new([gamma, gamma.two_minus()]),
                     beta_over_gamma: R::from_f64(beta as f64 / gamma.as_f64()),
                 }
             }
@@ -140,8 +146,7 @@ impl<R: Real> Smc<R> {
                     k1: f(positive(k1, "k1")?),
                     k2: f(positive(k2, "k2")?),
                     k3: f(positive(k3, "k3")?),
-                    beta1: beta2.two_minus(),
-                    beta2,
+                    s_powers: PowerSet::new([beta2.two_minus(), beta2]),
                     beta3,
                 }
             }
@@ -160,27 +165,43 @@ impl<R: Real> Smc<R> {
 
     pub fn evaluate(&self, st: &LawState<R>, sig: &AxisSignals<R>) -> LawOutput<R> {
         let (e, e_dot) = (sig.e, sig.e_dot);
-        let (s, u_surface) = match self.surface {
+        let (s, u_surface, e_beta3) = match self.surface {
             Surface::Terminal {
                 alpha,
                 beta,
-                qp,
+                e_powers,
                 qp_minus_one,
                 beta_qp,
                 floor,
-            } => (
-                e_dot + alpha * e + beta * e.sig_pow(qp, R::ZERO),
-                alpha * e_dot + beta_qp * e.pow_abs(qp_minus_one, floor) * e_dot,
-            ),
+            } => {
+                let [e_qp, e_b3] = e_powers.eval(e);
+                let abs_e = e.abs();
+                // |e|^(q/p-1) = |e|^(q/p) / |e| above the floor (no second root); the
+                // floored value below it keeps the factor bounded.
+                let singular = if abs_e >= floor {
+                    e_qp.div_or(abs_e, R::ZERO)
+                } else {
+                    e.pow_abs(qp_minus_one, floor)
+                };
+                (
+                    e_dot + alpha * e + beta * e.sign() * e_qp,
+                    alpha * e_dot + beta_qp * singular * e_dot,
+                    Some(e_b3),
+                )
+            }
             Surface::Nonsingular {
                 inv_beta,
-                gamma,
-                two_minus_gamma,
+                e_dot_powers,
                 beta_over_gamma,
-            } => (
-                e + inv_beta * e_dot.sig_pow(gamma, R::ZERO),
-                beta_over_gamma * e_dot.sig_pow(two_minus_gamma, R::ZERO),
-            ),
+            } => {
+                let [g, two_minus_g] = e_dot_powers.eval(e_dot);
+                let sign = e_dot.sign();
+                (
+                    e + inv_beta * sign * g,
+                    beta_over_gamma * sign * two_minus_g,
+                    None,
+                )
+            }
         };
         let reach = match self.reaching {
             Reaching::Exponential {
@@ -199,13 +220,12 @@ impl<R: Real> Smc<R> {
                 k1,
                 k2,
                 k3,
-                beta1,
-                beta2,
+                s_powers,
                 beta3,
             } => {
-                k1 * s.sig_pow(beta1, R::ZERO)
-                    + k2 * s.sig_pow(beta2, R::ZERO)
-                    + k3 * e.pow_abs(beta3, R::ZERO) * s
+                let [s_b1, s_b2] = s_powers.eval(s);
+                let e_b3 = e_beta3.unwrap_or_else(|| e.pow_abs(beta3, R::ZERO));
+                s.sign() * (k1 * s_b1 + k2 * s_b2) + k3 * e_b3 * s
             }
         };
         let u = self.inv_k
