@@ -237,19 +237,28 @@ pub fn compare(
                 .map(move |s| (l.name.to_lowercase(), l.law, *s))
         })
         .collect();
+    compare_parallel(&jobs, |(law_name, law, src)| {
+        let r = run_one(sc, *law, src, horizon_s, disturbance)?;
+        Ok((law_name.clone(), src.name().to_string(), Figures::from(&r)))
+    })
+}
+
+/// Run `one` over `jobs` on two threads (the machine's cores) and gather the
+/// `(law, source, figures)` rows into a [`Comparison`]; the first error wins.
+pub(crate) fn compare_parallel<J: Sync>(
+    jobs: &[J],
+    one: impl Fn(&J) -> Result<(String, String, Figures)> + Sync,
+) -> Result<Comparison> {
+    let one = &one;
     let results: Vec<Result<(String, String, Figures)>> = std::thread::scope(|scope| {
         let halves: Vec<_> = [0usize, 1]
             .into_iter()
             .map(|part| {
-                let jobs = &jobs;
                 scope.spawn(move || {
                     jobs.iter()
                         .skip(part)
                         .step_by(2)
-                        .map(|(law_name, law, src)| {
-                            let r = run_one(sc, *law, src, horizon_s, disturbance)?;
-                            Ok((law_name.clone(), src.name().to_string(), Figures::from(&r)))
-                        })
+                        .map(one)
                         .collect::<Vec<_>>()
                 })
             })

@@ -167,37 +167,10 @@ pub fn compare_physical(
         .iter()
         .flat_map(|&l| sources.iter().map(move |&s| (l, s)))
         .collect();
-    let results: Vec<Result<(String, String, Figures)>> = std::thread::scope(|scope| {
-        let halves: Vec<_> = [0usize, 1]
-            .into_iter()
-            .map(|part| {
-                let jobs = &jobs;
-                scope.spawn(move || {
-                    jobs.iter()
-                        .skip(part)
-                        .step_by(2)
-                        .map(|(law, src)| {
-                            let r = run_physical(*law, src, horizon_s)?;
-                            Ok((law_key(*law), src.name().to_string(), Figures::from(&r)))
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        halves
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| vec![Err(anyhow!("a run panicked"))])
-            })
-            .collect()
-    });
-    let mut out = Comparison::new();
-    for r in results {
-        let (law, src, fig) = r?;
-        out.entry(law).or_default().insert(src, fig);
-    }
-    Ok(out)
+    super::compare_parallel(&jobs, |(law, src)| {
+        let r = run_physical(*law, src, horizon_s)?;
+        Ok((law_key(*law), src.name().to_string(), Figures::from(&r)))
+    })
 }
 
 /// A terminal table of the physical comparison (lengths mm, torques mN·m).
