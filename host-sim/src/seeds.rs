@@ -252,14 +252,22 @@ pub struct SeedsReport {
 }
 
 impl SeedsReport {
-    /// The JSON of issue 5: `{"<scenario>": {"<law>": {...}}, "adaptation": {...}}`.
+    /// The JSON of issue 5 (public interface): `{"<scenario>": {"<law>": {...}},
+    /// "adaptation": {"J"|"B"|"f_pos"|"f_neg": {"estimate", "truth"}}}`, where
+    /// "adaptation" is the X axis; every adapted axis is under "adaptation_axes".
     pub fn to_json(&self) -> serde_json::Value {
         let mut m = serde_json::Map::new();
         for (k, v) in &self.scenarios {
             m.insert(k.clone(), serde_json::to_value(v).unwrap_or_default());
         }
+        if let Some(x) = self.adaptation.get("x") {
+            m.insert(
+                "adaptation".into(),
+                serde_json::to_value(x).unwrap_or_default(),
+            );
+        }
         m.insert(
-            "adaptation".into(),
+            "adaptation_axes".into(),
             serde_json::to_value(&self.adaptation).unwrap_or_default(),
         );
         serde_json::Value::Object(m)

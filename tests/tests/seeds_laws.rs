@@ -309,3 +309,27 @@ fn adaptive_estimates_stay_within_bounds_without_excitation() {
         || a.j == c.inertia.min;
     assert!(on_bound, "{a:?}");
 }
+
+#[test]
+fn seeds_json_keeps_the_issue_shape() {
+    // public interface: "adaptation": {"J"|"B"|"f_pos"|"f_neg": {"estimate", "truth"}} (X axis),
+    // every adapted axis under "adaptation_axes"
+    let v = friction_report().to_json();
+    for k in ["J", "B", "f_pos", "f_neg"] {
+        let e = &v["adaptation"][k];
+        assert!(
+            e["estimate"].as_f64().unwrap().is_finite(),
+            "adaptation.{k}"
+        );
+        assert_eq!(e["truth"], v["adaptation_axes"]["x"][k]["truth"]);
+    }
+    let friction = v["friction_sine"].as_object().unwrap();
+    for (law, fig) in friction {
+        for k in ["contour_max", "contour_rms"] {
+            assert!(fig[k].as_f64().unwrap() >= 0.0, "{law}.{k}");
+        }
+        for k in ["itse", "peak_torque"] {
+            assert_eq!(fig[k].as_array().unwrap().len(), 3, "{law}.{k}");
+        }
+    }
+}
