@@ -222,27 +222,43 @@ pub fn pow_abs_f32(x: f32, e: Exponent, floor: f32) -> f32 {
     }
 }
 
-/// The libm reference of [`pow_abs_f32`] (same contract), kept for comparison and for the
-/// `dsmc3_f32_libm` cost measurement.
-#[inline]
-pub fn pow_abs_f32_libm(x: f32, e: Exponent, floor: f32) -> f32 {
-    let mut base = if x < 0.0 { -x } else { x };
-    if e.num < 0 {
-        if !(base >= floor) {
-            base = floor;
+/// `|x|^e` through libm's generic `pow` with the [`crate::Real::pow_abs`] contract (base
+/// floored for `e < 0`, `0^e = 0` for `e > 0`, non-finite results saturate to `MAX`).
+macro_rules! libm_pow_abs {
+    ($(#[$doc:meta])* $vis:vis $name:ident, $t:ty, $pow:path, $as:ident) => {
+        $(#[$doc])*
+        #[inline]
+        $vis fn $name(x: $t, e: Exponent, floor: $t) -> $t {
+            let mut base = if x < 0.0 { -x } else { x };
+            if e.num < 0 {
+                if !(base >= floor) {
+                    base = floor;
+                }
+            } else if e.num == 0 {
+                return 1.0;
+            } else if base == 0.0 {
+                return 0.0;
+            }
+            let r = $pow(base, e.$as());
+            if r.is_finite() {
+                r
+            } else {
+                <$t>::MAX
+            }
         }
-    } else if e.num == 0 {
-        return 1.0;
-    } else if base == 0.0 {
-        return 0.0;
-    }
-    let r = libm::powf(base, e.as_f32());
-    if r.is_finite() {
-        r
-    } else {
-        f32::MAX
-    }
+    };
 }
+
+libm_pow_abs!(
+    /// The libm reference of [`pow_abs_f32`] (same contract), kept for comparison and for
+    /// the `dsmc3_f32_libm` cost measurement.
+    pub pow_abs_f32_libm, f32, libm::powf, as_f32
+);
+
+libm_pow_abs!(
+    /// `f64` keeps the generic libm `pow`: it is the host's reference precision.
+    pub(crate) pow_abs_f64, f64, libm::pow, as_f64
+);
 
 // ---------------------------------------------------------------------------------------
 // Integer core for the fixed-point types.

@@ -198,26 +198,6 @@ macro_rules! impl_float_real {
     };
 }
 
-/// `f64` keeps the generic libm `pow`: it is the host's reference precision.
-fn pow_abs_f64(x: f64, e: Exponent, floor: f64) -> f64 {
-    let mut base = if x < 0.0 { -x } else { x };
-    if e.num < 0 {
-        if !(base >= floor) {
-            base = floor;
-        }
-    } else if e.num == 0 {
-        return 1.0;
-    } else if base == 0.0 {
-        return 0.0;
-    }
-    let r = libm::pow(base, e.as_f64());
-    if r.is_finite() {
-        r
-    } else {
-        f64::MAX
-    }
-}
-
 // f32, the firmware's type, takes the cube-root fast path for den ∈ {1, 3, 9} and an
 // f32-only sin/cos (libm's `sincosf` works in f64, soft-float on the Cortex-M4F); see
 // `powers`.
@@ -228,7 +208,13 @@ impl_float_real!(
     crate::powers::pow_abs_f32,
     crate::powers::sin_cos_f32
 );
-impl_float_real!(f64, libm::cbrt, libm::sqrt, pow_abs_f64, libm::sincos);
+impl_float_real!(
+    f64,
+    libm::cbrt,
+    libm::sqrt,
+    crate::powers::pow_abs_f64,
+    libm::sincos
+);
 
 /// `f32` with libm's generic `powf` and `cbrtf` for every fractional power: the reference
 /// the fast powers are compared with, and the `dsmc3_f32_libm` cost kernel. Identical to
