@@ -2,7 +2,7 @@
 //! axis, PID / SMC / DSMC, ITSE and robustness) and Table 3 (3-D helix with cross-coupling,
 //! per-axis ITSE), with the published numbers carried in the scenario file.
 
-use crate::engine::{run, MetricSpec, Mode, Numeric, RunResult, RunSpec};
+use crate::engine::{run, DiscreteSpec, MetricSpec, Mode, Numeric, RunResult, RunSpec};
 use crate::scenario::{paper_plants, StepDisturbance, TrajectorySpec};
 use anyhow::{bail, Context, Result};
 use controller_core::gantry::GantryConfig;
@@ -61,6 +61,15 @@ pub struct Published {
     pub table3: BTreeMap<String, PublishedT3>,
 }
 
+/// Table 3 as the firmware runs it: the same helix and laws at a fixed sample rate with
+/// zero-order hold, quantised positions and a saturated actuator, in each number type.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiscreteTableSpec {
+    pub mode: DiscreteSpec,
+    pub numerics: Vec<Numeric>,
+}
+
 /// A complete paper-reproduction scenario file.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -73,6 +82,9 @@ pub struct PaperScenario {
     pub laws: Vec<NamedLaw>,
     pub table1: Table1Spec,
     pub table3: Table3Spec,
+    /// Optional: Table 3 in discrete mode, per controller number type.
+    #[serde(default)]
+    pub table3_discrete: Option<DiscreteTableSpec>,
     pub published: Published,
 }
 
@@ -103,6 +115,30 @@ pub struct T3Row {
     pub peak_u: [f64; 3],
 }
 
+impl T3Row {
+    fn of(r: &RunResult, horizon_s: f64) -> Self {
+        Self {
+            x: r.itse[0],
+            y: r.itse[1],
+            z: r.itse[2],
+            contour_max: r.contour_max,
+            contour_rms: r.contour_rms,
+            tv_u_per_s: r.tv_u.map(|v| v / horizon_s),
+            peak_u: r.peak_u,
+        }
+    }
+}
+
+/// The scenario-file name of a number type (also its JSON key).
+pub fn numeric_name(n: Numeric) -> &'static str {
+    match n {
+        Numeric::F32 => "f32",
+        Numeric::F64 => "f64",
+        Numeric::Fixed => "fixed",
+        Numeric::FixedQ16 => "fixed_q16",
+    }
+}
+
 /// Everything the paper command produces (JSON keys are public interface).
 #[derive(Clone, Debug, Serialize)]
 pub struct PaperReport {
@@ -113,6 +149,10 @@ pub struct PaperReport {
     pub table3: BTreeMap<String, T3Row>,
     /// The same runs with the paper's load step on X at 10 s (its Figs. 10 and 14).
     pub table3_disturbed: BTreeMap<String, T3Row>,
+    /// Table 3 as the firmware runs it (discrete, quantised), keyed by number type
+    /// ("f32", "fixed", ...) and then law.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub table3_discrete: BTreeMap<String, BTreeMap<String, T3Row>>,
     #[serde(skip)]
     pub traces: BTreeMap<String, RunResult>,
     #[serde(skip)]
@@ -223,6 +263,21 @@ pub fn run_paper(sc: &PaperScenario) -> Result<PaperReport> {
             });
         }
     }
+    if let Some(d) = &sc.table3_discrete {
+        for numeric in &d.numerics {
+            for (name, cfg) in &t3_rows {
+                jobs.push(Job {
+                    key: format!("t3d_{}_{name}", numeric_name(*numeric)),
+                    spec: RunSpec {
+                        mode: Mode::Discrete(d.mode),
+                        numeric: *numeric,
+                        ..base(t3.horizon_s, &t3.helix, *cfg, helix_metrics)?
+                    },
+                    disturbances: vec![],
+                });
+            }
+        }
+    }
     let res = run_jobs(sc, jobs)?;
     let get = |k: &str| res.get(k).with_context(|| format!("missing run {k}"));
     let mut report = PaperReport {
@@ -230,6 +285,7 @@ pub fn run_paper(sc: &PaperScenario) -> Result<PaperReport> {
         table1_sine: BTreeMap::new(),
         table3: BTreeMap::new(),
         table3_disturbed: BTreeMap::new(),
+        table3_discrete: BTreeMap::new(),
         traces: BTreeMap::new(),
         law_order: t3_rows.iter().map(|(n, _)| n.clone()).collect(),
     };
@@ -254,18 +310,18 @@ pub fn run_paper(sc: &PaperScenario) -> Result<PaperReport> {
             ("disturbed", &mut report.table3_disturbed),
         ] {
             let r = get(&format!("t3_{name}_{suffix}"))?;
-            table.insert(
-                name.clone(),
-                T3Row {
-                    x: r.itse[0],
-                    y: r.itse[1],
-                    z: r.itse[2],
-                    contour_max: r.contour_max,
-                    contour_rms: r.contour_rms,
-                    tv_u_per_s: r.tv_u.map(|v| v / t3.horizon_s),
-                    peak_u: r.peak_u,
-                },
-            );
+            table.insert(name.clone(), T3Row::of(r, t3.horizon_s));
+        }
+    }
+    if let Some(d) = &sc.table3_discrete {
+        for numeric in &d.numerics {
+            let n = numeric_name(*numeric);
+            let mut table = BTreeMap::new();
+            for (name, _) in &t3_rows {
+                let r = get(&format!("t3d_{n}_{name}"))?;
+                table.insert(name.clone(), T3Row::of(r, t3.horizon_s));
+            }
+            report.table3_discrete.insert(n.to_string(), table);
         }
     }
     report.traces = res;

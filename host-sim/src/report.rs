@@ -108,6 +108,34 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
             );
         }
     }
+    if let Some(d) = &sc.table3_discrete {
+        let _ = writeln!(
+            s,
+            "\nTable 3 as the firmware runs it: {} Hz, zero-order hold, positions quantised to {:e}, |u| <= {}, velocity {:?}, no disturbance",
+            d.mode.rate_hz, d.mode.position_quantum, d.mode.actuator_limit, d.mode.velocity
+        );
+        let _ = writeln!(
+            s,
+            "  {:<12} {:<9} {:>10} {:>10} {:>10} | {:>11} {:>11}",
+            "method", "numeric", "x", "y", "z", "contour max", "contour rms"
+        );
+        for name in &r.law_order {
+            for (numeric, table) in &r.table3_discrete {
+                let Some(row) = table.get(name) else { continue };
+                let _ = writeln!(
+                    s,
+                    "  {:<12} {:<9} {:>10} {:>10} {:>10} | {:>11.3e} {:>11.3e}",
+                    name,
+                    numeric,
+                    num(row.x),
+                    num(row.y),
+                    num(row.z),
+                    row.contour_max,
+                    row.contour_rms
+                );
+            }
+        }
+    }
     s
 }
 

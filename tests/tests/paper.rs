@@ -158,6 +158,10 @@ fn builtin_scenario_json_has_every_key() {
                 v["table3"][law][k].as_f64().unwrap().is_finite(),
                 "table3.{law}.{k}"
             );
+            for numeric in ["f32", "fixed"] {
+                let x = v["table3_discrete"][numeric][law][k].as_f64().unwrap();
+                assert!(x.is_finite(), "table3_discrete.{numeric}.{law}.{k}");
+            }
         }
     }
 }
