@@ -44,6 +44,19 @@ pub(crate) type Draw<'a> = &'a dyn Fn(&mut dyn FnMut(Panel) -> Result<()>) -> Re
 /// A named, coloured 3-D path.
 pub(crate) type Path3 = (String, RGBColor, Vec<(f64, f64, f64)>);
 
+/// The series legend, in the same style on every chart (2-D and 3-D).
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 12))
+        .draw()
+        .map_err(err)
+}
+
 /// One named series of (x, y) points.
 pub(crate) struct Series {
     pub(crate) name: String,
@@ -102,14 +115,7 @@ fn line_panel<DB: DrawingBackend>(
             .label(s.name.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 12))
-        .draw()
-        .map_err(err)?;
-    Ok(())
+    draw_legend(&mut chart)
 }
 
 /// Render `draw` as `<stem>.png` and `<stem>.svg`.
@@ -209,14 +215,7 @@ fn helix_panel<DB: DrawingBackend>(
             .label(name.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 12))
-        .draw()
-        .map_err(err)?;
-    Ok(())
+    draw_legend(&mut chart)
 }
 
 fn axis_series(

@@ -21,7 +21,8 @@
 //! process noise (hence the bandwidth, hence the noise) can be set low.
 
 use super::{
-    cubic_is_stable, step_counts, to_units, Estimate, EstimatorTiming, Scales, MAX_STEP_COUNTS,
+    cubic_is_stable, estimate_of, settle, step_counts, Estimate, EstimatorTiming, Scales,
+    MAX_STEP_COUNTS,
 };
 use crate::params::{positive, ConfigError};
 use crate::Real;
@@ -191,24 +192,15 @@ impl<R: Real> Kalman<R> {
         let pred = self.rel + self.vel + acc * half - step_counts::<R>(count, self.last);
         let vel_pred = self.vel + acc;
         let innov = -pred;
-        self.rel = (pred + self.k_pos * innov)
-            .finite_or_zero()
-            .clamp_sym(limit);
-        self.vel = (vel_pred + self.k_vel * innov)
-            .finite_or_zero()
-            .clamp_sym(limit);
-        self.bias = (self.bias + self.k_acc * innov)
-            .finite_or_zero()
-            .clamp_sym(limit);
+        self.rel = settle(pred + self.k_pos * innov, limit);
+        self.vel = settle(vel_pred + self.k_vel * innov, limit);
+        self.bias = settle(self.bias + self.k_acc * innov, limit);
         self.last = count;
         self.estimate()
     }
 
     pub fn estimate(&self) -> Estimate<R> {
-        Estimate {
-            pos: to_units(self.last, self.rel, &self.scales),
-            vel: self.vel * self.scales.vel,
-        }
+        estimate_of(self.last, self.rel, self.vel, &self.scales)
     }
 
     /// The unexplained acceleration currently estimated (units/s²).

@@ -134,6 +134,20 @@ pub(crate) fn to_units<R: Real>(count: i64, frac: R, s: &Scales<R>) -> R {
     (count_to_real::<R>(count) + frac) * s.pos
 }
 
+/// An observer state after its correction: NaN never survives a period, and the state
+/// stays within `±limit` counts (per period) of the last count.
+pub(crate) fn settle<R: Real>(x: R, limit: R) -> R {
+    x.finite_or_zero().clamp_sym(limit)
+}
+
+/// Position and velocity in units from an observer's state relative to the last count.
+pub(crate) fn estimate_of<R: Real>(last: i64, rel: R, vel_counts: R, s: &Scales<R>) -> Estimate<R> {
+    Estimate {
+        pos: to_units(last, rel, s),
+        vel: vel_counts * s.vel,
+    }
+}
+
 /// Naive backward difference: one count per period of velocity resolution.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BackwardDifference<R> {

@@ -20,7 +20,8 @@
 //! (≈ `σ² (ωTs)³/4` for ζ = 1): higher bandwidth, less lag, more noise.
 
 use super::{
-    quadratic_is_stable, step_counts, to_units, Estimate, EstimatorTiming, Scales, MAX_STEP_COUNTS,
+    estimate_of, quadratic_is_stable, settle, step_counts, Estimate, EstimatorTiming, Scales,
+    MAX_STEP_COUNTS,
 };
 use crate::params::{positive, ConfigError};
 use crate::Real;
@@ -103,21 +104,14 @@ impl<R: Real> Pll<R> {
         // prediction, re-expressed relative to the new count
         let pred = self.rel + self.vel - step_counts::<R>(count, self.last);
         let innov = -pred;
-        self.rel = (pred + self.alpha * innov)
-            .finite_or_zero()
-            .clamp_sym(limit);
-        self.vel = (self.vel + self.beta * innov)
-            .finite_or_zero()
-            .clamp_sym(limit);
+        self.rel = settle(pred + self.alpha * innov, limit);
+        self.vel = settle(self.vel + self.beta * innov, limit);
         self.last = count;
         self.estimate()
     }
 
     pub fn estimate(&self) -> Estimate<R> {
-        Estimate {
-            pos: to_units(self.last, self.rel, &self.scales),
-            vel: self.vel * self.scales.vel,
-        }
+        estimate_of(self.last, self.rel, self.vel, &self.scales)
     }
 
     pub fn reset(&mut self, count: i64) {
