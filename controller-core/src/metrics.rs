@@ -5,7 +5,7 @@
 //! Accumulators take samples at a fixed step `dt` (rectangle rule, the sample at `t`
 //! weighting the interval `[t, t + dt)`).
 
-use crate::trajectory::Trajectory;
+use crate::motion::trajectory::Trajectory;
 use crate::{Real, Vec3};
 
 /// `∫ t e(t)² dt` restricted to `t_from <= t < t_to`.

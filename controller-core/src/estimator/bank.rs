@@ -1,11 +1,63 @@
-//! The three axes' estimators as the control interrupt uses them: wide counts in,
-//! [`Measured`] (positions and velocities for the laws) out, and the saturated output fed
-//! back so the Kalman filter knows the commanded acceleration.
+//! The three axes' estimators as the servo step uses them: wide counts in, [`Measured`]
+//! positions and velocities out, and the commanded acceleration fed to the estimators that
+//! use one (the Kalman filter).
+//!
+//! The commanded acceleration ([`AccelInput`]) is either the reference's planned
+//! acceleration (no lag on planned motion; available on the board as well) or the axis
+//! model times the output *applied* in the previous period (what actually pushes the
+//! axis, saturation included).
 
 use super::{Estimate, EstimatorConfig, EstimatorTiming, Scales, VelocityEstimator};
-use crate::gantry::Measured;
-use crate::params::{finite, ConfigError, PlantParams};
+use crate::axes::AXES;
+use crate::config::{finite, ConfigError};
+use crate::controller::Measured;
+use crate::model::PlantParams;
 use crate::{Real, Vec3};
+
+/// Where the estimators' commanded acceleration comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum AccelInput {
+    /// None (zero): the Kalman filter relies on its bias state alone.
+    #[default]
+    None,
+    /// The reference acceleration of the current period.
+    Reference,
+    /// Each axis' model `θ'' = -a θ' - b θ + k u` at the estimate, with the output applied
+    /// in the previous period.
+    Model(
+        #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))] [PlantParams; AXES],
+    ),
+}
+
+/// Estimator per axis and the commanded-acceleration input.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct EstimatorBankConfig {
+    #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
+    pub axes: [EstimatorConfig; AXES],
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub accel_input: AccelInput,
+}
+
+impl EstimatorBankConfig {
+    /// The same estimator on every axis, no acceleration input.
+    pub const fn uniform(cfg: EstimatorConfig) -> Self {
+        Self {
+            axes: [cfg; AXES],
+            accel_input: AccelInput::None,
+        }
+    }
+
+    /// True if any axis asks for the simulated true velocity.
+    pub fn needs_true_velocity(&self) -> bool {
+        self.axes
+            .iter()
+            .any(|a| matches!(a, EstimatorConfig::Exact))
+    }
+}
 
 /// The acceleration a command produces according to the axis model
 /// `θ'' = -a θ' - b θ + k u` (spec 1.1; for the physical axis `J x'' + B x' = u`:
@@ -32,55 +84,84 @@ impl<R: Real> AccelModel<R> {
     }
 }
 
-/// One estimator per axis plus the command that was applied last period.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Estimators3<R> {
-    axes: [VelocityEstimator<R>; 3],
-    models: [Option<AccelModel<R>>; 3],
-    applied_u: Vec3<R>,
-    scales: Scales<R>,
+enum Accel<R> {
+    None,
+    Reference,
+    Model([AccelModel<R>; AXES]),
 }
 
-impl<R: Real> Estimators3<R> {
-    /// `models[i]`: the axis model for the commanded acceleration (`None`: no input, the
-    /// Kalman filter then relies on its bias state alone). Starts at rest at `counts`.
+/// One estimator per axis plus the output that was applied last period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EstimatorBank<R> {
+    axes: [VelocityEstimator<R>; AXES],
+    exact: [bool; AXES],
+    accel: Accel<R>,
+    applied_u: Vec3<R>,
+    /// Length of one count per axis, evaluated in `f64`: positions are `count × length`
+    /// rounded once to `R`, exactly as the simulator quantises.
+    count_len: [f64; AXES],
+}
+
+impl<R: Real> EstimatorBank<R> {
+    /// Starts at rest at wide counts `counts`; `timing[i]` is axis i's period and count.
     pub fn new(
-        cfg: &[EstimatorConfig; 3],
-        models: &[Option<PlantParams>; 3],
-        timing: &EstimatorTiming,
-        counts: [i64; 3],
+        cfg: &EstimatorBankConfig,
+        timing: &[EstimatorTiming; AXES],
+        count_len: [f64; AXES],
+        counts: [i64; AXES],
     ) -> Result<Self, ConfigError> {
-        let model = |m: &Option<PlantParams>| m.as_ref().map(AccelModel::new).transpose();
+        let accel = match &cfg.accel_input {
+            AccelInput::None => Accel::None,
+            AccelInput::Reference => Accel::Reference,
+            AccelInput::Model(m) => Accel::Model([
+                AccelModel::new(&m[0])?,
+                AccelModel::new(&m[1])?,
+                AccelModel::new(&m[2])?,
+            ]),
+        };
+        for t in timing {
+            Scales::<R>::new(t)?;
+        }
         Ok(Self {
             axes: [
-                VelocityEstimator::new(&cfg[0], timing, counts[0])?,
-                VelocityEstimator::new(&cfg[1], timing, counts[1])?,
-                VelocityEstimator::new(&cfg[2], timing, counts[2])?,
+                VelocityEstimator::new(&cfg.axes[0], &timing[0], counts[0])?,
+                VelocityEstimator::new(&cfg.axes[1], &timing[1], counts[1])?,
+                VelocityEstimator::new(&cfg.axes[2], &timing[2], counts[2])?,
             ],
-            models: [model(&models[0])?, model(&models[1])?, model(&models[2])?],
+            exact: cfg.axes.map(|a| matches!(a, EstimatorConfig::Exact)),
+            accel,
             applied_u: Vec3::zero(),
-            scales: Scales::new(timing)?,
+            count_len,
         })
     }
 
     /// Call once per period with this period's wide counts, before the control law.
-    /// Positions are the measured counts (in units), velocities the estimates.
-    pub fn update(&mut self, counts: [i64; 3]) -> Measured<R> {
+    /// `reference_acc`: the reference acceleration of this period (used with
+    /// [`AccelInput::Reference`]); `true_vel`: the simulated plant's velocity (used by
+    /// [`EstimatorConfig::Exact`] axes). Positions are the measured counts (in units),
+    /// velocities the estimates.
+    pub fn update(
+        &mut self,
+        counts: [i64; AXES],
+        reference_acc: Vec3<R>,
+        true_vel: Option<[f64; AXES]>,
+    ) -> Measured<R> {
         let mut m = Measured::default();
-        for (i, ((est, model), &n)) in self
-            .axes
-            .iter_mut()
-            .zip(&self.models)
-            .zip(&counts)
-            .enumerate()
-        {
-            let accel = match model {
-                Some(md) => md.accel(self.applied_u[i], &est.estimate()),
-                None => R::ZERO,
+        for i in 0..AXES {
+            let est = &mut self.axes[i];
+            let accel = match &self.accel {
+                Accel::None => R::ZERO,
+                Accel::Reference => reference_acc[i],
+                Accel::Model(md) => md[i].accel(self.applied_u[i], &est.estimate()),
             };
-            let e = est.update(n, accel);
-            m.pos[i] = super::to_units(n, R::ZERO, &self.scales);
-            m.vel[i] = e.vel;
+            let e = est.update(counts[i], accel);
+            m.pos[i] = R::from_f64(counts[i] as f64 * self.count_len[i]);
+            m.vel[i] = match (self.exact[i], true_vel) {
+                (true, Some(v)) => R::from_f64(v[i]),
+                (true, None) => R::ZERO,
+                (false, _) => e.vel,
+            };
         }
         m
     }
@@ -91,7 +172,7 @@ impl<R: Real> Estimators3<R> {
     }
 
     /// The full estimates (sub-count positions included) after the last update.
-    pub fn estimates(&self) -> [Estimate<R>; 3] {
+    pub fn estimates(&self) -> [Estimate<R>; AXES] {
         [
             self.axes[0].estimate(),
             self.axes[1].estimate(),
@@ -100,7 +181,7 @@ impl<R: Real> Estimators3<R> {
     }
 
     /// Restart every axis at rest at `counts` and forget the last command.
-    pub fn reset(&mut self, counts: [i64; 3]) {
+    pub fn reset(&mut self, counts: [i64; AXES]) {
         for (e, &n) in self.axes.iter_mut().zip(&counts) {
             e.reset(n);
         }
@@ -112,7 +193,7 @@ impl<R: Real> Estimators3<R> {
 mod tests {
     use super::*;
     use crate::estimator::{PAPER_SIM_KALMAN, PAPER_SIM_TIMING};
-    use crate::params::PAPER_PLANT;
+    use crate::presets::paper::PAPER_PLANT;
 
     #[test]
     fn commanded_acceleration_reaches_the_kalman_filter() {
@@ -120,12 +201,17 @@ mod tests {
         // (10 counts/period) with a 0.1 s time constant, a fast, lag-dominated motion. The
         // filter told the command follows it far more closely than the
         // same filter left to discover the acceleration through its bias state.
-        let cfg = [EstimatorConfig::Kalman(PAPER_SIM_KALMAN); 3];
-        let mut with =
-            Estimators3::<f64>::new(&cfg, &[Some(PAPER_PLANT); 3], &PAPER_SIM_TIMING, [0; 3])
-                .unwrap();
-        let mut without =
-            Estimators3::<f64>::new(&cfg, &[None; 3], &PAPER_SIM_TIMING, [0; 3]).unwrap();
+        let cfg = EstimatorBankConfig {
+            axes: [EstimatorConfig::Kalman(PAPER_SIM_KALMAN); 3],
+            accel_input: AccelInput::Model([PAPER_PLANT; 3]),
+        };
+        let without_cfg = EstimatorBankConfig {
+            accel_input: AccelInput::None,
+            ..cfg
+        };
+        let t = [PAPER_SIM_TIMING; 3];
+        let mut with = EstimatorBank::<f64>::new(&cfg, &t, [1e-4; 3], [0; 3]).unwrap();
+        let mut without = EstimatorBank::<f64>::new(&without_cfg, &t, [1e-4; 3], [0; 3]).unwrap();
         // exact motion under u = 100 with θ'' = -10θ' - θ + 100, Euler at 1 µs
         let (mut q, mut v) = (0.0f64, 0.0f64);
         let (mut worst_with, mut worst_without) = (0.0f64, 0.0f64);
@@ -138,12 +224,12 @@ mod tests {
             let n = (q / 1e-4).round() as i64;
             with.applied(Vec3::splat(100.0));
             without.applied(Vec3::splat(100.0));
-            let mw = with.update([n; 3]);
-            let mo = without.update([n; 3]);
+            let mw = with.update([n; 3], Vec3::zero(), None);
+            let mo = without.update([n; 3], Vec3::zero(), None);
             worst_with = worst_with.max((mw.vel.x - v).abs());
             worst_without = worst_without.max((mo.vel.x - v).abs());
-            // positions are the measured counts times the (f32) count size, exactly
-            assert_eq!(mw.pos.x, n as f64 * f64::from(1e-4f32));
+            // positions are the measured counts times the count length, exactly
+            assert_eq!(mw.pos.x, n as f64 * 1e-4);
         }
         // measured: 4.8e-3 with the command, 0.33 units/s without (velocity up to 10)
         assert!(worst_with < 0.01, "{worst_with}");
@@ -151,5 +237,15 @@ mod tests {
             worst_with < 0.05 * worst_without,
             "{worst_with} {worst_without}"
         );
+    }
+
+    #[test]
+    fn exact_axes_take_the_true_velocity() {
+        let cfg = EstimatorBankConfig::uniform(EstimatorConfig::Exact);
+        let mut b =
+            EstimatorBank::<f32>::new(&cfg, &[PAPER_SIM_TIMING; 3], [1e-4; 3], [0; 3]).unwrap();
+        let m = b.update([3, 4, 5], Vec3::zero(), Some([1.5, -2.0, 0.25]));
+        assert_eq!(m.vel, Vec3::new(1.5, -2.0, 0.25));
+        assert!(cfg.needs_true_velocity());
     }
 }

@@ -24,7 +24,7 @@ use super::{
     cubic_is_stable, estimate_of, settle, step_counts, Estimate, EstimatorTiming, Scales,
     MAX_STEP_COUNTS,
 };
-use crate::params::{positive, ConfigError};
+use crate::config::{positive, ConfigError};
 use crate::Real;
 
 /// Kalman tuning, in plant units.

@@ -25,17 +25,16 @@ mod kalman;
 mod pll;
 mod wide;
 
-pub use bank::{AccelModel, Estimators3};
+pub use bank::{AccelInput, AccelModel, EstimatorBank, EstimatorBankConfig};
 pub use kalman::{Kalman, KalmanConfig, PAPER_SIM_KALMAN};
 pub use pll::{Pll, PllConfig, PAPER_SIM_PLL};
 pub use wide::{CounterWidth, WideCounter};
 
-use crate::params::{positive, ConfigError};
+use crate::config::{positive, ConfigError};
 use crate::Real;
 
 /// Sample period and encoder resolution, shared by all estimators of a machine.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EstimatorTiming {
     /// Control period (s).
     pub period_s: f32,
@@ -53,17 +52,22 @@ pub const PAPER_SIM_TIMING: EstimatorTiming = EstimatorTiming {
 /// Which estimator an axis uses.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(tag = "kind", rename_all = "snake_case"))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum EstimatorConfig {
+    /// The plant's true velocity. Only a simulated machine can provide it (the reference
+    /// case of the estimator studies); a servo on hardware rejects it.
+    Exact,
     BackwardDifference,
     Pll(PllConfig),
     Kalman(KalmanConfig),
 }
 
 impl EstimatorConfig {
-    /// Short snake_case name used in reports (`backward_difference`, `pll`, `kalman`).
+    /// Short snake_case name used in reports (`exact`, `backward_difference`, `pll`,
+    /// `kalman`).
     pub const fn name(&self) -> &'static str {
         match self {
+            Self::Exact => "exact",
             Self::BackwardDifference => "backward_difference",
             Self::Pll(_) => "pll",
             Self::Kalman(_) => "kalman",
@@ -201,7 +205,8 @@ impl<R: Real> VelocityEstimator<R> {
         count: i64,
     ) -> Result<Self, ConfigError> {
         Ok(match cfg {
-            EstimatorConfig::BackwardDifference => {
+            // the true velocity is supplied by the bank; the difference keeps the counts
+            EstimatorConfig::Exact | EstimatorConfig::BackwardDifference => {
                 Self::BackwardDifference(BackwardDifference::new(t, count)?)
             }
             EstimatorConfig::Pll(c) => Self::Pll(Pll::new(c, t, count)?),

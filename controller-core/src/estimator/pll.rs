@@ -23,7 +23,7 @@ use super::{
     estimate_of, quadratic_is_stable, settle, step_counts, Estimate, EstimatorTiming, Scales,
     MAX_STEP_COUNTS,
 };
-use crate::params::{positive, ConfigError};
+use crate::config::{positive, ConfigError};
 use crate::Real;
 
 /// PLL tuning.

@@ -1,19 +1,20 @@
-//! Parameter presets of the physical gantry and of the seed methods' laws, with the
-//! reasoning for each value (the patent and the XY-table paper do not publish theirs).
-//! docs/seed-methods.md repeats the derivations in a table.
+//! The physical 3-axis gantry (ball-screw axes with friction) and the law tunings derived
+//! from its axis models, with the reasoning for each value (the patent, seed 002, and the
+//! XY-table paper, seed 004, do not publish theirs). docs/seed-methods.md repeats the
+//! derivations in a table.
 //!
 //! Units: mm, s, mN·m (see [`crate::physical_plant`]). The reflected inertia of an axis is
 //! `J = J_motor_side · 2π/lead` with `J_motor_side` in kg·m² times 1000 (N·m → mN·m):
 //! lead 5 mm gives 2π/lead = 1.2566 rad/mm, so 1e-4 kg·m² at the motor is
 //! 0.1257 mN·m/(mm/s²) at the table.
 
-use crate::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
-use crate::dob_smc::DobSmcConfig;
-use crate::params::ReachingConfig;
-use crate::params::{LawConfig, PidConfig, PlantParams, SmcConfig, SurfaceConfig};
-use crate::physical_plant::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
-use crate::seed_gantry::{SeedControllerConfig, SeedLawConfig};
-use crate::variable_gain_ccc::{CccConfig, CccMode};
+use crate::coupling::variable_gain::{VariableGainConfig, VariableGainMode};
+use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
+use crate::law::dob_smc::DobSmcConfig;
+use crate::law::pid::PidConfig;
+use crate::law::smc::{ReachingConfig, SmcConfig, SurfaceConfig};
+use crate::model::PlantParams;
+use crate::sim::physical::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
 use crate::Exponent;
 
 /// Control period of the firmware: 10 kHz (firmware/src/board.rs default).
@@ -238,67 +239,17 @@ pub const ADAPT_GAIN_F: f32 = 600.0 / 0.064;
 pub const ADAPTIVE_SMC_X: AdaptiveSmcConfig = adaptive_for(&GANTRY_X);
 
 /// Patent cross-coupling for the XY pair: the contour PID is the lighter (X) axis' PID,
-/// scaled by `CCC_SCALE`. Its correction acts on both axes along the normal, so
+/// scaled by `VARIABLE_GAIN_SCALE`. Its correction acts on both axes along the normal, so
 /// it may not exceed what the X loop tolerates with the 100 Hz velocity observer.
 /// Scale of the contour PID relative to the X axis' PID.
-pub const CCC_SCALE: f32 = 0.5;
+pub const VARIABLE_GAIN_SCALE: f32 = 0.5;
 
-pub const CCC_XY: CccConfig = CccConfig {
-    mode: CccMode::Planar,
-    kp: CCC_SCALE * 3.0 * GANTRY_X.inertia * LOOP_OMEGA * LOOP_OMEGA,
-    ki: CCC_SCALE * GANTRY_X.inertia * LOOP_OMEGA * LOOP_OMEGA * LOOP_OMEGA,
-    kd: CCC_SCALE * 3.0 * GANTRY_X.inertia * LOOP_OMEGA,
+pub const VARIABLE_GAIN_XY: VariableGainConfig = VariableGainConfig {
+    mode: VariableGainMode::Planar,
+    kp: VARIABLE_GAIN_SCALE * 3.0 * GANTRY_X.inertia * LOOP_OMEGA * LOOP_OMEGA,
+    ki: VARIABLE_GAIN_SCALE * GANTRY_X.inertia * LOOP_OMEGA * LOOP_OMEGA * LOOP_OMEGA,
+    kd: VARIABLE_GAIN_SCALE * 3.0 * GANTRY_X.inertia * LOOP_OMEGA,
     integral_limit: 1.0,
     u_max: 1000.0,
     min_direction_norm_sq: 1e-6,
 };
-
-/// The laws compared by `host-sim seeds`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SeedMethod {
-    Pid,
-    Dsmc,
-    DobSmc,
-    Adaptive,
-    /// The adaptive law with its adaptation switched off.
-    FixedSmc,
-}
-
-impl SeedMethod {
-    pub const fn name(self) -> &'static str {
-        match self {
-            Self::Pid => "PID",
-            Self::Dsmc => "DSMC",
-            Self::DobSmc => "DOB-SMC",
-            Self::Adaptive => "ASMC",
-            Self::FixedSmc => "SMC",
-        }
-    }
-
-    pub const fn law_for(self, axis: &PhysicalAxisConfig) -> SeedLawConfig {
-        match self {
-            Self::Pid => SeedLawConfig::Base(LawConfig::Pid(pid_for(axis))),
-            Self::Dsmc => SeedLawConfig::Base(LawConfig::Smc(dsmc_for(axis))),
-            Self::DobSmc => SeedLawConfig::DobSmc(dob_smc_for(axis)),
-            Self::Adaptive => SeedLawConfig::Adaptive(adaptive_for(axis)),
-            Self::FixedSmc => SeedLawConfig::Adaptive(adaptive_for(axis).frozen()),
-        }
-    }
-
-    /// Controller for the three gantry axes with this law, with or without coupling.
-    pub const fn controller(self, coupled: bool) -> SeedControllerConfig {
-        SeedControllerConfig {
-            laws: [
-                self.law_for(&GANTRY_X),
-                self.law_for(&GANTRY_Y),
-                self.law_for(&GANTRY_Z),
-            ],
-            ccc: if coupled { Some(CCC_XY) } else { None },
-            u_max: [
-                GANTRY_X.torque_max_mnm,
-                GANTRY_Y.torque_max_mnm,
-                GANTRY_Z.torque_max_mnm,
-            ],
-        }
-    }
-}

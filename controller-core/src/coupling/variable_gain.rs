@@ -3,31 +3,31 @@
 //! A PID on the *estimated* contour error produces a correction that is added to the axis
 //! inputs along the path normal, so the gains `C_i = n_i` change with the path direction.
 //!
-//! - [`CccMode::Planar`] (the patent's two axes): unit tangent `t` of the reference path in
+//! - [`VariableGainMode::Planar`] (the patent's two axes): unit tangent `t` of the reference path in
 //!   the XY plane, normal `n = (-t_y, t_x)`, contour error estimate `ε = E · n` (distance of
 //!   the actual point from the tangent line, `E = R - P`), `U_c = PID(ε)`,
 //!   `u_x += n_x U_c`, `u_y += n_y U_c`. Positive `ε` means the reference lies on the `+n`
 //!   side, so pushing along `+n` reduces it. The Z axis gets nothing.
-//! - [`CccMode::Normal3`] (three axes): the contour error vector is the normal component of
-//!   `E` (spec 3.1, [`crate::contour::normal_component`]); the PID acts on that vector
+//! - [`VariableGainMode::Normal3`] (three axes): the contour error vector is the normal component of
+//!   `E` (spec 3.1, [`crate::coupling::contour::normal_component`]); the PID acts on that vector
 //!   componentwise and the correction is added to the axes. In the plane this equals the
 //!   planar mode's proportional and derivative terms; the integral of a rotating normal
 //!   vector is weaker than the patent's scalar integral on curved paths.
 //!
 //! The rate of `ε` is taken as `E' · n` with the normal held over the period (the same
-//! local linearisation as [`crate::contour::cross_couple`]). Where the tangent is
+//! local linearisation as [`crate::coupling::contour::cross_couple`]). Where the tangent is
 //! undefined (`|v_ref|²` at or below `min_direction_norm_sq`) the correction is zero and
 //! the integral is held.
 
-use crate::contour::normal_component;
-use crate::params::{limit, non_negative, ConfigError};
+use crate::config::{limit, non_negative, ConfigError};
+use crate::coupling::contour::normal_component;
 use crate::{Real, Vec3};
 
 /// Which contour-error estimate the coupling uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
-pub enum CccMode {
+pub enum VariableGainMode {
     /// Scalar `ε = E · n` in the XY plane (patent).
     #[default]
     Planar,
@@ -39,9 +39,9 @@ pub enum CccMode {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
-pub struct CccConfig {
+pub struct VariableGainConfig {
     #[cfg_attr(feature = "serde", serde(default))]
-    pub mode: CccMode,
+    pub mode: VariableGainMode,
     pub kp: f32,
     pub ki: f32,
     pub kd: f32,
@@ -55,13 +55,13 @@ pub struct CccConfig {
 
 /// The PID's integral (a scalar in the planar mode, stored in `x`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct CccState<R> {
+pub struct VariableGainState<R> {
     pub integral: Vec3<R>,
 }
 
 /// One evaluation: the per-axis correction and the contour error estimate.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct CccOutput<R> {
+pub struct VariableGainOutput<R> {
     pub correction: Vec3<R>,
     /// Estimated contour error vector (normal component of `E`).
     pub contour: Vec3<R>,
@@ -70,8 +70,8 @@ pub struct CccOutput<R> {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VariableGainCcc<R> {
-    mode: CccMode,
+pub struct VariableGain<R> {
+    mode: VariableGainMode,
     kp: R,
     ki: R,
     kd: R,
@@ -80,8 +80,8 @@ pub struct VariableGainCcc<R> {
     min_dir_sq: R,
 }
 
-impl<R: Real> VariableGainCcc<R> {
-    pub fn new(c: &CccConfig) -> Result<Self, ConfigError> {
+impl<R: Real> VariableGain<R> {
+    pub fn new(c: &VariableGainConfig) -> Result<Self, ConfigError> {
         Ok(Self {
             mode: c.mode,
             kp: R::from_f32(non_negative(c.kp, "ccc.kp")?),
@@ -99,17 +99,17 @@ impl<R: Real> VariableGainCcc<R> {
     /// Correction for tracking error `tracking = R - P`, its rate, and the path tangent.
     pub fn evaluate(
         &self,
-        st: &CccState<R>,
+        st: &VariableGainState<R>,
         tracking: Vec3<R>,
         tracking_rate: Vec3<R>,
         tangent: Vec3<R>,
-    ) -> CccOutput<R> {
+    ) -> VariableGainOutput<R> {
         match self.mode {
-            CccMode::Planar => {
+            VariableGainMode::Planar => {
                 let t2 = Vec3::new(tangent.x, tangent.y, R::ZERO);
                 let n2 = t2.norm_sq();
                 if !(n2 > self.min_dir_sq) {
-                    return CccOutput::default();
+                    return VariableGainOutput::default();
                 }
                 let inv_len = R::ONE.div_or(n2.sqrt_pos(), R::ZERO);
                 let n = Vec3::new(-t2.y * inv_len, t2.x * inv_len, R::ZERO);
@@ -117,21 +117,21 @@ impl<R: Real> VariableGainCcc<R> {
                 let eps_rate = tracking_rate.dot(n);
                 let uc =
                     (self.kp * eps + self.ki * st.integral.x + self.kd * eps_rate).finite_or_zero();
-                CccOutput {
+                VariableGainOutput {
                     correction: (n * uc).map(|v| v.clamp_sym(self.u_max)),
                     contour: n * eps,
                     integral_rate: Vec3::new(eps.finite_or_zero(), R::ZERO, R::ZERO),
                 }
             }
-            CccMode::Normal3 => {
+            VariableGainMode::Normal3 => {
                 let (Some(e), Some(e_rate)) = (
                     normal_component(tracking, tangent, self.min_dir_sq),
                     normal_component(tracking_rate, tangent, self.min_dir_sq),
                 ) else {
-                    return CccOutput::default();
+                    return VariableGainOutput::default();
                 };
                 let u = e * self.kp + st.integral * self.ki + e_rate * self.kd;
-                CccOutput {
+                VariableGainOutput {
                     correction: u.map(|v| v.finite_or_zero().clamp_sym(self.u_max)),
                     contour: e,
                     integral_rate: e.map(|v| v.finite_or_zero()),
@@ -141,7 +141,7 @@ impl<R: Real> VariableGainCcc<R> {
     }
 
     /// Integrate the PID state over `dt`, clamped.
-    pub fn integrate(&self, st: &mut CccState<R>, out: &CccOutput<R>, dt: R) {
+    pub fn integrate(&self, st: &mut VariableGainState<R>, out: &VariableGainOutput<R>, dt: R) {
         let lim = self.integral_limit;
         st.integral = (st.integral + out.integral_rate * dt).map(|v| v.clamp_sym(lim));
     }
@@ -150,25 +150,25 @@ impl<R: Real> VariableGainCcc<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::seed_params::CCC_XY;
+    use crate::presets::gantry::VARIABLE_GAIN_XY;
 
     #[test]
     fn planar_correction_is_along_the_normal() {
-        let ccc = VariableGainCcc::<f64>::new(&CCC_XY).unwrap();
+        let ccc = VariableGain::<f64>::new(&VARIABLE_GAIN_XY).unwrap();
         // path along +x: n = +y. Actual point 0.01 below the path: E = (0.3, 0.01, 0)
         let out = ccc.evaluate(
-            &CccState::default(),
+            &VariableGainState::default(),
             Vec3::new(0.3, 0.01, 0.0),
             Vec3::zero(),
             Vec3::new(50.0, 0.0, 0.0),
         );
         assert_eq!(out.correction.x, 0.0);
-        assert!((out.correction.y - CCC_XY.kp as f64 * 0.01).abs() < 1e-9);
+        assert!((out.correction.y - VARIABLE_GAIN_XY.kp as f64 * 0.01).abs() < 1e-9);
         assert!((out.contour.y - 0.01).abs() < 1e-12);
         // path at 30°: the correction is perpendicular to the path
         let (s, c) = (0.5f64, libm::sqrt(3.0) / 2.0);
         let out = ccc.evaluate(
-            &CccState::default(),
+            &VariableGainState::default(),
             Vec3::new(0.02, -0.01, 0.0),
             Vec3::zero(),
             Vec3::new(c, s, 0.0),
@@ -179,23 +179,28 @@ mod tests {
 
     #[test]
     fn normal3_matches_planar_in_the_plane_and_undefined_tangent_gives_zero() {
-        let mut c3 = CCC_XY;
-        c3.mode = CccMode::Normal3;
-        let p = VariableGainCcc::<f64>::new(&CCC_XY).unwrap();
-        let n = VariableGainCcc::<f64>::new(&c3).unwrap();
+        let mut c3 = VARIABLE_GAIN_XY;
+        c3.mode = VariableGainMode::Normal3;
+        let p = VariableGain::<f64>::new(&VARIABLE_GAIN_XY).unwrap();
+        let n = VariableGain::<f64>::new(&c3).unwrap();
         let (e, er, t) = (
             Vec3::new(0.02, -0.01, 0.0),
             Vec3::new(0.1, 0.3, 0.0),
             Vec3::new(3.0, 4.0, 0.0),
         );
         let (a, b) = (
-            p.evaluate(&CccState::default(), e, er, t),
-            n.evaluate(&CccState::default(), e, er, t),
+            p.evaluate(&VariableGainState::default(), e, er, t),
+            n.evaluate(&VariableGainState::default(), e, er, t),
         );
         assert!((a.correction - b.correction).norm() < 1e-9);
-        let z = n.evaluate(&CccState::default(), e, er, Vec3::zero());
-        assert_eq!(z, CccOutput::default());
-        let z = p.evaluate(&CccState::default(), e, er, Vec3::new(0.0, 0.0, 5.0));
-        assert_eq!(z, CccOutput::default());
+        let z = n.evaluate(&VariableGainState::default(), e, er, Vec3::zero());
+        assert_eq!(z, VariableGainOutput::default());
+        let z = p.evaluate(
+            &VariableGainState::default(),
+            e,
+            er,
+            Vec3::new(0.0, 0.0, 5.0),
+        );
+        assert_eq!(z, VariableGainOutput::default());
     }
 }

@@ -5,7 +5,7 @@
 //! RK4 by [`rk4_step`], which takes the input as a function of time and state so that a
 //! continuous-time controller can be re-evaluated at every RK stage.
 
-use crate::ode::{rk4, OdeState};
+use crate::num::ode::{rk4, OdeState};
 use crate::Real;
 
 /// Position and velocity of one axis.
@@ -26,7 +26,7 @@ pub struct PaperAxis<R> {
 impl<R: Real> PaperAxis<R> {
     /// The paper's identified axis: a = 10, b = 1, k = 1 (seed 000, section 3).
     pub fn paper() -> Self {
-        let p = crate::params::PAPER_PLANT;
+        let p = crate::presets::paper::PAPER_PLANT;
         Self {
             a: R::from_f32(p.a),
             b: R::from_f32(p.b),
@@ -92,7 +92,7 @@ pub fn rk4_step<R: Real, D: AxisDynamics<R>, const N: usize>(
 }
 
 /// A [`PaperAxis`] with a step disturbance `d_step` added to θ'' from `t_dist` on.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DisturbedPaperAxis<R> {
     pub axis: PaperAxis<R>,
     pub d_step: R,

@@ -25,8 +25,8 @@
 //! disturbance and cancel it: [`DobSmc::evaluate`] computes the law's output and
 //! [`DobSmc::observe`] advances the observer with the applied input afterwards.
 
-use crate::law::{AxisSignals, LawOutput};
-use crate::params::{limit, non_negative, positive, ConfigError};
+use super::{AxisSignals, LawOutput};
+use crate::config::{limit, non_negative, positive, ConfigError};
 use crate::Real;
 
 /// DOB-SMC parameters (units: the plant's, e.g. mm, s, mN·m for the physical axis).
@@ -150,7 +150,7 @@ impl<R: Real> DobSmc<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::seed_params::DOB_SMC_X;
+    use crate::presets::gantry::DOB_SMC_X;
 
     #[test]
     fn observer_converges_to_constant_disturbance() {

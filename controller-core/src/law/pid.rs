@@ -1,9 +1,31 @@
 //! PID with anti-windup (integrator clamp + conditional integration) and optional
 //! velocity/acceleration feed-forward (spec 2.1).
 
-use crate::law::{finish, AxisSignals, LawOutput, LawState};
-use crate::params::{finite, limit, non_negative, ConfigError, PidConfig};
+use super::{finish, AxisSignals, LawOutput, LawState};
+use crate::config::{finite, limit, non_negative, ConfigError};
 use crate::Real;
+
+/// PID gains and limits (units: the axis's, e.g. mN·m per mm for the physical axis).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct PidConfig {
+    pub kp: f32,
+    pub ki: f32,
+    pub kd: f32,
+    /// Velocity feed-forward gain on `q_d'`.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub kv_ff: f32,
+    /// Acceleration feed-forward gain on `q_d''`.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub ka_ff: f32,
+    /// Clamp on `|∫e dt|`.
+    #[cfg_attr(feature = "serde", serde(default = "crate::config::inf"))]
+    pub integral_limit: f32,
+    /// Output saturation `|u| <= u_max`.
+    #[cfg_attr(feature = "serde", serde(default = "crate::config::inf"))]
+    pub u_max: f32,
+}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pid<R> {
@@ -43,8 +65,8 @@ impl<R: Real> Pid<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::law::AxisLaw;
-    use crate::params::{LawConfig, PAPER_PID};
+    use crate::law::{Law, LawConfig};
+    use crate::presets::paper::PAPER_PID;
 
     #[test]
     fn proportional_and_saturation() {
@@ -60,14 +82,14 @@ mod tests {
             integral_limit: 0.5,
             ..PAPER_PID
         };
-        let law = AxisLaw::<f32>::new(&LawConfig::Pid(sat)).unwrap();
-        let mut st = LawState::default();
+        let law = Law::<f32>::new(&LawConfig::Pid(sat)).unwrap();
+        let mut st = law.initial_state();
         let big = AxisSignals {
             e: 1.0,
             ..Default::default()
         };
         let out = law.step(&mut st, &big, 0.1);
-        assert_eq!(out.u, 5.0);
+        assert_eq!(out, 5.0);
         // saturated in the direction of e: no integration (conditional integration)
         assert_eq!(st.integral, 0.0);
         // unsaturated: integrates, but never beyond the clamp

@@ -203,16 +203,16 @@ macro_rules! impl_float_real {
 // `powers`.
 impl_float_real!(
     f32,
-    crate::powers::cbrt_f32,
+    crate::num::powers::cbrt_f32,
     libm::sqrtf,
-    crate::powers::pow_abs_f32,
-    crate::powers::sin_cos_f32
+    crate::num::powers::pow_abs_f32,
+    crate::num::powers::sin_cos_f32
 );
 impl_float_real!(
     f64,
     libm::cbrt,
     libm::sqrt,
-    crate::powers::pow_abs_f64,
+    crate::num::powers::pow_abs_f64,
     libm::sincos
 );
 
@@ -277,11 +277,11 @@ impl Real for LibmF32 {
         LibmF32(self.0.sqrt_pos())
     }
     fn pow_abs(self, e: Exponent, floor: Self) -> Self {
-        LibmF32(crate::powers::pow_abs_f32_libm(self.0, e, floor.0))
+        LibmF32(crate::num::powers::pow_abs_f32_libm(self.0, e, floor.0))
     }
     fn sin_cos(self) -> (Self, Self) {
         // same sin/cos as f32: this type differs from f32 in the powers only
-        let (s, c) = crate::powers::sin_cos_f32(self.0);
+        let (s, c) = crate::num::powers::sin_cos_f32(self.0);
         (LibmF32(s), LibmF32(c))
     }
     fn is_finite(self) -> bool {

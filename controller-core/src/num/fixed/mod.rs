@@ -18,14 +18,14 @@
 
 pub mod trig;
 
-use crate::powers::{cbrt_raw, div_raw, inv_cbrt_raw};
+use crate::num::powers::{cbrt_raw, div_raw, inv_cbrt_raw};
 use crate::{Exponent, Real};
 use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 use fixed::types::{I16F16, I32F32};
 
 /// Relative error bound of one fixed-point root (cube root, inverse cube root) and of
 /// [`Real::div_or`]'s reciprocal, before the format's own rounding: see `crate::powers`.
-pub const FX_ROOT_MAX_REL_ERR: f64 = crate::powers::CBRT_NORM_MAX_REL_ERR;
+pub const FX_ROOT_MAX_REL_ERR: f64 = crate::num::powers::CBRT_NORM_MAX_REL_ERR;
 
 /// Relative error bound of [`Real::pow_abs`] in fixed point for den ∈ {1, 3, 9} and
 /// |num| <= 5, before rounding: a den-9 root is two roots (4/3 of one root's error) and

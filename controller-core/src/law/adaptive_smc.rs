@@ -26,8 +26,8 @@
 //! on `s` needs no dead zone (the integrators average it), only bounded *biased*
 //! disturbances do, and those are what δ (k_d + k/Φ) is sized against.
 
-use crate::law::{AxisSignals, LawOutput};
-use crate::params::{finite, limit, non_negative, positive, ConfigError};
+use super::{AxisSignals, LawOutput};
+use crate::config::{finite, limit, non_negative, positive, ConfigError};
 use crate::Real;
 
 /// Bounds `[min, max]` of one estimate and its adaptation gain `γ`.
@@ -230,7 +230,7 @@ impl<R: Real> AdaptiveSmc<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::seed_params::ADAPTIVE_SMC_X;
+    use crate::presets::gantry::ADAPTIVE_SMC_X;
 
     #[test]
     fn output_matches_hand_computation() {

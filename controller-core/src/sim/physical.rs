@@ -22,8 +22,8 @@
 //! `f_c` over `v_stribeck` with the rational shape `1 / (1 + (x'/v_s)²)` (exp is not part
 //! of [`Real`]; the rational curve has the same peak and width).
 
-use crate::params::{finite, non_negative, positive, ConfigError};
-use crate::plant::{AxisDynamics, AxisState};
+use crate::config::{finite, non_negative, positive, ConfigError};
+use crate::sim::plant::{AxisDynamics, AxisState};
 use crate::Real;
 
 /// Parameters of one physical axis (see the module docs for units).
@@ -178,8 +178,8 @@ impl<R: Real> AxisDynamics<R> for PhysicalAxis<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::rk4_step;
-    use crate::seed_params::GANTRY_X;
+    use crate::presets::gantry::GANTRY_X;
+    use crate::sim::plant::rk4_step;
 
     #[test]
     fn friction_is_asymmetric_and_zero_at_rest() {

@@ -10,12 +10,78 @@
 //! nonsingular:  u = (1/k) [q_d'' + a q' + b q + (β/γ) sig(e')^(2-γ)           + reach + k4 ∫e]
 //! ```
 
-use crate::law::{finish, AxisSignals, LawOutput, LawState};
-use crate::params::{
-    limit, non_negative, positive, ConfigError, ReachingConfig, SmcConfig, SurfaceConfig,
-};
-use crate::shared_root::PowerSet;
+use super::{finish, AxisSignals, LawOutput, LawState};
+use crate::config::{limit, non_negative, positive, ConfigError};
+use crate::model::PlantParams;
+use crate::num::shared_root::PowerSet;
 use crate::{Exponent, Real};
+
+/// Sliding surface (spec 2.2/2.3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum SurfaceConfig {
+    /// `s = e' + α e + β sig(e)^(q/p)`, p, q odd, 0 < q < p. The `|e|^(q/p-1)` factor of the
+    /// equivalent control is evaluated with `|e|` floored at `singular_floor`, which bounds
+    /// it by `β (q/p) singular_floor^(q/p-1) |e'|`.
+    Terminal {
+        alpha: f32,
+        beta: f32,
+        p: i16,
+        q: i16,
+        singular_floor: f32,
+    },
+    /// Nonsingular terminal surface (Feng, Yu, Man 2002): `s = e + (1/β) sig(e')^(p/q)`,
+    /// p, q odd, 1 < p/q < 2. Its equivalent control has only the positive power
+    /// `sig(e')^(2-p/q)`, so nothing needs a floor.
+    Nonsingular { beta: f32, p: i16, q: i16 },
+}
+
+/// Reaching law (spec 2.2/2.3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum ReachingConfig {
+    /// `s' = -k s - ε sign(s)`; with `boundary_layer > 0`, `sign(s)` is replaced by
+    /// `sat(s / boundary_layer)` (0 = the paper's pure sign).
+    Exponential {
+        k: f32,
+        epsilon: f32,
+        #[cfg_attr(feature = "serde", serde(default))]
+        boundary_layer: f32,
+    },
+    /// `s' = -k1 sig(s)^(2-β2) - k2 sig(s)^β2 - k3 |e|^β3 s`, 0 < β2 < 1, β3 > 0.
+    DoublePower {
+        k1: f32,
+        k2: f32,
+        k3: f32,
+        beta2: Exponent,
+        beta3: Exponent,
+    },
+}
+
+/// A sliding-mode law: surface, reaching law, optional integral compensation `k4 ∫e dt`
+/// (spec 2.3). SMC is `k4 = 0` with the exponential law; DSMC the double-power law with
+/// `k4 > 0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct SmcConfig {
+    /// The model the equivalent control cancels.
+    pub plant: PlantParams,
+    pub surface: SurfaceConfig,
+    pub reaching: ReachingConfig,
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub k4: f32,
+    #[cfg_attr(feature = "serde", serde(default = "crate::config::inf"))]
+    pub integral_limit: f32,
+    #[cfg_attr(feature = "serde", serde(default = "crate::config::inf"))]
+    pub u_max: f32,
+}
+
+/// Floor on `|e|` in the singular factor `|e|^(q/p-1)`: 1e-4 plant units (0.1 µm when
+/// the unit is mm). The factor `(5/9) |e|^(-4/9)` is then at most 33.
+pub const DEFAULT_SINGULAR_FLOOR: f32 = 1e-4;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Surface<R> {
@@ -242,7 +308,7 @@ impl<R: Real> Smc<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::params::{PAPER_DSMC, PAPER_SMC};
+    use crate::presets::paper::{PAPER_DSMC, PAPER_SMC};
 
     fn sig(e: f64, e_dot: f64) -> AxisSignals<f64> {
         AxisSignals {
@@ -261,7 +327,10 @@ mod tests {
         let reach = 20.0 * libm::pow(s, 5.0 / 3.0)
             + 20.0 * libm::pow(s, 1.0 / 3.0)
             + 200.0 * libm::pow(e, 1.0 / 3.0) * s;
-        let st = LawState { integral: 0.5 };
+        let st = LawState {
+            integral: 0.5,
+            ..Default::default()
+        };
         let out = l.evaluate(&st, &sig(e, ed));
         assert!((out.s - s).abs() < 1e-12);
         assert!(

@@ -164,7 +164,7 @@ pub const POLYLINE_MAX_VERTICES: usize = 8;
 /// sharp and the reference velocity continuous; acceleration is piecewise constant
 /// (it jumps at the profile's phase changes). At a vertex the velocity is zero, so
 /// the tangent is undefined there and the contour models fall back as documented in
-/// [`crate::contour`]. A closed polyline returns to its first vertex and repeats; an open
+/// [`crate::coupling::contour`]. A closed polyline returns to its first vertex and repeats; an open
 /// one holds its last vertex. Before `t = 0` it holds the first vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Polyline<R> {

@@ -1,0 +1,58 @@
+//! The telemetry snapshot the servo step publishes every period: plain copies of numbers,
+//! no formatting (a lower-priority task or the simulator turns them into lines, plots or
+//! statistics outside the control interrupt).
+
+use crate::axes::AXES;
+use crate::servo::safety::SafetyState;
+
+/// Everything a logger or a recorder needs about the last period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Snapshot {
+    /// Control periods since boot.
+    pub period: u32,
+    /// Time along the current path since it started, s (0 while holding).
+    pub path_t_s: f32,
+    /// Safety state after this period.
+    pub state: SafetyState,
+    /// Measured positions (encoder counts converted to length).
+    pub pos: [f32; AXES],
+    /// Estimated velocities.
+    pub vel: [f32; AXES],
+    /// Reference positions.
+    pub reference: [f32; AXES],
+    /// Tracking error reference - measured, per axis.
+    pub tracking: [f32; AXES],
+    /// The controller's contour-error vector estimate (0 without coupling).
+    pub contour: [f32; AXES],
+    /// Sliding variables (0 for PID axes).
+    pub s: [f32; AXES],
+    /// Applied (saturated) effort per axis; 0 while the outputs are off.
+    pub effort: [f32; AXES],
+    /// Wide encoder positions, counts.
+    pub counts: [i64; AXES],
+}
+
+impl Snapshot {
+    /// The snapshot before the first control period.
+    pub const fn boot() -> Self {
+        Self {
+            period: 0,
+            path_t_s: 0.0,
+            state: SafetyState::Disabled,
+            pos: [0.0; AXES],
+            vel: [0.0; AXES],
+            reference: [0.0; AXES],
+            tracking: [0.0; AXES],
+            contour: [0.0; AXES],
+            s: [0.0; AXES],
+            effort: [0.0; AXES],
+            counts: [0; AXES],
+        }
+    }
+
+    /// Magnitude of the contour-error estimate.
+    pub fn contour_norm(&self) -> f32 {
+        let [x, y, z] = self.contour;
+        libm::sqrtf(x * x + y * y + z * z)
+    }
+}

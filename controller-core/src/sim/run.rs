@@ -1,0 +1,166 @@
+//! A simulated run: the servo step against the simulated world for a fixed number of
+//! periods, with the figures taken on the true state. host-sim's discrete mode and the
+//! firmware's QEMU rig both drive one; each period is [`SimRun::control`] (the servo
+//! step, the part the board's interrupt runs) followed by [`SimRun::finish_period`]
+//! (figures, then the world advances one period).
+//!
+//! The operator's commands are scripted: arm and start the configured path in the first
+//! period.
+
+use crate::axes::AXES;
+use crate::config::ConfigError;
+use crate::motion::path::PathStart;
+use crate::motion::trajectory::Trajectory;
+use crate::servo::snapshot::Snapshot;
+use crate::servo::{Command, Servo, ServoConfig};
+use crate::sim::truth::{Truth, TruthFigures, TruthSpec};
+use crate::sim::world::{World, WorldConfig};
+use crate::{Real, Vec3};
+
+/// Everything a simulated run needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct RunConfig {
+    pub servo: ServoConfig,
+    pub world: WorldConfig,
+    pub truth: TruthSpec,
+    /// Control periods to run.
+    pub periods: u32,
+}
+
+/// A run in progress.
+pub struct SimRun<R> {
+    servo: Servo<R>,
+    world: World,
+    truth: Truth,
+    reference: Trajectory<f64>,
+    periods: u32,
+    k: u32,
+}
+
+impl<R: Real> SimRun<R> {
+    /// Validates every part of `cfg` (nothing runs when one is rejected).
+    pub fn new(cfg: &RunConfig) -> Result<Self, ConfigError> {
+        let world = World::new(&cfg.world, &cfg.servo)?;
+        let plan = cfg
+            .servo
+            .path
+            .ok_or(ConfigError::Unsupported("a simulated run without a path"))?;
+        let mut reference = plan.path.build()?;
+        let counts = world.counts();
+        if plan.start == PathStart::FromCurrentPosition {
+            // the servo shifts the path to the measured start position; so do the figures
+            let mut origin = Vec3::zero();
+            let p0 = reference.sample(0.0).pos;
+            for i in 0..AXES {
+                origin[i] = counts[i] as f64 * cfg.servo.encoders[i].count_len()? - p0[i];
+            }
+            reference = shifted(reference, origin)?;
+        }
+        let servo = Servo::new(&cfg.servo, world.counter_registers(), counts)?;
+        Ok(Self {
+            servo,
+            world,
+            truth: Truth::new(cfg.truth),
+            reference,
+            periods: cfg.periods,
+            k: 0,
+        })
+    }
+
+    /// The servo step of the current period (arm and start the path in the first one).
+    pub fn control(&mut self) -> &Snapshot {
+        let cmds: &[Command] = if self.k == 0 {
+            &[Command::Arm, Command::StartPath]
+        } else {
+            &[]
+        };
+        self.servo.period(&mut self.world, cmds)
+    }
+
+    /// Record the period's figures, then advance the world over it. Returns the true
+    /// contour error when it was sampled this period.
+    pub fn finish_period(&mut self) -> Option<f64> {
+        let s = self.world.state();
+        let pos = Vec3::new(s[0].pos, s[1].pos, s[2].pos);
+        let d = self.truth.record(
+            &self.reference,
+            self.world.time_s(),
+            self.servo.period_s(),
+            pos,
+            self.world.effort(),
+        );
+        self.world.advance();
+        self.k = self.k.saturating_add(1);
+        d
+    }
+
+    /// All periods run.
+    pub fn done(&self) -> bool {
+        self.k >= self.periods
+    }
+
+    /// Periods run so far.
+    pub fn periods_run(&self) -> u32 {
+        self.k
+    }
+
+    pub fn figures(&self) -> TruthFigures {
+        self.truth.figures()
+    }
+
+    pub fn servo(&self) -> &Servo<R> {
+        &self.servo
+    }
+
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// The path the figures are taken against (absolute coordinates).
+    pub fn reference(&self) -> &Trajectory<f64> {
+        &self.reference
+    }
+}
+
+/// `traj` moved by `origin` (only the analytic paths that carry their own position).
+fn shifted(traj: Trajectory<f64>, o: Vec3<f64>) -> Result<Trajectory<f64>, ConfigError> {
+    Ok(match traj {
+        Trajectory::Line { start, vel } => Trajectory::Line {
+            start: start + o,
+            vel,
+        },
+        Trajectory::Helix {
+            center,
+            radius,
+            omega,
+            z_rate,
+        } => Trajectory::Helix {
+            center: center + o,
+            radius,
+            omega,
+            z_rate,
+        },
+        Trajectory::Sine {
+            amp,
+            omega,
+            phase,
+            offset,
+        } => Trajectory::Sine {
+            amp,
+            omega,
+            phase,
+            offset: offset + o,
+        },
+        Trajectory::Step { .. } | Trajectory::Polyline(_) => {
+            return Err(ConfigError::Unsupported(
+                "path_start = from_current_position with a step or square path",
+            ))
+        }
+    })
+}

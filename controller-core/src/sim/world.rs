@@ -1,0 +1,283 @@
+//! The simulated world: three axis plants behind the board's encoders (counts, counter
+//! width) and amplifiers (range, resolution), with the safety inputs under the
+//! simulation's control. It implements [`ServoIo`], so the servo step runs against it
+//! exactly as it runs against the board; [`World::advance`] then integrates the plants
+//! over one period with the output held (zero-order hold).
+//!
+//! The plants are integrated in `f64` with RK4 (soft float on the Cortex-M4 of the QEMU
+//! rig: it is the simulated machine, not the controller).
+
+use crate::axes::AXES;
+use crate::config::{finite, ConfigError};
+use crate::estimator::CounterWidth;
+use crate::servo::io::{Inputs, ServoIo};
+use crate::servo::ServoConfig;
+use crate::sim::physical::{PhysicalAxis, PhysicalAxisConfig};
+use crate::sim::plant::{rk4_step, AxisDynamics, AxisState, DisturbedPaperAxis, PaperAxis};
+use crate::Real;
+
+/// Most plant RK4 steps per control period.
+pub const MAX_PLANT_SUBSTEPS: u32 = 64;
+
+/// One simulated axis plant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum PlantConfig {
+    /// The paper's normalised axis `θ'' = -a θ' - b θ + k u + d`, with an optional step
+    /// `d = disturbance_accel` from `disturbance_t_s` on.
+    Paper(PaperPlantConfig),
+    /// The ball-screw axis with friction, load and torque limit (mm, s, mN·m).
+    Physical(PhysicalAxisConfig),
+}
+
+/// The paper's axis `θ'' = -a θ' - b θ + k u + d` with its step disturbance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct PaperPlantConfig {
+    pub a: f32,
+    pub b: f32,
+    pub k: f32,
+    /// Step added to θ'' (units/s²).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub disturbance_accel: f64,
+    /// When the step starts, s (`inf`: never).
+    #[cfg_attr(feature = "serde", serde(default = "never"))]
+    pub disturbance_t_s: f64,
+}
+
+#[cfg(feature = "serde")]
+fn never() -> f64 {
+    f64::INFINITY
+}
+
+/// Initial state of one axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct InitialState {
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub pos_mm: f64,
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub vel_mm_s: f64,
+}
+
+/// The simulated machine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct WorldConfig {
+    #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
+    pub plants: [PlantConfig; AXES],
+    /// RK4 steps of the plants per control period.
+    pub plant_substeps: u32,
+    #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
+    pub initial: [InitialState; AXES],
+}
+
+/// A validated plant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Plant {
+    Paper(DisturbedPaperAxis<f64>),
+    Physical(PhysicalAxis<f64>),
+}
+
+impl Plant {
+    pub fn new(cfg: &PlantConfig) -> Result<Self, ConfigError> {
+        Ok(match cfg {
+            PlantConfig::Paper(p) => {
+                let f = |v: f32, n| finite(v, n).map(f64::from);
+                if p.disturbance_t_s.is_nan() || !p.disturbance_accel.is_finite() {
+                    return Err(ConfigError::NotFinite("plant.paper.disturbance"));
+                }
+                Self::Paper(DisturbedPaperAxis {
+                    axis: PaperAxis {
+                        a: f(p.a, "plant.paper.a")?,
+                        b: f(p.b, "plant.paper.b")?,
+                        k: f(p.k, "plant.paper.k")?,
+                    },
+                    d_step: p.disturbance_accel,
+                    t_dist: p.disturbance_t_s,
+                })
+            }
+            PlantConfig::Physical(c) => Self::Physical(PhysicalAxis::new(c)?),
+        })
+    }
+}
+
+impl AxisDynamics<f64> for Plant {
+    fn accel(&self, s: AxisState<f64>, u: f64, t: f64) -> f64 {
+        match self {
+            Self::Paper(p) => p.accel(s, u, t),
+            Self::Physical(p) => p.accel(s, u, t),
+        }
+    }
+}
+
+/// The simulated machine's state.
+#[derive(Clone, Copy, Debug)]
+pub struct World {
+    plants: [Plant; AXES],
+    state: [AxisState<f64>; AXES],
+    substeps: u32,
+    period_s: f64,
+    count_len: [f64; AXES],
+    counter_mask: [u32; AXES],
+    full_scale: [f64; AXES],
+    /// Amplifier command step (0: ideal).
+    effort_step: [f64; AXES],
+    /// Effort commanded for the current period (after the amplifier's range).
+    effort: [f64; AXES],
+    outputs_on: bool,
+    periods: u64,
+    /// Safety inputs as the servo will read them (the simulation may set them).
+    pub inputs: Inputs,
+}
+
+impl World {
+    /// The world of `cfg` behind the sensors and actuators of `servo`.
+    pub fn new(cfg: &WorldConfig, servo: &ServoConfig) -> Result<Self, ConfigError> {
+        if cfg.plant_substeps == 0 || cfg.plant_substeps > MAX_PLANT_SUBSTEPS {
+            return Err(ConfigError::OutOfRange("plant_substeps (1..=64)"));
+        }
+        if servo.rate_hz == 0 {
+            return Err(ConfigError::NotPositive("rate_hz"));
+        }
+        let mut w = Self {
+            plants: [
+                Plant::new(&cfg.plants[0])?,
+                Plant::new(&cfg.plants[1])?,
+                Plant::new(&cfg.plants[2])?,
+            ],
+            state: [AxisState::default(); AXES],
+            substeps: cfg.plant_substeps,
+            period_s: 1.0 / f64::from(servo.rate_hz),
+            count_len: [0.0; AXES],
+            counter_mask: [0; AXES],
+            full_scale: [0.0; AXES],
+            effort_step: [0.0; AXES],
+            effort: [0.0; AXES],
+            outputs_on: false,
+            periods: 0,
+            inputs: Inputs::default(),
+        };
+        for i in 0..AXES {
+            let init = &cfg.initial[i];
+            if !(init.pos_mm.is_finite() && init.vel_mm_s.is_finite()) {
+                return Err(ConfigError::NotFinite("initial"));
+            }
+            w.state[i] = AxisState {
+                pos: init.pos_mm,
+                vel: init.vel_mm_s,
+            };
+            w.count_len[i] = servo.encoders[i].count_len()?;
+            w.counter_mask[i] = match servo.encoders[i].counter {
+                CounterWidth::Bits16 => 0xFFFF,
+                CounterWidth::Bits32 => u32::MAX,
+            };
+            let amp = &servo.amplifiers[i];
+            w.full_scale[i] = f64::from(amp.checked_full_scale()?);
+            if amp.resolution_bits > 0 {
+                w.effort_step[i] = 2.0 * w.full_scale[i] / (1u64 << amp.resolution_bits) as f64;
+            }
+        }
+        Ok(w)
+    }
+
+    /// True plant states.
+    pub fn state(&self) -> &[AxisState<f64>; AXES] {
+        &self.state
+    }
+
+    /// The effort commanded for the current period (what the amplifiers were told, within
+    /// their range; 0 while the outputs are off).
+    pub fn effort(&self) -> [f64; AXES] {
+        self.effort
+    }
+
+    /// Whether the servo drives the outputs this period.
+    pub fn outputs_on(&self) -> bool {
+        self.outputs_on
+    }
+
+    /// Simulated time at the start of the current period, s.
+    pub fn time_s(&self) -> f64 {
+        self.periods as f64 * self.period_s
+    }
+
+    /// Control periods simulated so far.
+    pub fn periods(&self) -> u64 {
+        self.periods
+    }
+
+    /// Whole counts of the true positions (nearest count).
+    pub fn counts(&self) -> [i64; AXES] {
+        let mut c = [0; AXES];
+        for i in 0..AXES {
+            c[i] = libm::round(self.state[i].pos / self.count_len[i]) as i64;
+        }
+        c
+    }
+
+    /// The counter registers as the board's timers would read them.
+    pub fn counter_registers(&self) -> [u32; AXES] {
+        let counts = self.counts();
+        let mut raw = [0; AXES];
+        for i in 0..AXES {
+            // two's-complement truncation to the register width, as the timer counts
+            raw[i] = (counts[i] as u32) & self.counter_mask[i];
+        }
+        raw
+    }
+
+    /// Integrate the plants over one period with the commanded effort held, quantised to
+    /// the amplifiers' resolution.
+    pub fn advance(&mut self) {
+        let t = self.time_s();
+        let mut u = self.effort;
+        for i in 0..AXES {
+            if self.effort_step[i] > 0.0 {
+                u[i] = libm::round(u[i] / self.effort_step[i]) * self.effort_step[i];
+            }
+        }
+        let h = self.period_s / f64::from(self.substeps);
+        for j in 0..self.substeps {
+            rk4_step(
+                &self.plants,
+                &mut self.state,
+                t + f64::from(j) * h,
+                h,
+                |_, _| u,
+            );
+        }
+        self.periods += 1;
+    }
+}
+
+impl<R: Real> ServoIo<R> for World {
+    fn read_inputs(&mut self) -> Inputs {
+        self.inputs
+    }
+
+    fn read_counters(&mut self) -> [u32; AXES] {
+        self.counter_registers()
+    }
+
+    fn write_outputs(&mut self, effort: &[R; AXES]) {
+        for i in 0..AXES {
+            let lim = self.full_scale[i];
+            self.effort[i] = effort[i].to_f64().max(-lim).min(lim);
+        }
+        self.outputs_on = true;
+    }
+
+    fn disable_outputs(&mut self) {
+        self.effort = [0.0; AXES];
+        self.outputs_on = false;
+    }
+
+    fn true_velocity(&self) -> Option<[f64; AXES]> {
+        Some([self.state[0].vel, self.state[1].vel, self.state[2].vel])
+    }
+}

@@ -1,0 +1,381 @@
+//! Reading scenario files.
+//!
+//! A file is one TOML document: the base scenario ([`crate::schema::Scenario`]), plus
+//! optionally
+//!
+//! - `[[case]]` tables: each has a `name`, optionally `variants = [..]` (the variants it
+//!   runs with; default all), and any keys of the scenario, which override the base;
+//! - `[[variant]]` tables: each has a `name` and overrides applied after the case's.
+//!
+//! Every case runs with every variant it allows; the run is named `<case>_<variant>` (or
+//! the one that exists, or the base `name` when there are neither). Overrides merge
+//! table by table; a value that is not a table replaces the base's, and so does a
+//! one-key table of a table over another with a different key (the way the file spells
+//! an enum variant: `{ pid = {..} }` over `{ smc = {..} }` switches the law).
+//!
+//! After merging, any table with an `all` key gets it merged under each of `x`, `y`, `z`.
+//! `machine = { file = "machines/gantry.toml", ... }` includes a machine description
+//! (path relative to the including file) under the keys given beside `file`.
+//!
+//! Limits: files over [`MAX_FILE_BYTES`] are refused; run names are `[A-Za-z0-9_-]+`.
+
+use crate::schema::Scenario;
+use std::path::{Path, PathBuf};
+use toml::{Table, Value};
+
+/// Largest scenario or machine file accepted: 1 MiB.
+pub const MAX_FILE_BYTES: u64 = 1 << 20;
+
+/// Why a file or run was refused: which file, which run, what.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{file}{}: {message}", run.as_ref().map(|r| format!(": run `{r}`")).unwrap_or_default())]
+pub struct ScenarioError {
+    pub file: String,
+    pub run: Option<String>,
+    pub message: String,
+}
+
+impl ScenarioError {
+    pub fn new(file: &str, run: Option<&str>, message: impl Into<String>) -> Self {
+        Self {
+            file: file.to_string(),
+            run: run.map(str::to_string),
+            message: message.into(),
+        }
+    }
+}
+
+/// One run of a file.
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// `<case>_<variant>`, `<case>`, `<variant>` or the scenario's name.
+    pub name: String,
+    pub case: Option<String>,
+    pub variant: Option<String>,
+    pub scenario: Scenario,
+}
+
+/// A loaded file: its runs in file order (cases outer, variants inner).
+#[derive(Clone, Debug)]
+pub struct ScenarioFile {
+    /// How the file was named (its path, or a built-in's name).
+    pub file: String,
+    /// The base scenario's `name`.
+    pub name: String,
+    pub runs: Vec<Run>,
+}
+
+impl ScenarioFile {
+    /// The run named `name`.
+    pub fn run(&self, name: &str) -> Result<&Run, ScenarioError> {
+        self.runs.iter().find(|r| r.name == name).ok_or_else(|| {
+            let names: Vec<&str> = self.runs.iter().map(|r| r.name.as_str()).collect();
+            ScenarioError::new(
+                &self.file,
+                None,
+                format!("no run `{name}` (runs: {})", names.join(", ")),
+            )
+        })
+    }
+}
+
+/// Reads an include by its path relative to the including file.
+pub trait Includes {
+    fn read(&self, rel: &str) -> Result<String, String>;
+}
+
+/// Includes from the file system, relative to a directory.
+pub struct DirIncludes(pub PathBuf);
+
+impl Includes for DirIncludes {
+    fn read(&self, rel: &str) -> Result<String, String> {
+        read_capped(&self.0.join(rel))
+    }
+}
+
+/// Includes from a fixed list of `(relative path, contents)` (built-in files).
+pub struct EmbeddedIncludes<'a>(pub &'a [(&'a str, &'a str)]);
+
+impl Includes for EmbeddedIncludes<'_> {
+    fn read(&self, rel: &str) -> Result<String, String> {
+        let rel = rel.trim_start_matches("./");
+        self.0
+            .iter()
+            .find(|(n, _)| *n == rel)
+            .map(|(_, t)| t.to_string())
+            .ok_or_else(|| format!("no built-in file `{rel}`"))
+    }
+}
+
+/// Read a file, refusing anything over [`MAX_FILE_BYTES`].
+pub fn read_capped(path: &Path) -> Result<String, String> {
+    let meta =
+        std::fs::metadata(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!("{} is not a file", path.display()));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(format!(
+            "{} is {} bytes; scenario files are limited to {} bytes",
+            path.display(),
+            meta.len(),
+            MAX_FILE_BYTES
+        ));
+    }
+    std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+}
+
+/// Load a scenario file from disk (includes relative to its directory).
+pub fn load(path: &Path) -> Result<ScenarioFile, ScenarioError> {
+    let name = path.display().to_string();
+    let text = read_capped(path).map_err(|m| ScenarioError::new(&name, None, m))?;
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    load_str(&name, &text, &DirIncludes(dir))
+}
+
+/// Load a scenario file from its text; `file` names it in errors.
+pub fn load_str(
+    file: &str,
+    text: &str,
+    includes: &dyn Includes,
+) -> Result<ScenarioFile, ScenarioError> {
+    let err = |run: Option<&str>, m: String| ScenarioError::new(file, run, m);
+    if text.len() as u64 > MAX_FILE_BYTES {
+        return Err(err(None, format!("file is over {MAX_FILE_BYTES} bytes")));
+    }
+    let mut base: Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| err(None, format!("invalid TOML: {e}")))?;
+    let cases = take_array(&mut base, "case").map_err(|m| err(None, m))?;
+    let variants = take_array(&mut base, "variant").map_err(|m| err(None, m))?;
+    let base_name = match base.get("name") {
+        Some(Value::String(s)) => s.clone(),
+        _ => return Err(err(None, "missing `name` (a string)".into())),
+    };
+    check_name(&base_name).map_err(|m| err(None, m))?;
+    include_machine(&mut base, includes).map_err(|m| err(None, m))?;
+
+    let mut runs = Vec::new();
+    let case_list: Vec<Option<Table>> = if cases.is_empty() {
+        vec![None]
+    } else {
+        cases.into_iter().map(Some).collect()
+    };
+    for case in case_list {
+        let (case_name, allowed, case_over) = match case {
+            Some(mut c) => {
+                let n = entry_name(&mut c, "case").map_err(|m| err(None, m))?;
+                let allowed = match c.remove("variants") {
+                    None => None,
+                    Some(Value::Array(a)) => Some(
+                        a.into_iter()
+                            .map(|v| match v {
+                                Value::String(s) => Ok(s),
+                                _ => Err(err(Some(&n), "`variants` must be names".into())),
+                            })
+                            .collect::<Result<Vec<_>, _>>()?,
+                    ),
+                    Some(_) => return Err(err(Some(&n), "`variants` must be an array".into())),
+                };
+                (Some(n), allowed, c)
+            }
+            None => (None, None, Table::new()),
+        };
+        let variant_list: Vec<Option<Table>> = if variants.is_empty() {
+            vec![None]
+        } else {
+            variants.iter().cloned().map(Some).collect()
+        };
+        for variant in variant_list {
+            let (variant_name, var_over) = match variant {
+                Some(mut v) => (
+                    Some(entry_name(&mut v, "variant").map_err(|m| err(None, m))?),
+                    v,
+                ),
+                None => (None, Table::new()),
+            };
+            if let (Some(allowed), Some(v)) = (&allowed, &variant_name) {
+                if !allowed.contains(v) {
+                    continue;
+                }
+            }
+            let name = match (&case_name, &variant_name) {
+                (Some(c), Some(v)) => format!("{c}_{v}"),
+                (Some(c), None) => c.clone(),
+                (None, Some(v)) => v.clone(),
+                (None, None) => base_name.clone(),
+            };
+            let mut t = base.clone();
+            let mut co = case_over.clone();
+            include_machine(&mut co, includes).map_err(|m| err(Some(&name), m))?;
+            merge(&mut t, co);
+            let mut vo = var_over;
+            include_machine(&mut vo, includes).map_err(|m| err(Some(&name), m))?;
+            merge(&mut t, vo);
+            expand_all(&mut t);
+            let scenario: Scenario =
+                serde_path_to_error::deserialize(Value::Table(t)).map_err(|e| {
+                    let path = e.path().to_string();
+                    let inner = e.into_inner();
+                    err(Some(&name), format!("`{path}`: {}", inner.message().trim()))
+                })?;
+            runs.push(Run {
+                name,
+                case: case_name.clone(),
+                variant: variant_name,
+                scenario,
+            });
+        }
+    }
+    if let Some(c) = allowed_unknown(&runs) {
+        return Err(err(None, c));
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    for r in &runs {
+        if !seen.insert(r.name.clone()) {
+            return Err(err(Some(&r.name), "two runs have this name".into()));
+        }
+    }
+    Ok(ScenarioFile {
+        file: file.to_string(),
+        name: base_name,
+        runs,
+    })
+}
+
+/// A file whose cases allow no variant that exists runs nothing for that case: refuse.
+fn allowed_unknown(runs: &[Run]) -> Option<String> {
+    if runs.is_empty() {
+        Some("no runs (every case excludes every variant)".into())
+    } else {
+        None
+    }
+}
+
+/// `[A-Za-z0-9_-]+`, at most 64 characters.
+pub fn check_name(name: &str) -> Result<(), String> {
+    if name.is_empty()
+        || name.len() > 64
+        || !name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+    {
+        return Err(format!(
+            "name `{name}` must be 1 to 64 characters of [A-Za-z0-9_-]"
+        ));
+    }
+    Ok(())
+}
+
+fn take_array(t: &mut Table, key: &str) -> Result<Vec<Table>, String> {
+    match t.remove(key) {
+        None => Ok(Vec::new()),
+        Some(Value::Array(a)) => a
+            .into_iter()
+            .map(|v| match v {
+                Value::Table(t) => Ok(t),
+                _ => Err(format!("`{key}` entries must be tables ([[{key}]])")),
+            })
+            .collect(),
+        Some(_) => Err(format!("`{key}` must be an array of tables ([[{key}]])")),
+    }
+}
+
+fn entry_name(t: &mut Table, what: &str) -> Result<String, String> {
+    match t.remove("name") {
+        Some(Value::String(s)) => {
+            check_name(&s).map_err(|m| format!("{what}: {m}"))?;
+            Ok(s)
+        }
+        _ => Err(format!("every [[{what}]] needs a `name` (a string)")),
+    }
+}
+
+/// Replace `machine = { file = "...", <overrides> }` by the file's table with the
+/// overrides merged in.
+fn include_machine(t: &mut Table, includes: &dyn Includes) -> Result<(), String> {
+    let Some(Value::Table(m)) = t.get_mut("machine") else {
+        return Ok(());
+    };
+    let Some(file) = m.remove("file") else {
+        return Ok(());
+    };
+    let Value::String(rel) = file else {
+        return Err("`machine.file` must be a path (a string)".into());
+    };
+    if rel.contains("..") && rel.matches("..").count() > 4 {
+        return Err(format!("`machine.file` {rel}: too many parent directories"));
+    }
+    let text = includes.read(&rel)?;
+    let mut included: Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| format!("machine file {rel}: invalid TOML: {e}"))?;
+    if included.contains_key("file") {
+        return Err(format!(
+            "machine file {rel}: nested includes are not supported"
+        ));
+    }
+    let overrides = std::mem::take(m);
+    merge(&mut included, overrides);
+    *m = included;
+    Ok(())
+}
+
+/// Merge `over` into `base` (see the module docs).
+pub fn merge(base: &mut Table, over: Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(Value::Table(b)), Value::Table(o)) => {
+                let switches_variant = is_variant(b) && is_variant(&o) && b.keys().ne(o.keys());
+                if switches_variant {
+                    *b = o;
+                } else {
+                    merge(b, o);
+                }
+            }
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+/// A one-key table whose value is a table: how the file spells an enum variant (never a
+/// per-axis table keyed `all`, `x`, `y` or `z`).
+fn is_variant(t: &Table) -> bool {
+    match t.iter().next() {
+        Some((k, Value::Table(_))) if t.len() == 1 => {
+            !matches!(k.as_str(), "all" | "x" | "y" | "z")
+        }
+        _ => false,
+    }
+}
+
+/// Merge every `all` key under `x`, `y`, `z` of its table, recursively.
+pub fn expand_all(t: &mut Table) {
+    if let Some(all) = t.remove("all") {
+        for axis in ["x", "y", "z"] {
+            let mut v = all.clone();
+            if let Some(own) = t.remove(axis) {
+                match (&mut v, own) {
+                    (Value::Table(a), Value::Table(o)) => merge(a, o),
+                    (_, o) => v = o,
+                }
+            }
+            t.insert(axis.to_string(), v);
+        }
+    }
+    for (_, v) in t.iter_mut() {
+        match v {
+            Value::Table(sub) => expand_all(sub),
+            Value::Array(a) => {
+                for e in a {
+                    if let Value::Table(sub) = e {
+                        expand_all(sub);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}

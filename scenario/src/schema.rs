@@ -1,0 +1,180 @@
+//! The types of a scenario file (one run, after cases and variants are merged in).
+//!
+//! Every table rejects unknown keys. Per-axis values are tables `{ x, y, z }` (or arrays of
+//! three); `all` gives their common part. Lengths in mm (the paper's normalised unit for
+//! its axis), times in s, efforts in the laws' units (mN·m on the physical axes).
+
+use controller_core::coupling::CouplingConfig;
+use controller_core::estimator::EstimatorConfig;
+use controller_core::law::adaptive_smc::AdaptiveSmcConfig;
+use controller_core::law::dob_smc::DobSmcConfig;
+use controller_core::law::pid::PidConfig;
+use controller_core::law::smc::SmcConfig;
+use controller_core::motion::path::{PathConfig, PathStart};
+use controller_core::servo::io::{AmplifierConfig, EncoderConfig};
+use controller_core::sim::truth::TruthSpec;
+use controller_core::sim::world::{InitialState, PlantConfig};
+use serde::{Deserialize, Serialize};
+
+/// Number type the controller runs in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Numeric {
+    /// The firmware's float type.
+    #[default]
+    F32,
+    /// Host reference precision.
+    F64,
+    /// Saturating fixed point Q32.32 (docs/fixed-point.md).
+    Fixed,
+    /// Saturating fixed point Q16.16, for comparison (too coarse for the integrator).
+    FixedQ16,
+}
+
+impl Numeric {
+    /// The name used in files and as a JSON key.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::F32 => "f32",
+            Self::F64 => "f64",
+            Self::Fixed => "fixed",
+            Self::FixedQ16 => "fixed_q16",
+        }
+    }
+}
+
+/// How the controller is evaluated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// The servo step at the machine's control rate against the simulated world (zero-order
+    /// hold, encoder counts, amplifier range and resolution): what the firmware does.
+    #[default]
+    Discrete,
+    /// The controller evaluated at every RK4 stage of step `dt_s`, its integrals integrated
+    /// with the plant: the paper's Matlab setting (PID and sliding-mode laws only).
+    Continuous { dt_s: f64 },
+}
+
+/// One run.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// `[A-Za-z0-9_-]+`; names output files.
+    pub name: String,
+    #[serde(default)]
+    pub description: Option<String>,
+    /// Simulated time, s.
+    pub horizon_s: f64,
+    #[serde(default)]
+    pub numeric: Numeric,
+    #[serde(default)]
+    pub mode: Mode,
+    pub machine: MachineSpec,
+    pub controller: ControllerSpec,
+    pub estimator: EstimatorSpec,
+    pub path: PathConfig,
+    #[serde(default)]
+    pub path_start: PathStart,
+    #[serde(default)]
+    pub metrics: TruthSpec,
+    /// Parameters of the study that interprets this file (each study checks its own).
+    #[serde(default)]
+    pub study: Option<toml::Value>,
+}
+
+/// The machine: control rate and the three axes.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineSpec {
+    pub rate_hz: u32,
+    /// RK4 steps of the plants per control period (discrete mode).
+    #[serde(default = "four")]
+    pub plant_substeps: u32,
+    /// Start every axis on the path (its position and velocity at t = 0) instead of at
+    /// `initial`.
+    #[serde(default)]
+    pub start_on_path: bool,
+    #[serde(with = "controller_core::axes::per_axis")]
+    pub axes: [AxisSpec; 3],
+}
+
+fn four() -> u32 {
+    4
+}
+
+/// One axis of the machine.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisSpec {
+    pub plant: PlantConfig,
+    pub encoder: EncoderConfig,
+    pub amplifier: AmplifierConfig,
+    /// Following-error trip level, mm (`inf`: no check; simulation studies only).
+    #[serde(default = "inf")]
+    pub following_error_mm: f32,
+    #[serde(default)]
+    pub initial: InitialState,
+}
+
+fn inf() -> f32 {
+    f32::INFINITY
+}
+
+/// The controller: a law per axis and the coupling.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerSpec {
+    #[serde(with = "controller_core::axes::per_axis")]
+    pub laws: [LawSpec; 3],
+    pub coupling: CouplingConfig,
+}
+
+/// A law with explicit parameters, or tuned from the axis' physical plant.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LawSpec {
+    Pid(PidConfig),
+    Smc(SmcConfig),
+    DobSmc(DobSmcConfig),
+    AdaptiveSmc(AdaptiveSmcConfig),
+    /// Derived from the axis model by the tuning rules of
+    /// `controller_core::presets::gantry` (physical plants only).
+    Tuned(TunedLaw),
+}
+
+/// The laws the tuning rules derive from a physical axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TunedLaw {
+    Pid,
+    Dsmc,
+    DobSmc,
+    AdaptiveSmc,
+    /// The adaptive law with its adaptation off (a fixed-parameter SMC with friction
+    /// feed-forward from the initial estimates).
+    AdaptiveSmcFrozen,
+}
+
+/// Velocity estimators.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EstimatorSpec {
+    #[serde(with = "controller_core::axes::per_axis")]
+    pub axes: [EstimatorConfig; 3],
+    #[serde(default)]
+    pub accel_input: AccelSpec,
+}
+
+/// The estimators' commanded acceleration.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AccelSpec {
+    #[default]
+    None,
+    /// The reference acceleration.
+    Reference,
+    /// Each axis' model (the plant's: paper `a, b, k`; physical `B/J, 0, 1/J`) times the
+    /// applied output.
+    Model,
+}
