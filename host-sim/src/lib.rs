@@ -1,30 +1,22 @@
 //! # host-sim
 //!
 //! Runs the gantry's controller core (the same `controller-core` code the firmware runs)
-//! against plant models on a PC.
+//! against simulated machines described in scenario files, on a PC.
 //!
-//! - [`engine`]: the simulation loop, in *continuous* mode (controller re-evaluated at
-//!   every RK4 stage, for comparison with the paper's Matlab runs) and *discrete* mode
-//!   (controller at a fixed sample rate with zero-order hold, position quantisation and
-//!   actuator saturation: what the firmware does).
-//! - [`estimators`]: velocity sources (exact, backward difference, PLL, Kalman) compared
-//!   on the paper helix (issue 6).
-//! - [`scenario`]: scenario files (TOML) and their conversion into runs.
-//! - [`paper`]: the reference paper's experiments (Tables 1 and 3) and published numbers.
-//! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry;
-//!   [`seed_plots`] draws their figures.
-//! - [`report`]: tables on the terminal, JSON and CSV output.
-//! - [`plots`]: PNG/SVG figures (bundled font: renders on a machine without fonts).
+//! - [`builtin`]: the built-in scenario and machine files, and loading files from disk
+//!   (schema: the `gantry-scenario` crate);
+//! - [`engine`]: one run in its mode (discrete: the servo step against the simulated
+//!   world; continuous: the paper's setting) and number type, with figures and a trace;
+//! - [`jobs`]: the one parallel runner every study uses;
+//! - [`studies`]: the paper reproduction, the seed methods, the velocity estimators, any
+//!   scenario file, and the QEMU verdict;
+//! - [`output`]: tables, JSON, CSV and plots (bundled font: renders on a bare machine).
 
-// `!(x > 0.0)` is deliberate: it also rejects NaN, which is how bad numbers in scenario
-// files are caught.
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod builtin;
 pub mod engine;
-pub mod estimators;
-pub mod paper;
-pub mod plots;
-pub mod report;
-pub mod scenario;
-pub mod seed_plots;
-pub mod seeds;
+pub mod jobs;
+pub mod output;
+pub mod studies;

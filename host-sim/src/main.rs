@@ -1,190 +1,236 @@
-//! `host-sim`: the simulated gantry on a PC. With no arguments it reproduces the reference
-//! paper's Tables 1 and 3 and writes traces and plots; `run FILE` runs a single scenario.
+//! `host-sim`: the simulated gantry on a PC. With no subcommand it reproduces the
+//! reference paper's Tables 1 and 3 and writes traces and plots (the main job); the
+//! subcommands run the other studies, any scenario file, and the QEMU verdict.
 
-use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
-use host_sim::engine::run;
-use host_sim::paper::{run_paper, PaperScenario};
-use host_sim::plots;
-use host_sim::report::{paper_tables, write_json, write_trace_csv};
-use host_sim::scenario::{load_toml, paper_plants, RunScenario};
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use host_sim::builtin;
+use host_sim::output::report::{paper_tables, write_json, write_trace_csv};
+use host_sim::output::{plots, seed_plots};
+use host_sim::studies::{estimators, generic, paper, qemu_verdict, seeds};
 use std::path::{Path, PathBuf};
+use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Parser)]
 #[command(
     version,
-    about = "Simulated gantry: runs controller-core against plant models"
+    about = "Simulated gantry: runs controller-core against simulated machines",
+    args_conflicts_with_subcommands = true
 )]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// Paper scenario file (default: the built-in host-sim/scenarios/paper.toml).
-    #[arg(long, global = true)]
+    /// Options of the default `paper` study (when no subcommand is given).
+    #[command(flatten)]
+    paper: PaperArgs,
+}
+
+#[derive(Args, Clone)]
+struct PaperArgs {
+    /// Paper study file (default: the built-in host-sim/scenarios/paper.toml).
+    #[arg(long)]
     scenario: Option<PathBuf>,
     /// Output folder for CSV traces and plots.
-    #[arg(long, global = true, default_value = "out/paper")]
+    #[arg(long, default_value = "out/paper")]
     out: PathBuf,
     /// Also write the results as JSON to this file.
-    #[arg(long, global = true)]
+    #[arg(long)]
     json: Option<PathBuf>,
     /// Skip CSV and plot output.
-    #[arg(long, global = true)]
+    #[arg(long)]
     no_plots: bool,
 }
 
 #[derive(Subcommand)]
 enum Command {
     /// Reproduce the paper's Tables 1 and 3 (the default).
-    Paper,
-    /// Run one scenario file (e.g. host-sim/scenarios/helix_discrete_10khz.toml).
-    Run { file: PathBuf },
+    Paper(PaperArgs),
+    /// Run every run of a scenario file (e.g. host-sim/scenarios/helix_discrete_10khz.toml).
+    Run {
+        file: PathBuf,
+        /// Output folder for CSV traces.
+        #[arg(long, default_value = "out/run")]
+        out: PathBuf,
+        /// Also write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Skip CSV output.
+        #[arg(long)]
+        no_plots: bool,
+    },
     /// Velocity sources (exact, backward difference, PLL, Kalman) x PID/SMC/DSMC on the
-    /// paper helix at 10 kHz with 1e-4 quantisation, and x PID/DSMC/DOB-SMC on the
-    /// physical gantry's helix with 0.625 µm counts (docs/velocity-estimation.md).
+    /// paper helix, and x PID/DSMC/DOB-SMC on the physical gantry's helix
+    /// (docs/velocity-estimation.md).
     Estimators {
-        /// Add the paper's 10 s load disturbance on X (table 3).
+        /// Add the paper's 10 s load disturbance on X (table 3) to the paper helix.
         #[arg(long)]
         disturbance: bool,
-        /// Simulated time (s); the paper's helix runs 15 s.
+        /// Simulated time of the paper helix (s).
         #[arg(long, default_value_t = 15.0)]
         horizon_s: f64,
+        /// Study file for the paper helix part (default: built-in estimators_paper.toml;
+        /// --disturbance and --horizon-s apply to the built-in only).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
-    /// Compare the seed methods (DOB-SMC, cross-coupling, adaptive friction SMC) on the
-    /// physical gantry: host-sim/scenarios/seeds_*.toml (docs/seed-methods.md).
-    Seeds,
+    /// The seed methods (DOB-SMC, cross-coupling, adaptive friction SMC) on the physical
+    /// gantry: host-sim/scenarios/seeds_*.toml (docs/seed-methods.md).
+    Seeds {
+        /// Output folder for CSV traces and plots.
+        #[arg(long, default_value = "out/seeds")]
+        out: PathBuf,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Skip CSV and plot output.
+        #[arg(long)]
+        no_plots: bool,
+    },
+    /// Compare a QEMU scenario's figures from the firmware's log with host-sim's (used by
+    /// firmware/qemu/run-all); prints `qemu <name> passed` or `qemu <name> FAILED: <why>`.
+    QemuVerdict {
+        file: PathBuf,
+        /// The decoded defmt log of the firmware's QEMU run.
+        #[arg(long)]
+        log: PathBuf,
+    },
 }
 
-fn main() -> Result<()> {
+fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command.as_ref().unwrap_or(&Command::Paper) {
-        Command::Paper => paper(&cli),
-        Command::Run { file } => single(&cli, file),
-        Command::Estimators {
+    let result = match cli.command {
+        None => run_paper(&cli.paper),
+        Some(Command::Paper(a)) => run_paper(&a),
+        Some(Command::Run {
+            file,
+            out,
+            json,
+            no_plots,
+        }) => run_file(&file, &out, json.as_deref(), no_plots),
+        Some(Command::Estimators {
             disturbance,
             horizon_s,
-        } => estimators(&cli, *disturbance, *horizon_s),
-        Command::Seeds => seeds(&cli),
+            scenario,
+            json,
+        }) => run_estimators(disturbance, horizon_s, scenario.as_deref(), json.as_deref()),
+        Some(Command::Seeds {
+            out,
+            json,
+            no_plots,
+        }) => run_seeds(&out, json.as_deref(), no_plots),
+        Some(Command::QemuVerdict { file, log }) => return run_verdict(&file, &log),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
 }
 
-fn paper(cli: &Cli) -> Result<()> {
+fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))
+}
+
+fn run_paper(a: &PaperArgs) -> Result<()> {
     let started = Instant::now();
-    let sc = match &cli.scenario {
-        Some(p) => load_toml::<PaperScenario>(p)?,
-        None => PaperScenario::builtin()?,
-    };
-    let report = run_paper(&sc)?;
-    print!("{}", paper_tables(&sc, &report));
-    if let Some(j) = &cli.json {
+    let file = builtin::load_or("paper.toml", a.scenario.as_deref())?;
+    let (info, report) = paper::run_paper(&file)?;
+    print!("{}", paper_tables(&info, &report));
+    if let Some(j) = &a.json {
         write_json(j, &report)?;
         println!("\nJSON: {}", j.display());
     }
-    if !cli.no_plots {
-        std::fs::create_dir_all(&cli.out)
-            .with_context(|| format!("cannot create {}", cli.out.display()))?;
+    if !a.no_plots {
+        create_dir(&a.out)?;
         for (name, r) in &report.traces {
-            write_trace_csv(&cli.out.join(format!("{name}.csv")), r)?;
+            write_trace_csv(&a.out.join(format!("{name}.csv")), r)?;
         }
-        let files = plots::paper_figures(&cli.out, &sc, &report)?;
+        let files = plots::paper_figures(&a.out, &info, &report)?;
         println!(
             "\nTraces (CSV) and {} figures (PNG + SVG) in {}",
             files,
-            cli.out.display()
+            a.out.display()
         );
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
 }
 
-fn single(cli: &Cli, file: &Path) -> Result<()> {
-    let sc: RunScenario = load_toml(file)?;
-    let plants = paper_plants(&sc.plant, &sc.disturbances)?;
-    let r = run(&sc.spec()?, &plants)?;
-    println!("scenario {}", sc.name);
-    println!(
-        "  ITSE x y z      : {:.6e} {:.6e} {:.6e}",
-        r.itse[0], r.itse[1], r.itse[2]
-    );
-    println!(
-        "  max |e| x y z   : {:.6e} {:.6e} {:.6e}",
-        r.max_abs_error[0], r.max_abs_error[1], r.max_abs_error[2]
-    );
-    println!(
-        "  contour max rms : {:.6e} {:.6e} (t >= {} s)",
-        r.contour_max, r.contour_rms, sc.contour_from_s
-    );
-    println!(
-        "  TV(u) x y z     : {:.4e} {:.4e} {:.4e}",
-        r.tv_u[0], r.tv_u[1], r.tv_u[2]
-    );
-    if let Some(j) = &cli.json {
-        write_json(
-            j,
-            &serde_json::json!({
-                "name": sc.name, "itse": r.itse, "max_abs_error": r.max_abs_error,
-                "contour_max": r.contour_max, "contour_rms": r.contour_rms, "tv_u": r.tv_u, "peak_u": r.peak_u,
-            }),
-        )?;
+fn run_file(file: &Path, out: &Path, json: Option<&Path>, no_plots: bool) -> Result<()> {
+    let f = builtin::load_path(file)?;
+    let res = generic::run_file(&f)?;
+    print!("{}", res.table());
+    if let Some(j) = json {
+        write_json(j, &res.to_json())?;
     }
-    if !cli.no_plots {
-        std::fs::create_dir_all(&cli.out)?;
-        write_trace_csv(&cli.out.join(format!("{}.csv", sc.name)), &r)?;
+    if !no_plots {
+        create_dir(out)?;
+        for (name, _, r) in &res.runs {
+            write_trace_csv(&out.join(format!("{name}.csv")), r)?;
+        }
     }
     Ok(())
 }
 
-fn seeds(cli: &Cli) -> Result<()> {
+fn run_seeds(out: &Path, json: Option<&Path>, no_plots: bool) -> Result<()> {
     let started = Instant::now();
-    let rep = host_sim::seeds::run_builtin()?;
-    print!("{}", host_sim::seeds::table(&rep));
-    if let Some(j) = &cli.json {
+    let rep = seeds::run_builtin()?;
+    print!("{}", seeds::table(&rep));
+    if let Some(j) = json {
         write_json(j, &rep.to_json())?;
         println!("\nJSON: {}", j.display());
     }
-    if !cli.no_plots {
-        let dir = cli.out.join("seeds");
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create {}", dir.display()))?;
+    if !no_plots {
+        create_dir(out)?;
         for (name, r) in &rep.traces {
-            write_trace_csv(&dir.join(format!("{name}.csv")), r)?;
+            write_trace_csv(&out.join(format!("{name}.csv")), r)?;
         }
-        let files = host_sim::seed_plots::seed_figures(&dir, &rep)?;
+        let files = seed_plots::seed_figures(out, &rep)?;
         println!(
             "\nTraces (CSV) and {files} figures (PNG + SVG) in {}",
-            dir.display()
+            out.display()
         );
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
 }
 
-fn estimators(cli: &Cli, disturbance: bool, horizon_s: f64) -> Result<()> {
-    use host_sim::estimators::{compare, default_sources, table};
+fn run_estimators(
+    disturbance: bool,
+    horizon_s: f64,
+    scenario: Option<&Path>,
+    json: Option<&Path>,
+) -> Result<()> {
     let started = Instant::now();
-    let sc = match &cli.scenario {
-        Some(p) => load_toml::<PaperScenario>(p)?,
-        None => PaperScenario::builtin()?,
+    let paper_file = match scenario {
+        Some(p) => {
+            if disturbance || horizon_s != 15.0 {
+                bail!("--disturbance and --horizon-s apply to the built-in study only; set them in {}", p.display());
+            }
+            builtin::load_path(p)?
+        }
+        None => estimators::paper_file(horizon_s, disturbance)?,
     };
-    let sources = default_sources(sc.plant);
-    let c = compare(&sc, &sources, horizon_s, disturbance)?;
+    let physical_file = builtin::load("estimators_physical.toml")?;
+    let c = estimators::compare(&paper_file)?;
     println!(
-        "paper helix, 10 kHz, 1e-4 quantisation, |u| <= 500, {horizon_s} s{}; contour over t >= {} s",
+        "paper helix, 10 kHz, 1e-4 quantisation, |u| <= 500, {horizon_s} s{}; contour over t >= 1 s",
         if disturbance { ", load disturbance on X at 10 s" } else { "" },
-        sc.table3.contour_from_s
     );
-    print!("{}", table(&c, &sources));
-    use host_sim::estimators::physical::{
-        compare_physical, default_physical_sources, physical_table, PHYSICAL_LAWS,
-    };
-    let psources = default_physical_sources();
-    let p = compare_physical(&PHYSICAL_LAWS, &psources, None)?;
+    print!("{}", estimators::table(&c));
+    let p = estimators::compare(&physical_file)?;
     println!(
         "\nphysical gantry, seeds helix (r 20 mm, 50 mm/s, 150 mN·m load step on X at 1.5 s), \
          10 kHz, 0.625 µm counts, 3 s; lengths mm, torques mN·m"
     );
-    print!("{}", physical_table(&p, &psources));
-    if let Some(j) = &cli.json {
+    print!("{}", estimators::table(&p));
+    if let Some(j) = json {
         let mut v = serde_json::to_value(&c)?;
         if let Some(m) = v.as_object_mut() {
             m.insert("physical".into(), serde_json::to_value(&p)?);
@@ -194,4 +240,31 @@ fn estimators(cli: &Cli, disturbance: bool, horizon_s: f64) -> Result<()> {
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
+}
+
+fn run_verdict(file: &Path, log: &Path) -> ExitCode {
+    let stem = file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let res = (|| {
+        let f = builtin::load_path(file)?;
+        let text = std::fs::read_to_string(log)
+            .with_context(|| format!("cannot read log {}", log.display()))?;
+        qemu_verdict::verdict(&f, &text)
+    })();
+    match res {
+        Ok((name, None)) => {
+            println!("qemu {name} passed");
+            ExitCode::SUCCESS
+        }
+        Ok((name, Some(why))) => {
+            println!("qemu {name} FAILED: {why}");
+            ExitCode::FAILURE
+        }
+        Err(e) => {
+            println!("qemu {stem} FAILED: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -10,8 +10,9 @@
 //! Every case runs with every variant it allows; the run is named `<case>_<variant>` (or
 //! the one that exists, or the base `name` when there are neither). Overrides merge
 //! table by table; a value that is not a table replaces the base's, and so does a
-//! one-key table of a table over another with a different key (the way the file spells
-//! an enum variant: `{ pid = {..} }` over `{ smc = {..} }` switches the law).
+//! one-key table holding a table or a name over another with a different key (the way
+//! the file spells an enum variant: `{ pid = {..} }` over `{ smc = {..} }` or over
+//! `{ tuned = "dsmc" }` switches the law).
 //!
 //! After merging, any table with an `all` key gets it merged under each of `x`, `y`, `z`.
 //! `machine = { file = "machines/gantry.toml", ... }` includes a machine description
@@ -139,6 +140,17 @@ pub fn load_str(
     text: &str,
     includes: &dyn Includes,
 ) -> Result<ScenarioFile, ScenarioError> {
+    load_str_with(file, text, includes, "")
+}
+
+/// Load a scenario file from its text with `overrides` (TOML) merged over its base
+/// scenario, before its cases and variants (e.g. a command's options, or a test's change).
+pub fn load_str_with(
+    file: &str,
+    text: &str,
+    includes: &dyn Includes,
+    overrides: &str,
+) -> Result<ScenarioFile, ScenarioError> {
     let err = |run: Option<&str>, m: String| ScenarioError::new(file, run, m);
     if text.len() as u64 > MAX_FILE_BYTES {
         return Err(err(None, format!("file is over {MAX_FILE_BYTES} bytes")));
@@ -146,6 +158,12 @@ pub fn load_str(
     let mut base: Table = text
         .parse()
         .map_err(|e: toml::de::Error| err(None, format!("invalid TOML: {e}")))?;
+    let mut over: Table = overrides
+        .parse()
+        .map_err(|e: toml::de::Error| err(None, format!("invalid overrides: {e}")))?;
+    include_machine(&mut base, includes).map_err(|m| err(None, m))?;
+    include_machine(&mut over, includes).map_err(|m| err(None, m))?;
+    merge(&mut base, over);
     let cases = take_array(&mut base, "case").map_err(|m| err(None, m))?;
     let variants = take_array(&mut base, "variant").map_err(|m| err(None, m))?;
     let base_name = match base.get("name") {
@@ -153,7 +171,6 @@ pub fn load_str(
         _ => return Err(err(None, "missing `name` (a string)".into())),
     };
     check_name(&base_name).map_err(|m| err(None, m))?;
-    include_machine(&mut base, includes).map_err(|m| err(None, m))?;
 
     let mut runs = Vec::new();
     let case_list: Vec<Option<Table>> = if cases.is_empty() {
@@ -340,11 +357,12 @@ pub fn merge(base: &mut Table, over: Table) {
     }
 }
 
-/// A one-key table whose value is a table: how the file spells an enum variant (never a
-/// per-axis table keyed `all`, `x`, `y` or `z`).
+/// A one-key table whose value is a table or a name: how the file spells an enum variant
+/// (`{ pid = {..} }`, `{ tuned = "pid" }`; never a per-axis table keyed `all`, `x`, `y`,
+/// `z`).
 fn is_variant(t: &Table) -> bool {
     match t.iter().next() {
-        Some((k, Value::Table(_))) if t.len() == 1 => {
+        Some((k, Value::Table(_) | Value::String(_))) if t.len() == 1 => {
             !matches!(k.as_str(), "all" | "x" | "y" | "z")
         }
         _ => false,
@@ -358,7 +376,11 @@ pub fn expand_all(t: &mut Table) {
             let mut v = all.clone();
             if let Some(own) = t.remove(axis) {
                 match (&mut v, own) {
-                    (Value::Table(a), Value::Table(o)) => merge(a, o),
+                    (Value::Table(a), Value::Table(o))
+                        if !(is_variant(a) && is_variant(&o) && a.keys().ne(o.keys())) =>
+                    {
+                        merge(a, o)
+                    }
                     (_, o) => v = o,
                 }
             }
@@ -377,5 +399,29 @@ pub fn expand_all(t: &mut Table) {
             }
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_merges_under_axes_and_variants_switch() {
+        let mut t: Table = r#"
+laws.all = { tuned = "dob_smc" }
+laws.x = { dob_smc = { a = 1.0 } }
+enc.all = { counts = 1, counter = "bits32" }
+enc.z = { counter = "bits16" }
+"#
+        .parse()
+        .unwrap();
+        expand_all(&mut t);
+        let laws = t["laws"].as_table().unwrap();
+        assert_eq!(laws["x"].as_table().unwrap().len(), 1, "{laws:?}");
+        assert!(laws["x"].get("dob_smc").is_some());
+        assert_eq!(laws["y"]["tuned"].as_str(), Some("dob_smc"));
+        assert_eq!(t["enc"]["z"]["counter"].as_str(), Some("bits16"));
+        assert_eq!(t["enc"]["z"]["counts"].as_integer(), Some(1));
     }
 }

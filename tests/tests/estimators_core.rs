@@ -5,11 +5,11 @@
 //! the paper simulation's timing (10 kHz, 1e-4 units per count), so units/s are
 //! numerically counts per period.
 
+use controller_core::config::ConfigError;
 use controller_core::estimator::{
     CounterWidth, EstimatorConfig, EstimatorTiming, KalmanConfig, PllConfig, VelocityEstimator,
     WideCounter, PAPER_SIM_KALMAN, PAPER_SIM_PLL, PAPER_SIM_TIMING,
 };
-use controller_core::params::ConfigError;
 
 const TS: f64 = 1e-4;
 const COUNT: f64 = 1e-4;

@@ -5,56 +5,37 @@
 //! Shortened to 4 s of the 15 s helix to keep the test quick; the full comparison is
 //! `cargo run -p host-sim --release -- estimators`.
 
-use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
-use host_sim::estimators::{compare, Source};
-use host_sim::paper::PaperScenario;
+use gantry_tests::run_builtin;
 
 #[test]
 fn dsmc_contour_with_kalman_is_within_one_and_a_half_counts() {
-    let mut sc = PaperScenario::builtin().unwrap();
-    sc.laws.retain(|l| l.name == "DSMC");
-    assert_eq!(sc.laws.len(), 1);
-    let sources = [
-        Source::Exact,
-        Source::BackwardDifference,
-        Source::Estimator {
-            config: EstimatorConfig::Pll(PAPER_SIM_PLL),
-            accel_model: None,
-        },
-        Source::Estimator {
-            config: EstimatorConfig::Kalman(PAPER_SIM_KALMAN),
-            accel_model: Some(sc.plant),
-        },
-    ];
-    let c = compare(&sc, &sources, 4.0, false).unwrap();
-    let d = &c["dsmc"];
+    let run = |src: &str| {
+        let r = run_builtin(
+            "estimators_paper.toml",
+            &format!("dsmc_{src}"),
+            "horizon_s = 4.0\n",
+        );
+        (r.contour_max, r.tv_u)
+    };
     let (exact, bd, pll, kal) = (
-        &d["exact"],
-        &d["backward_difference"],
-        &d["pll"],
-        &d["kalman"],
+        run("exact"),
+        run("backward_difference"),
+        run("pll"),
+        run("kalman"),
     );
-    assert!(kal.contour_max <= 1.5e-4, "kalman {}", kal.contour_max);
+    assert!(kal.0 <= 1.5e-4, "kalman {}", kal.0);
     for i in 0..3 {
         assert!(
-            kal.tv_u[i] <= 2.0 * exact.tv_u[i],
+            kal.1[i] <= 2.0 * exact.1[i],
             "axis {i}: {} vs exact {}",
-            kal.tv_u[i],
-            exact.tv_u[i]
+            kal.1[i],
+            exact.1[i]
         );
     }
     // the naive difference: contour error and chattering an order of magnitude worse
-    assert!(
-        bd.contour_max > 10.0 * kal.contour_max,
-        "{}",
-        bd.contour_max
-    );
-    assert!(bd.tv_u[0] > 10.0 * exact.tv_u[0], "{}", bd.tv_u[0]);
+    assert!(bd.0 > 10.0 * kal.0, "{}", bd.0);
+    assert!(bd.1[0] > 10.0 * exact.1[0], "{}", bd.1[0]);
     // the PLL sits in between: far better than the difference, behind the Kalman filter
-    assert!(
-        pll.contour_max < 0.1 * bd.contour_max,
-        "{}",
-        pll.contour_max
-    );
-    assert!(pll.contour_max > kal.contour_max, "{}", pll.contour_max);
+    assert!(pll.0 < 0.1 * bd.0, "{}", pll.0);
+    assert!(pll.0 > kal.0, "{}", pll.0);
 }

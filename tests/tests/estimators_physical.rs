@@ -8,19 +8,18 @@
 //! quantum. What the backward difference costs is chattering: TV(u) ~110× that with the
 //! exact velocity on every axis, against 1.3-1.5× (PLL) and 1.9-2.6× (Kalman).
 
-use controller_core::seed_params::{SeedMethod, GANTRY_X};
-use host_sim::estimators::physical::{axis_model, compare_physical, default_physical_sources};
+use controller_core::model::PlantParams;
+use controller_core::presets::gantry::GANTRY_X;
+use gantry_tests::run_builtin;
 
 #[test]
 fn physical_dsmc_contour_and_chattering_by_velocity_source() {
-    let sources = default_physical_sources();
-    let c = compare_physical(&[SeedMethod::Dsmc], &sources, None).unwrap();
-    let d = &c["dsmc"];
+    let run = |src: &str| run_builtin("estimators_physical.toml", &format!("dsmc_{src}"), "");
     let (exact, bd, pll, kal) = (
-        &d["exact"],
-        &d["backward_difference"],
-        &d["pll"],
-        &d["kalman"],
+        run("exact"),
+        run("backward_difference"),
+        run("pll"),
+        run("kalman"),
     );
     // the contour error (mm) is friction/load dominated: ~27 µm with the exact velocity
     assert!(
@@ -28,7 +27,11 @@ fn physical_dsmc_contour_and_chattering_by_velocity_source() {
         "{}",
         exact.contour_max
     );
-    for (name, f) in [("pll", pll), ("kalman", kal), ("backward_difference", bd)] {
+    for (name, f) in [
+        ("pll", &pll),
+        ("kalman", &kal),
+        ("backward_difference", &bd),
+    ] {
         assert!(
             f.contour_max <= 1.1 * exact.contour_max,
             "{name}: {} vs exact {}",
@@ -61,7 +64,7 @@ fn physical_dsmc_contour_and_chattering_by_velocity_source() {
 #[test]
 fn kalman_model_of_a_physical_axis_is_its_torque_model() {
     // J x'' + B x' = u: a = B/J, b = 0, k = 1/J (X: J 0.064, B 0.25)
-    let m = axis_model(&GANTRY_X);
+    let m = PlantParams::from_inertia(GANTRY_X.inertia, GANTRY_X.viscous);
     assert_eq!(m.b, 0.0);
     assert!((m.a - 0.25 / 0.064).abs() < 1e-5, "{}", m.a);
     assert!((m.k - 1.0 / 0.064).abs() < 1e-4, "{}", m.k);

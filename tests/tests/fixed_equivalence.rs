@@ -4,31 +4,27 @@
 //! |u| <= 500). The bound stated in docs/fixed-point.md: ITSE per axis within 1 % of f32,
 //! and the two runs' contour errors within one encoder count of each other.
 
-use host_sim::engine::{run, Mode, Numeric, RunResult};
-use host_sim::scenario::{load_toml, paper_plants, RunScenario};
-use std::path::Path;
+use gantry_tests::run_builtin;
+use host_sim::engine::RunResult;
 
-fn scenario() -> RunScenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../host-sim/scenarios/helix_discrete_10khz.toml");
-    load_toml(&path).expect("the discrete helix scenario ships with host-sim")
-}
+/// One count of the scenario's encoders (paper_axis.toml: 10000 counts per unit).
+const COUNT: f64 = 1e-4;
+/// The scenario's contour window starts here (s).
+const CONTOUR_FROM_S: f64 = 1.0;
 
-fn run_as(numeric: Numeric) -> (RunResult, f64) {
-    let mut sc = scenario();
-    sc.numeric = numeric;
-    let quantum = match sc.mode {
-        Mode::Discrete(d) => d.position_quantum,
-        Mode::Continuous { .. } => panic!("the scenario must be discrete"),
-    };
-    let plants = paper_plants(&sc.plant, &sc.disturbances).unwrap();
-    (run(&sc.spec().unwrap(), &plants).unwrap(), quantum)
+fn run_as(numeric: &str) -> (RunResult, f64) {
+    let r = run_builtin(
+        "helix_discrete_10khz.toml",
+        "helix_discrete_10khz",
+        &format!("numeric = \"{numeric}\"\n"),
+    );
+    (r, COUNT)
 }
 
 #[test]
 fn fixed_point_helix_stays_within_one_percent_itse_and_one_count_of_f32() {
-    let (f, quantum) = run_as(Numeric::F32);
-    let (x, _) = run_as(Numeric::Fixed);
+    let (f, quantum) = run_as("f32");
+    let (x, _) = run_as("fixed");
     assert!(quantum > 0.0);
     for i in 0..3 {
         let rel = (x.itse[i] - f.itse[i]).abs() / f.itse[i];
@@ -60,7 +56,7 @@ fn fixed_point_helix_stays_within_one_percent_itse_and_one_count_of_f32() {
     // trace sample. Both dither by a count around the path (quantised feedback), with
     // different phases, so one count apart is normal; two would mean they drift apart.
     assert_eq!(f.trace.position.len(), x.trace.position.len());
-    let from_s = scenario().contour_from_s;
+    let from_s = CONTOUR_FROM_S;
     let worst = f
         .trace
         .t

@@ -1,11 +1,11 @@
 //! Accuracy of the fast fractional powers, cube roots, division and sine/cosine against
 //! `f64`, over the ranges the laws use, for `f32` and both fixed-point formats. The bounds
-//! are the documented constants of `controller_core::powers` and `controller_core::fixed`.
+//! are the documented constants of `controller_core::num::powers` and `controller_core::num::fixed`.
 
-use controller_core::fixed::{
+use controller_core::num::fixed::{
     FxQ16, FxQ32, FX_POW_MAX_REL_ERR, FX_ROOT_MAX_REL_ERR, FX_ROUTINE_MAX_LSB,
 };
-use controller_core::powers::{pow_abs_f32, POW_F32_MAX_REL_ERR};
+use controller_core::num::powers::{pow_abs_f32, POW_F32_MAX_REL_ERR};
 use controller_core::{Exponent, Real};
 use proptest::prelude::*;
 

@@ -3,10 +3,11 @@
 //! panics or wraps (these tests run with overflow checks on, so an integer wrap inside
 //! the implementation would panic), and the complete control step accepts any input.
 
-use controller_core::fixed::{FxQ16, FxQ32};
-use controller_core::gantry::{Gantry3, GantryConfig, Measured};
-use controller_core::params::{LawConfig, PAPER_DSMC, PAPER_LAMBDA, PAPER_PID, PAPER_SMC};
-use controller_core::trajectory::Trajectory;
+use controller_core::controller::{Controller3, ControllerConfig, Measured};
+use controller_core::law::LawConfig;
+use controller_core::motion::trajectory::Trajectory;
+use controller_core::num::fixed::{FxQ16, FxQ32};
+use controller_core::presets::paper::{PAPER_DSMC, PAPER_LAMBDA, PAPER_PID, PAPER_SMC};
 use controller_core::{Real, Vec3};
 use proptest::prelude::*;
 
@@ -117,15 +118,15 @@ proptest! {
                 }
             }
         }
-        let cfg = GantryConfig { laws: lc, ..GantryConfig::uniform(lc[0], PAPER_LAMBDA) };
+        let cfg = ControllerConfig { laws: lc, ..ControllerConfig::uniform(lc[0], PAPER_LAMBDA) };
         let traj = Trajectory::Helix {
             center: Vec3::zero(),
             radius: 100.0,
             omega: 1.0,
             z_rate: 50.0,
         };
-        let mut fx = Gantry3::<FxQ32>::new(&cfg).unwrap();
-        let mut fr = Gantry3::<f64>::new(&cfg).unwrap();
+        let mut fx = Controller3::<FxQ32>::new(&cfg).unwrap();
+        let mut fr = Controller3::<f64>::new(&cfg).unwrap();
         let meas = |p: [f64; 3], v: [f64; 3]| Measured {
             pos: Vec3::from_array(p),
             vel: Vec3::from_array(v),
@@ -141,7 +142,7 @@ proptest! {
             }
         }
         // Q16.16 on the same inputs: saturates (range analysis), never panics
-        let mut q = Gantry3::<FxQ16>::new(&cfg).unwrap();
+        let mut q = Controller3::<FxQ16>::new(&cfg).unwrap();
         let _ = q.step(&traj.cast().sample(FxQ16::from_f64(tt)), &meas(pos, vel).cast_meas(), FxQ16::from_f64(5e-5));
     }
 }

@@ -1,11 +1,14 @@
 //! Property tests of the core: contour-error geometry, and no NaN/inf from any law.
 
-use controller_core::contour::{contour_error, cross_couple};
-use controller_core::gantry::{Gantry3, GantryConfig, Measured};
-use controller_core::params::{
-    LawConfig, PidConfig, SurfaceConfig, PAPER_DSMC, PAPER_PID, PAPER_SMC,
-};
-use controller_core::trajectory::RefSample;
+use controller_core::controller::{Controller3, ControllerConfig, Measured};
+use controller_core::coupling::contour::{contour_error, cross_couple};
+use controller_core::coupling::CouplingConfig;
+use controller_core::law::pid::PidConfig;
+use controller_core::law::smc::SurfaceConfig;
+use controller_core::law::LawConfig;
+use controller_core::motion::trajectory::RefSample;
+use controller_core::presets::gantry::{adaptive_for, dob_smc_for, GANTRY_X, VARIABLE_GAIN_XY};
+use controller_core::presets::paper::{PAPER_DSMC, PAPER_PID, PAPER_SMC};
 use controller_core::Vec3;
 use proptest::prelude::*;
 
@@ -74,6 +77,8 @@ fn laws() -> Vec<LawConfig> {
         LawConfig::Smc(PAPER_SMC),
         LawConfig::Smc(PAPER_DSMC),
         LawConfig::Smc(nonsingular),
+        LawConfig::DobSmc(dob_smc_for(&GANTRY_X)),
+        LawConfig::AdaptiveSmc(adaptive_for(&GANTRY_X)),
     ]
 }
 
@@ -81,15 +86,26 @@ proptest! {
     #[test]
     fn no_law_emits_nan_or_inf(p in [extreme(), extreme(), extreme()], v in [extreme(), extreme(), extreme()],
                                r in [extreme(), extreme(), extreme()], rv in [extreme(), extreme(), extreme()]) {
+        let couplings = [
+            ControllerConfig::uniform(LawConfig::Pid(PAPER_PID), 0.01).coupling,
+            CouplingConfig::None,
+            CouplingConfig::VariableGain(VARIABLE_GAIN_XY),
+        ];
         for law in laws() {
-            let mut g = Gantry3::<f32>::new(&GantryConfig::uniform(law, 0.01)).unwrap();
-            let reference = RefSample { pos: Vec3::from_array(r), vel: Vec3::from_array(rv), acc: Vec3::from_array(rv) };
-            let meas = Measured { pos: Vec3::from_array(p), vel: Vec3::from_array(v) };
-            for _ in 0..3 {
-                let out = g.step(&reference, &meas, 1e-4);
-                prop_assert!(out.u.is_finite(), "{:?} -> {:?}", law, out.u);
-                prop_assert!(out.s.is_finite());
-                prop_assert!(g.states().iter().all(|s| s.integral.is_finite()));
+            for coupling in couplings {
+                let mut g = Controller3::<f32>::new(&ControllerConfig { coupling, ..ControllerConfig::uniform(law, 0.01) }).unwrap();
+                let reference = RefSample { pos: Vec3::from_array(r), vel: Vec3::from_array(rv), acc: Vec3::from_array(rv) };
+                let meas = Measured { pos: Vec3::from_array(p), vel: Vec3::from_array(v) };
+                for _ in 0..3 {
+                    let out = g.step(&reference, &meas, 1e-4);
+                    prop_assert!(out.u.is_finite(), "{:?} -> {:?}", law, out.u);
+                    prop_assert!(out.s.is_finite());
+                    prop_assert!(g.states().iter().all(|s| s.integral.is_finite()
+                        && s.dob.v_hat.is_finite() && s.dob.d_hat.is_finite()
+                        && s.adapt.j.is_finite() && s.adapt.b.is_finite()
+                        && s.adapt.f_pos.is_finite() && s.adapt.f_neg.is_finite()));
+                    prop_assert!(g.variable_gain_state().integral.is_finite());
+                }
             }
         }
     }

@@ -5,7 +5,7 @@
 //! so plots render on a machine without any system font packages.
 
 use crate::engine::RunResult;
-use crate::paper::{PaperReport, PaperScenario};
+use crate::studies::paper::{PaperInfo, PaperReport};
 use anyhow::{anyhow, Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -13,7 +13,7 @@ use plotters::style::FontStyle;
 use std::path::Path;
 use std::sync::Once;
 
-static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
 pub(crate) fn register_font() -> Result<()> {
     static ONCE: Once = Once::new();
@@ -234,10 +234,10 @@ fn axis_series(
 }
 
 /// All paper figures; returns the number of files written.
-pub fn paper_figures(dir: &Path, sc: &PaperScenario, rep: &PaperReport) -> Result<usize> {
+pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<usize> {
     register_font()?;
     let mut files = 0;
-    let t3: Vec<(String, &RunResult)> = rep
+    let t3: Vec<(String, &RunResult)> = sc
         .law_order
         .iter()
         .filter_map(|n| {
@@ -255,12 +255,10 @@ pub fn paper_figures(dir: &Path, sc: &PaperScenario, rep: &PaperReport) -> Resul
         .iter()
         .map(|p| (p[0], p[1], p[2]))
         .collect();
-    let dist = sc.table3.disturbance;
+    let (axis, accel, t_s) = sc.disturbance;
     let note = format!(
-        "+{} on axis {} at {} s",
-        dist.accel,
-        ["x", "y", "z"][dist.axis.min(2)],
-        dist.t_s
+        "+{accel} on axis {} at {t_s} s",
+        ["x", "y", "z"][axis.min(2)]
     );
 
     files += both(dir, "helix_3d", (900, 800), &|add| {
@@ -359,12 +357,12 @@ pub fn paper_figures(dir: &Path, sc: &PaperScenario, rep: &PaperReport) -> Resul
 
     for tname in ["step", "sine"] {
         let runs: Vec<(String, &RunResult)> = sc
-            .laws
+            .t1_laws
             .iter()
             .filter_map(|l| {
                 rep.traces
-                    .get(&format!("t1_{tname}_{}_disturbed", l.name))
-                    .map(|r| (l.name.clone(), r))
+                    .get(&format!("t1_{tname}_{l}_disturbed"))
+                    .map(|r| (l.clone(), r))
             })
             .collect();
         if runs.is_empty() {
@@ -385,10 +383,7 @@ pub fn paper_figures(dir: &Path, sc: &PaperScenario, rep: &PaperReport) -> Resul
             }];
             pos.extend(axis_series(&runs, |r, k| r.trace.position[k][0]));
             add(Panel::Lines {
-                title: format!(
-                    "Single axis, {tname} reference, +{} on θ'' from {} s",
-                    sc.table1.disturbance.accel, sc.table1.disturbance.t_s
-                ),
+                title: format!("Single axis, {tname} reference, +{accel} on θ'' from {t_s} s"),
                 xl: "t [s]".into(),
                 yl: "θ".into(),
                 series: pos,

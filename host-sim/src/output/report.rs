@@ -1,7 +1,7 @@
 //! Terminal tables, JSON and CSV output.
 
 use crate::engine::RunResult;
-use crate::paper::{PaperReport, PaperScenario};
+use crate::studies::paper::{PaperInfo, PaperReport};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -24,18 +24,18 @@ fn ratio(ours: f64, paper: f64) -> String {
 }
 
 /// Table 1 and Table 3 next to the published numbers.
-pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
+pub fn paper_tables(sc: &PaperInfo, r: &PaperReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "Table 1 (single axis, {} mode, controller in {:?}): ITSE 0-{} s nominal; robustness = ITSE {}-{} s with +{} on θ'' from {} s",
-        mode_name(sc),
+        "Table 1 (single axis, {} mode, controller in {}): ITSE 0-{} s nominal; robustness = ITSE {}-{} s with +{} on θ'' from {} s",
+        sc.mode,
         sc.numeric,
-        sc.table1.horizon_s,
-        sc.table1.robustness_window_s[0],
-        sc.table1.robustness_window_s[1],
-        sc.table1.disturbance.accel,
-        sc.table1.disturbance.t_s
+        sc.t1_horizon_s,
+        sc.robustness_window_s[0],
+        sc.robustness_window_s[1],
+        sc.disturbance.1,
+        sc.disturbance.2
     );
     for (title, table) in [("unit step", &r.table1_step), ("sin t", &r.table1_sine)] {
         let _ = writeln!(s, "  reference: {title}");
@@ -44,15 +44,15 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
             "  {:<6} {:>12} {:>12} {:>8} | {:>12} {:>12} {:>8} | {:>12}",
             "method", "ITSE", "paper", "ratio", "robustness", "paper", "ratio", "TV(u)/s"
         );
-        for l in &sc.laws {
-            let Some(row) = table.get(&l.name) else {
+        for l in &sc.t1_laws {
+            let Some(row) = table.get(l) else {
                 continue;
             };
-            let p = sc.published.table1.get(&l.name);
+            let p = sc.published.table1.get(l);
             let _ = writeln!(
                 s,
                 "  {:<6} {:>12} {:>12} {} | {:>12} {:>12} {} | {:>12.1}",
-                l.name,
+                l,
                 num(row.itse),
                 p.map(|p| format!("{:.6}", p.itse)).unwrap_or_default(),
                 p.map(|p| ratio(row.itse, p.itse)).unwrap_or_default(),
@@ -65,7 +65,6 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
             );
         }
     }
-    let t3 = &sc.table3;
     for (title, table) in [
         (
             "no disturbance: the runs the published table matches".to_string(),
@@ -74,7 +73,7 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
         (
             format!(
                 "with +{} on axis {} from {} s, as in the paper's Figs. 10/14",
-                t3.disturbance.accel, t3.disturbance.axis, t3.disturbance.t_s
+                sc.disturbance.1, sc.disturbance.0, sc.disturbance.2
             ),
             &r.table3_disturbed,
         ),
@@ -82,14 +81,14 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
         let _ = writeln!(
             s,
             "\nTable 3 (helix, λ = {}, ITSE per axis, {title}); contour error from t = {} s",
-            t3.lambda, t3.contour_from_s
+            sc.lambda, sc.contour_from_s
         );
         let _ = writeln!(
             s,
             "  {:<12} {:>10} {:>10} {:>10} | {:>10} {:>10} {:>10} | {:>11} {:>11}",
             "method", "x", "y", "z", "paper x", "paper y", "paper z", "contour max", "contour rms"
         );
-        for name in &r.law_order {
+        for name in &sc.law_order {
             let Some(row) = table.get(name) else { continue };
             let p = sc.published.table3.get(name);
             let f = |v: Option<f64>| v.map(|v| format!("{v:.6}")).unwrap_or_else(|| "-".into());
@@ -108,18 +107,18 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
             );
         }
     }
-    if let Some(d) = &sc.table3_discrete {
+    if !r.table3_discrete.is_empty() {
         let _ = writeln!(
             s,
-            "\nTable 3 as the firmware runs it: {} Hz, zero-order hold, positions quantised to {:e}, |u| <= {}, velocity {:?}, no disturbance",
-            d.mode.rate_hz, d.mode.position_quantum, d.mode.actuator_limit, d.mode.velocity
+            "\nTable 3 as the firmware runs it: {}, no disturbance",
+            sc.discrete
         );
         let _ = writeln!(
             s,
             "  {:<12} {:<9} {:>10} {:>10} {:>10} | {:>11} {:>11}",
             "method", "numeric", "x", "y", "z", "contour max", "contour rms"
         );
-        for name in &r.law_order {
+        for name in &sc.law_order {
             for (numeric, table) in &r.table3_discrete {
                 let Some(row) = table.get(name) else { continue };
                 let _ = writeln!(
@@ -139,13 +138,7 @@ pub fn paper_tables(sc: &PaperScenario, r: &PaperReport) -> String {
     s
 }
 
-fn mode_name(sc: &PaperScenario) -> String {
-    match sc.mode {
-        crate::engine::Mode::Continuous { dt_s } => format!("continuous, dt = {dt_s} s"),
-        crate::engine::Mode::Discrete(d) => format!("discrete, {} Hz", d.rate_hz),
-    }
-}
-
+/// Write `value` as pretty JSON to `path` (creating its folder), naming the path on error.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

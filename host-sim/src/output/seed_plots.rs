@@ -1,13 +1,12 @@
 //! Figures of `host-sim seeds` (PNG and SVG, the paper figures' style and helpers from
-//! [`crate::plots`]): the adaptive law's estimates converging to the truth, the tracking
+//! [`crate::output::plots`]): the adaptive law's estimates converging to the truth, the tracking
 //! error at velocity reversals with and without adaptation, and the XY contours of the
 //! circle and the square with and without the patent's cross-coupling.
 
 use crate::engine::RunResult;
-use crate::plots::{both, register_font, Panel, Series};
-use crate::seeds::{SeedsReport, ESTIMATE_NAMES};
+use crate::output::plots::{both, register_font, Panel, Series};
+use crate::studies::seeds::{SeedsReport, ESTIMATE_NAMES};
 use anyhow::Result;
-use controller_core::seed_params::GANTRY_AXES;
 use plotters::style::{RGBColor, BLACK};
 use std::path::Path;
 
@@ -77,9 +76,14 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
             for (p, name) in ESTIMATE_NAMES.iter().enumerate() {
                 let mut series = Vec::new();
                 for (i, ax) in ["x", "y"].iter().enumerate() {
-                    let a = GANTRY_AXES[i];
-                    let truth =
-                        [a.inertia, a.viscous, a.coulomb_pos_mnm, a.coulomb_neg_mnm][p] as f64;
+                    let Some(truth) = rep
+                        .adaptation
+                        .get(*ax)
+                        .and_then(|m| m.get(*name))
+                        .map(|e| e.truth)
+                    else {
+                        continue;
+                    };
                     series.push(Series {
                         name: format!("{ax} estimate"),
                         color: AXIS_COLORS[i],

@@ -1,0 +1,77 @@
+//! The built-in scenario and machine files (`host-sim/scenarios/`, `host-sim/machines/`),
+//! compiled into the binary so every study runs on a machine without the source tree, and
+//! loading of scenario files from disk with the same schema.
+
+use anyhow::{Context, Result};
+use gantry_scenario::file::{load_str_with, EmbeddedIncludes, ScenarioFile};
+use std::path::Path;
+
+/// `(path relative to host-sim/scenarios/, contents)` of every built-in file; machine files
+/// are named as the scenarios include them (`../machines/...`).
+pub const FILES: &[(&str, &str)] = &[
+    ("paper.toml", include_str!("../scenarios/paper.toml")),
+    (
+        "helix_discrete_10khz.toml",
+        include_str!("../scenarios/helix_discrete_10khz.toml"),
+    ),
+    (
+        "seeds_contouring.toml",
+        include_str!("../scenarios/seeds_contouring.toml"),
+    ),
+    (
+        "seeds_friction.toml",
+        include_str!("../scenarios/seeds_friction.toml"),
+    ),
+    (
+        "seeds_helix.toml",
+        include_str!("../scenarios/seeds_helix.toml"),
+    ),
+    (
+        "estimators_paper.toml",
+        include_str!("../scenarios/estimators_paper.toml"),
+    ),
+    (
+        "estimators_physical.toml",
+        include_str!("../scenarios/estimators_physical.toml"),
+    ),
+    (
+        "../machines/paper_axis.toml",
+        include_str!("../machines/paper_axis.toml"),
+    ),
+    (
+        "../machines/gantry.toml",
+        include_str!("../machines/gantry.toml"),
+    ),
+];
+
+/// A built-in scenario file by name (e.g. `paper.toml`).
+pub fn load(name: &str) -> Result<ScenarioFile> {
+    load_with(name, "")
+}
+
+/// A built-in scenario file with `overrides` (TOML) merged over its base scenario.
+pub fn load_with(name: &str, overrides: &str) -> Result<ScenarioFile> {
+    let (_, text) = FILES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .with_context(|| format!("no built-in scenario file {name}"))?;
+    Ok(load_str_with(
+        &format!("built-in {name}"),
+        text,
+        &EmbeddedIncludes(FILES),
+        overrides,
+    )?)
+}
+
+/// A scenario file from disk.
+pub fn load_path(path: &Path) -> Result<ScenarioFile> {
+    Ok(gantry_scenario::load(path)?)
+}
+
+/// A built-in file by name, or the given file from disk.
+pub fn load_or(name: &str, path: Option<&Path>) -> Result<ScenarioFile> {
+    match path {
+        Some(p) => load_path(p),
+        None => load(name),
+    }
+}

@@ -1,0 +1,6 @@
+//! What host-sim writes: terminal tables, JSON and CSV ([`report`]), and figures
+//! ([`plots`], [`seed_plots`]) as PNG and SVG.
+
+pub mod plots;
+pub mod report;
+pub mod seed_plots;

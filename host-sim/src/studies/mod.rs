@@ -1,0 +1,25 @@
+//! The studies host-sim runs, each from its scenario files (`host-sim/scenarios/`):
+//!
+//! - [`paper`]: the reference paper's Tables 1 and 3 (the main job);
+//! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry;
+//! - [`estimators`]: velocity sources × laws;
+//! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
+//! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
+
+pub mod estimators;
+pub mod generic;
+pub mod paper;
+pub mod qemu_verdict;
+pub mod seeds;
+
+use anyhow::Result;
+use gantry_scenario::file::ScenarioFile;
+use gantry_scenario::Resolved;
+
+/// Resolve every run of a file (each is validated; the first invalid one is the error).
+pub fn resolve_all(file: &ScenarioFile) -> Result<Vec<Resolved>> {
+    file.runs
+        .iter()
+        .map(|r| Resolved::new(&file.file, r).map_err(Into::into))
+        .collect()
+}
