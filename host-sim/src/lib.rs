@@ -9,6 +9,7 @@
 //!   actuator saturation: what the firmware does).
 //! - [`estimators`]: velocity sources (exact, backward difference, PLL, Kalman) compared
 //!   on the paper helix (issue 6).
+//! - [`gcode`]: G-code programs → validated machine moves (before any motion), soft limits.
 //! - [`scenario`]: scenario files (TOML) and their conversion into runs.
 //! - [`paper`]: the reference paper's experiments (Tables 1 and 3) and published numbers.
 //! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry;
@@ -22,6 +23,7 @@
 
 pub mod engine;
 pub mod estimators;
+pub mod gcode;
 pub mod paper;
 pub mod plots;
 pub mod report;
