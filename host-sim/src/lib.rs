@@ -10,6 +10,7 @@
 //! - [`jobs`]: the one parallel runner every study uses;
 //! - [`studies`]: the paper reproduction, the seed methods, the velocity estimators, any
 //!   scenario file, and the QEMU verdict;
+//! - [`gcode`]: G-code programs → validated machine moves (before any motion), soft limits;
 //! - [`output`]: tables, JSON, CSV and plots (bundled font: renders on a bare machine).
 
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
@@ -17,6 +18,7 @@
 
 pub mod builtin;
 pub mod engine;
+pub mod gcode;
 pub mod jobs;
 pub mod output;
 pub mod studies;

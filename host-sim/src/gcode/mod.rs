@@ -1,0 +1,446 @@
+//! G-code front end: turns a G-code program into a validated list of machine moves in
+//! machine coordinates (mm, mm/s, s) **before any motion**. The whole program is rejected
+//! with `FILE:LINE: <message>` if anything in it is unsupported or invalid; a later step
+//! streams the [`Move`]s to the motion planner in controller-core.
+//!
+//! # Accepted subset (what a CAM post for a 3-axis router/mill emits)
+//! - Motion: G0, G1, G2, G3 (I/J/K centre offsets, always incremental from the start as in
+//!   grbl's G91.1; R form with negative R for arcs over 180°; full circles when the end
+//!   equals the start in the plane, I/J/K form only; helical arcs via the normal axis;
+//!   optional `P` = number of turns ≥ 1 as in LinuxCNC). An arc with axis words outside
+//!   its plane only (e.g. `G2 Z-1 I5` in G17) keeps the in-plane end at the start: a full
+//!   helical turn.
+//! - G4 P (dwell, seconds), G17/G18/G19, G20/G21 (inch input converted to mm), G90/G91,
+//!   G91.1 (the only arc-centre mode, accepted as a no-op), G92 (offset so that the current
+//!   point gets the given coordinates; values always absolute), G92.1 (clear it), G28
+//!   (rapid to [`ParseOptions::g28_position_mm`], via the intermediate point if axis words
+//!   are given, then only the named axes move home, as grbl 1.1 and LinuxCNC), G53 (machine
+//!   coordinates for that line, needs G0/G1; rejected under G91), G54 (the only work offset,
+//!   [`ParseOptions::g54_offset_mm`]), G61 (exact stop), G64 with optional P (path tolerance
+//!   in program units; without P the planner's default), F (units/min), N (ignored: messages
+//!   name the file line), M0 (pause), M2/M30 (end), `( … )` and `; …` comments, `%` lines.
+//! - Accepted and reported once in [`Program::ignored`] (they do not move the machine): S,
+//!   T, M3/M4/M5, M7/M8/M9, G40, G49, G80, G94. G80 also cancels the modal motion (it is in
+//!   the motion group), so bare axis words after it are rejected, not guessed.
+//! - Everything else is `FILE:LINE: <what> is not supported`: O-words, parameters `#…`,
+//!   expressions `[…]`, block delete `/` (running or skipping the line would depend on an
+//!   operator switch the gantry does not have), canned cycles (G73, G76, G81–G89, G98/G99),
+//!   G33, G38.x, G10, G28.1, G30, G41/G42, G43, G55–G59, G61.1, G90.1, G93, G95, M1, M6, …,
+//!   and the letters A B C D E H L Q U V W.
+//!
+//! # Errors (grbl's set, with the file line)
+//! Line longer than [`MAX_LINE_CHARS`], bad numbers, two words of one modal group on a line
+//! (`G0 G1`), a word repeated on a line, words no command on the line uses (`G0 I5`), feed
+//! moves without a feed rate, arc end points off the circle (tolerance: larger of 0.005 mm
+//! and 0.1 % of the radius, at most 0.5 mm: grbl's rule), zero-radius arcs, R arcs whose
+//! chord exceeds 2|R|. Zero-length moves (≤ [`ZERO_LENGTH_MM`]) are skipped silently.
+//!
+//! # After M2/M30
+//! Lines after the end are still tokenized and their G/M codes classified, so a syntax
+//! error or an unsupported word anywhere in the file rejects it (a file with a second
+//! program appended is suspicious); they are not interpreted: no moves, no ignored-word
+//! report, no modal checks.
+//!
+//! # Soft limits
+//! [`check_travel`] rejects a program whose path (end points and exact arc extremes)
+//! leaves the machine's [`Travel`]; [`Travel::check_point`] does the same for a jog target.
+
+mod arc;
+mod interp;
+mod lexer;
+pub mod samples;
+mod travel;
+
+use std::{fmt, io::Read, path::Path};
+
+pub use arc::{arc_extent, arc_tolerance_mm, ARC_TOLERANCE_CAP_MM};
+pub use travel::{check_travel, Travel, TravelError, TravelViolation, TRAVEL_SLACK_MM};
+
+/// Longest accepted line, in characters without the line end (grblHAL's buffer is 256).
+pub const MAX_LINE_CHARS: usize = 256;
+/// Largest accepted file (bytes): far above any router program, small enough to read whole.
+pub const MAX_FILE_BYTES: u64 = 16 * 1024 * 1024;
+/// Exact inch definition.
+pub const MM_PER_INCH: f64 = 25.4;
+/// Largest magnitude of any number in a word: 10 km in mm, keeps every later product
+/// finite (squares stay below 1e15) so no NaN or infinity can reach a move.
+pub const MAX_WORD_MAGNITUDE: f64 = 1e7;
+/// Moves at most this long (mm) are skipped: only float noise (e.g. `G90 X0.3` after G91
+/// steps 0.1 + 0.2), a million times below an encoder count.
+pub const ZERO_LENGTH_MM: f64 = 1e-9;
+/// An arc whose end is within this distance (mm, in its plane) of its start is a full
+/// circle; below any programmable resolution (4 decimals of mm = 1e-4 mm).
+pub const FULL_CIRCLE_CHORD_MM: f64 = 1e-6;
+/// Smallest arc radius (mm); below it the radius counts as zero.
+pub const MIN_ARC_RADIUS_MM: f64 = 1e-6;
+
+/// Axis names by index.
+pub const AXIS_NAMES: [char; 3] = ['X', 'Y', 'Z'];
+
+/// Arc plane (G17/G18/G19).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plane {
+    /// G17: arc in X, Y; helix along Z.
+    XY,
+    /// G18: arc in Z, X (first axis Z); helix along Y.
+    ZX,
+    /// G19: arc in Y, Z; helix along X.
+    YZ,
+}
+
+impl Plane {
+    /// Axis indices `[first, second, normal]`; first × second = normal, so positive angles
+    /// (G3, counter-clockwise) are seen from the positive normal axis.
+    pub const fn axes(self) -> [usize; 3] {
+        match self {
+            Plane::XY => [0, 1, 2],
+            Plane::ZX => [2, 0, 1],
+            Plane::YZ => [1, 2, 0],
+        }
+    }
+
+    /// "G17 (XY)" etc., for messages.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Plane::XY => "G17 (XY)",
+            Plane::ZX => "G18 (ZX)",
+            Plane::YZ => "G19 (YZ)",
+        }
+    }
+}
+
+/// Path control mode (G61/G64) in force for the moves that follow.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Blend {
+    /// G61: stop exactly at every programmed point.
+    ExactStop,
+    /// G64 P: corners may be blended within this distance of the programmed path (mm).
+    Tolerance {
+        /// Path tolerance (mm), ≥ 0.
+        mm: f64,
+    },
+    /// G64 without P: the planner's configured default tolerance.
+    MachineDefault,
+}
+
+/// What a move does. Coordinates are machine coordinates (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MoveKind {
+    /// G0 (also G28): straight line at the machine's rapid rates.
+    Rapid {
+        /// End point.
+        to: [f64; 3],
+    },
+    /// G1: straight line at `feed_mm_s`.
+    Line {
+        /// End point.
+        to: [f64; 3],
+        /// Path speed (mm/s).
+        feed_mm_s: f64,
+    },
+    /// G2/G3: circular or helical arc at `feed_mm_s` along the (helical) path.
+    ///
+    /// The planner should interpolate the radius linearly with the angle from the start
+    /// radius to the end radius (they differ by at most the arc tolerance) so that the arc
+    /// ends exactly on `to`, and the normal-axis coordinate linearly with the angle.
+    Arc {
+        /// End point.
+        to: [f64; 3],
+        /// Centre; its normal-axis component is the start's.
+        center: [f64; 3],
+        /// Plane of the arc.
+        plane: Plane,
+        /// G2 (true) or G3, as seen from the positive normal axis.
+        clockwise: bool,
+        /// Turns as programmed (P, default 1): the arc makes `turns − 1` extra full turns.
+        turns: u32,
+        /// Total swept angle (rad, > 0): the partial angle from start to end in the
+        /// direction of travel (2π when end = start in the plane) plus 2π·(turns − 1).
+        sweep_rad: f64,
+        /// Path speed (mm/s).
+        feed_mm_s: f64,
+    },
+    /// G4: stand still for `s` seconds.
+    Dwell {
+        /// Dwell time (s), ≥ 0.
+        s: f64,
+    },
+    /// M0: stop and wait for the operator to resume.
+    Pause,
+    /// G61/G64: path control for the moves that follow (emitted when it changes).
+    SetBlend(Blend),
+}
+
+/// One step of the program, from the file line that caused it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Move {
+    /// 1-based line in the file.
+    pub line: u32,
+    /// Where the machine is when the move starts (machine mm).
+    pub from: [f64; 3],
+    /// What it does.
+    pub kind: MoveKind,
+}
+
+impl Move {
+    /// Where the machine is when the move ends (`from` for dwell, pause, blend changes).
+    pub fn to(&self) -> [f64; 3] {
+        match self.kind {
+            MoveKind::Rapid { to } | MoveKind::Line { to, .. } | MoveKind::Arc { to, .. } => to,
+            _ => self.from,
+        }
+    }
+
+    /// Axis-aligned extent `[[min, max]; 3]` of the path of this move (exact for arcs).
+    pub fn extent_mm(&self) -> [[f64; 2]; 3] {
+        match self.kind {
+            MoveKind::Arc {
+                to,
+                center,
+                plane,
+                clockwise,
+                sweep_rad,
+                ..
+            } => arc_extent(self.from, to, center, plane, clockwise, sweep_rad),
+            _ => {
+                let (a, b) = (self.from, self.to());
+                [0, 1, 2].map(|i| [a[i].min(b[i]), a[i].max(b[i])])
+            }
+        }
+    }
+}
+
+/// A word that was accepted but has no effect on the gantry.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Ignored {
+    /// The word: a letter (`"S"`, `"T"`) or a code (`"M3"`, `"G40"`).
+    pub word: String,
+    /// First file line it appeared on.
+    pub first_line: u32,
+    /// How many times it appeared.
+    pub count: u32,
+}
+
+/// A validated program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Program {
+    /// File name used in messages.
+    pub name: String,
+    /// Machine position the program was interpreted from ([`ParseOptions::start_mm`]).
+    pub start_mm: [f64; 3],
+    /// The moves, in order; zero-length moves are left out.
+    pub moves: Vec<Move>,
+    /// Ignored words, in order of first appearance.
+    pub ignored: Vec<Ignored>,
+    /// Extent `[[min, max]; 3]` of the whole path including the start point (machine mm).
+    pub bounds_mm: [[f64; 2]; 3],
+    /// Line of the M2/M30 that ended the program, if any.
+    pub end_line: Option<u32>,
+}
+
+/// Machine context for interpreting a program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParseOptions {
+    /// Machine position when the program starts (mm): origin of G91 moves and G92.
+    pub start_mm: [f64; 3],
+    /// G54 work offset: machine position of the work origin (mm). Default 0.
+    pub g54_offset_mm: [f64; 3],
+    /// Where G28 goes, in machine coordinates (mm). Default 0: machine zero (home).
+    pub g28_position_mm: [f64; 3],
+    /// Absolute part of the arc end-point tolerance (mm); grbl: 0.005 mm.
+    pub arc_tolerance_mm: f64,
+    /// Relative part of the arc end-point tolerance (fraction of the radius); grbl: 0.001.
+    pub arc_tolerance_rel: f64,
+}
+
+impl Default for ParseOptions {
+    fn default() -> Self {
+        Self {
+            start_mm: [0.0; 3],
+            g54_offset_mm: [0.0; 3],
+            g28_position_mm: [0.0; 3],
+            arc_tolerance_mm: 0.005,
+            arc_tolerance_rel: 0.001,
+        }
+    }
+}
+
+impl ParseOptions {
+    fn validate(&self) -> Result<(), String> {
+        let vectors = [
+            ("start_mm", self.start_mm),
+            ("g54_offset_mm", self.g54_offset_mm),
+            ("g28_position_mm", self.g28_position_mm),
+        ];
+        for (name, v) in vectors {
+            if !v.iter().all(|x| x.abs() <= MAX_WORD_MAGNITUDE) {
+                return Err(format!(
+                    "option {name} must be finite and at most {MAX_WORD_MAGNITUDE:e} mm in magnitude, got {v:?}"
+                ));
+            }
+        }
+        if !(self.arc_tolerance_mm > 0.0 && self.arc_tolerance_mm <= ARC_TOLERANCE_CAP_MM) {
+            return Err(format!(
+                "option arc_tolerance_mm must be in (0, {ARC_TOLERANCE_CAP_MM}] mm, got {}",
+                self.arc_tolerance_mm
+            ));
+        }
+        if !(self.arc_tolerance_rel >= 0.0 && self.arc_tolerance_rel <= 0.1) {
+            return Err(format!(
+                "option arc_tolerance_rel must be in [0, 0.1], got {}",
+                self.arc_tolerance_rel
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Kind of error, for callers that react differently (grbl's error numbers in brackets).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorKind {
+    /// The file cannot be read.
+    Io,
+    /// The file exceeds [`MAX_FILE_BYTES`].
+    TooLarge,
+    /// The file is not UTF-8 text.
+    NotUtf8,
+    /// Invalid [`ParseOptions`].
+    Options,
+    /// A line exceeds [`MAX_LINE_CHARS`] (grbl 11 "line overflow").
+    LineTooLong,
+    /// Malformed text: bad number, stray character, unclosed comment (grbl 1, 2).
+    Syntax,
+    /// `<what> is not supported` (grbl 20).
+    Unsupported,
+    /// Two words of one modal group on a line (grbl 21).
+    ModalConflict,
+    /// A value word twice on a line (grbl 25).
+    RepeatedWord,
+    /// A word no command on the line uses (grbl 36).
+    UnusedWord,
+    /// A feed move without a feed rate (grbl 22).
+    NoFeed,
+    /// Invalid arc (grbl 33–35).
+    Arc,
+    /// Any other invalid command (missing or out-of-range value).
+    Invalid,
+    /// The program would leave the travel (soft limit).
+    Travel,
+}
+
+/// A rejected program: `FILE:LINE: message` (or `FILE: message` without a line).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Error {
+    /// File name as given.
+    pub file: String,
+    /// 1-based line, if the error belongs to one.
+    pub line: Option<u32>,
+    /// Kind of error.
+    pub kind: ErrorKind,
+    /// What is wrong; for [`ErrorKind::Unsupported`] it ends in "is not supported".
+    pub message: String,
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{}: {}", self.file, line, self.message),
+            None => write!(f, "{}: {}", self.file, self.message),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Parses a program held in memory with default [`ParseOptions`] (start at machine zero,
+/// G54 offset 0). `name` is used in messages.
+pub fn parse_str(name: &str, text: &str) -> Result<Program, Error> {
+    parse_str_with(name, text, &ParseOptions::default())
+}
+
+/// Parses a program held in memory in the given machine context.
+pub fn parse_str_with(name: &str, text: &str, options: &ParseOptions) -> Result<Program, Error> {
+    options.validate().map_err(|message| Error {
+        file: name.to_string(),
+        line: None,
+        kind: ErrorKind::Options,
+        message,
+    })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut state = interp::Interp::new(name, options);
+    for (index, raw) in text.split('\n').enumerate() {
+        let line = u32::try_from(index.saturating_add(1)).unwrap_or(u32::MAX);
+        let err = |kind, message| Error {
+            file: name.to_string(),
+            line: Some(line),
+            kind,
+            message,
+        };
+        let raw = raw.strip_suffix('\r').unwrap_or(raw);
+        let chars = raw.chars().count();
+        if chars > MAX_LINE_CHARS {
+            return Err(err(
+                ErrorKind::LineTooLong,
+                format!("line is too long: {chars} characters (at most {MAX_LINE_CHARS})"),
+            ));
+        }
+        let words = lexer::lex_line(raw).map_err(|e| match e {
+            lexer::LexError::Unsupported(what) => {
+                err(ErrorKind::Unsupported, format!("{what} is not supported"))
+            }
+            lexer::LexError::Syntax(message) => err(ErrorKind::Syntax, message),
+        })?;
+        state.block(line, &words)?;
+    }
+    Ok(state.finish())
+}
+
+/// Reads and parses a file with default [`ParseOptions`]; files over [`MAX_FILE_BYTES`]
+/// are rejected without being read whole.
+pub fn parse_file(path: &Path) -> Result<Program, Error> {
+    parse_file_with(path, &ParseOptions::default())
+}
+
+/// Reads and parses a file in the given machine context.
+pub fn parse_file_with(path: &Path, options: &ParseOptions) -> Result<Program, Error> {
+    let name = path.display().to_string();
+    let err = |kind, line, message| Error {
+        file: name.clone(),
+        line,
+        kind,
+        message,
+    };
+    let file = std::fs::File::open(path)
+        .map_err(|e| err(ErrorKind::Io, None, format!("cannot open the file: {e}")))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| err(ErrorKind::Io, None, format!("cannot read the file: {e}")))?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(err(
+            ErrorKind::TooLarge,
+            None,
+            format!(
+                "file is larger than the {} MiB limit",
+                MAX_FILE_BYTES / (1024 * 1024)
+            ),
+        ));
+    }
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        let line = bytes
+            .get(..at)
+            .unwrap_or_default()
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1;
+        err(
+            ErrorKind::NotUtf8,
+            Some(u32::try_from(line).unwrap_or(u32::MAX)),
+            format!("not UTF-8 text (invalid byte at offset {at})"),
+        )
+    })?;
+    parse_str_with(&name, &text, options)
+}
