@@ -37,6 +37,7 @@ pub mod estimator;
 pub mod fixed;
 pub mod gantry;
 pub mod law;
+pub mod link;
 pub mod metrics;
 pub mod ode;
 pub mod params;
