@@ -140,10 +140,11 @@ impl<C, const WINDOW: usize> CommandSender<C, WINDOW> {
     /// device's first ack (the device answers a heartbeat with one).
     ///
     /// # Errors
-    /// [`LinkConfigError`] for a bad config or `WINDOW` outside 1..=32767.
+    /// [`LinkConfigError`] for a bad config or `WINDOW` above 32767 (`WINDOW` = 0 does
+    /// not compile).
     pub fn new(config: &CommandConfig, first: Seq) -> Result<Self, LinkConfigError> {
         config.validate()?;
-        if WINDOW == 0 || WINDOW > i16::MAX as usize {
+        if WINDOW > i16::MAX as usize {
             return Err(LinkConfigError::OutOfRange("WINDOW"));
         }
         Ok(Self {
