@@ -1,23 +1,29 @@
 //! Reliable command channel: sequence numbers, cumulative acks, retransmission, a window,
 //! and credit flow control.
 //!
-//! Scheme: Go-Back-N with cumulative acks, as Klipper does host → MCU.
+//! Scheme: Go-Back-N with cumulative acks and negative acks, as Klipper does host → MCU.
 //!
-//! - The host's [`CommandSender`] numbers commands, keeps every unacknowledged one (up to
-//!   `WINDOW`), and retransmits each whose ack has not come `retransmit_timeout_ms` after it
-//!   was last sent. After `max_retries` retransmissions of one command it gives up with
-//!   [`CommandError::RetriesExhausted`] (the link is then considered lost).
+//! - The host's [`CommandSender`] numbers commands and keeps every unacknowledged one (up
+//!   to `WINDOW`). When the oldest one has waited `retransmit_timeout_ms` for its ack, or
+//!   when a negative ack shows that a frame was lost, it goes back: everything
+//!   unacknowledged is sent again, oldest first. Only the oldest command's retransmissions
+//!   count as retries (the others were dropped because of it); after `max_retries` of them
+//!   it gives up with [`CommandError::RetriesExhausted`] and the link counts as lost.
 //! - The device's [`CommandReceiver`] accepts only the next expected number. A duplicate
-//!   (already accepted) is re-acked and not executed again; a frame from beyond the
-//!   expected one (an earlier frame was lost or the frames were reordered) is dropped and
-//!   answered with the current ack: the sender retransmits from the gap. Dropping instead
-//!   of buffering out-of-order frames keeps the device free of any per-frame buffer; a
-//!   loss costs one retransmission timeout, rare at 1e-4 frame loss on a wired UART.
+//!   (already accepted) is re-acked and not executed again. A frame from beyond the
+//!   expected one (an earlier frame was lost or overtaken) is dropped and answered with a
+//!   negative ack naming it, so the host goes back after one round trip instead of a
+//!   timeout. One negative ack per round: further frames beyond the gap get plain acks
+//!   until the host's go-back shows (a number at or before the last one nak'ed arrives),
+//!   so a burst of out-of-order frames causes one go-back, not a burst of them. Dropping
+//!   instead of buffering out-of-order frames keeps the device free of any per-frame
+//!   buffer.
 //! - Every ack carries the device queue's free slots after the acked command, the
 //!   *credits*: the sender keeps at most `min(WINDOW, credits)` commands in flight, so the
-//!   device never receives a command it has no room for (grbl's `Bf:` reported as flow
-//!   control). The device refuses (does not ack) a command that finds its queue full, so a
-//!   stale credit figure costs a retransmission but never a lost or duplicated command.
+//!   device never receives a command it has no room for (grbl's `Bf:` turned into flow
+//!   control). The device refuses (does not accept) a command that finds its queue full,
+//!   so a stale credit figure costs a retransmission but never a lost or duplicated
+//!   command.
 //!
 //! Sequence numbers are [`Seq`] (u16, wrapping); `WINDOW` must stay below 32768.
 //! Time is the caller's monotonic millisecond counter (`u32`, wrapping).
@@ -121,6 +127,7 @@ struct Pending<C> {
     cmd: C,
     /// Time of the last transmission, `None` before the first.
     sent_at_ms: Option<u32>,
+    /// Retransmissions while this was the oldest unacknowledged command.
     retries: u8,
 }
 
@@ -132,6 +139,8 @@ pub struct CommandSender<C, const WINDOW: usize> {
     next_seq: Seq,
     last_ack: Seq,
     credits: u16,
+    /// A negative ack asked for a go-back at the next poll.
+    go_back: bool,
     stats: SenderStats,
 }
 
@@ -153,6 +162,7 @@ impl<C, const WINDOW: usize> CommandSender<C, WINDOW> {
             next_seq: first,
             last_ack: first.prev(),
             credits: 0,
+            go_back: false,
             stats: SenderStats::default(),
         })
     }
@@ -214,29 +224,39 @@ impl<C, const WINDOW: usize> CommandSender<C, WINDOW> {
         }
     }
 
-    /// Send what is due at `now_ms`: first transmissions, and retransmissions of every
-    /// command whose timeout ran out (oldest first, so the receiver sees them in order).
-    /// `emit(seq, cmd)` is called once per frame to send.
+    /// Send what is due at `now_ms` through `emit(seq, cmd)`: first transmissions, and
+    /// after a timeout of the oldest command or a negative ack, every sent command again
+    /// (oldest first, so the receiver sees them in order).
     ///
     /// # Errors
-    /// [`CommandError::RetriesExhausted`] when a command would need more than
+    /// [`CommandError::RetriesExhausted`] when the oldest command would need more than
     /// `max_retries` retransmissions; nothing is sent then.
-    pub fn poll<F: FnMut(Seq, &C)>(&mut self, now_ms: u32, mut emit: F) -> Result<(), CommandError> {
-        let timeout = self.config.retransmit_timeout_ms;
-        for p in self.pending.iter() {
-            if let Some(t) = p.sent_at_ms {
-                if now_ms.wrapping_sub(t) >= timeout && p.retries >= self.config.max_retries {
-                    return Err(CommandError::RetriesExhausted { seq: p.seq });
+    pub fn poll<F: FnMut(Seq, &C)>(
+        &mut self,
+        now_ms: u32,
+        mut emit: F,
+    ) -> Result<(), CommandError> {
+        let timed_out = match self.pending.front() {
+            Some(Pending {
+                sent_at_ms: Some(t),
+                ..
+            }) => now_ms.wrapping_sub(*t) >= self.config.retransmit_timeout_ms,
+            _ => false,
+        };
+        let go_back = timed_out || self.go_back;
+        self.go_back = false;
+        if go_back {
+            if let Some(head) = self.pending.front_mut() {
+                if head.retries >= self.config.max_retries {
+                    return Err(CommandError::RetriesExhausted { seq: head.seq });
                 }
+                head.retries = head.retries.saturating_add(1);
             }
         }
         for p in self.pending.iter_mut() {
             match p.sent_at_ms {
-                None => {
-                    self.stats.sent = self.stats.sent.saturating_add(1);
-                }
-                Some(t) if now_ms.wrapping_sub(t) >= timeout => {
-                    p.retries = p.retries.saturating_add(1);
+                None => self.stats.sent = self.stats.sent.saturating_add(1),
+                Some(_) if go_back => {
                     self.stats.retransmitted = self.stats.retransmitted.saturating_add(1);
                 }
                 Some(_) => continue,
@@ -245,6 +265,21 @@ impl<C, const WINDOW: usize> CommandSender<C, WINDOW> {
             emit(p.seq, &p.cmd);
         }
         Ok(())
+    }
+
+    /// Handle a negative ack: the device accepted up to `seq` (with `credits`, as an ack)
+    /// and dropped command `got` as out of order. Asks for a go-back at the next poll when
+    /// `got` is still unacknowledged (the device sends one negative ack per gap).
+    pub fn on_nak(&mut self, seq: Seq, credits: u16, got: Seq) -> AckOutcome {
+        let outcome = self.on_ack(seq, credits);
+        if self
+            .pending
+            .iter()
+            .any(|p| p.seq == got && p.sent_at_ms.is_some())
+        {
+            self.go_back = true;
+        }
+        outcome
     }
 
     /// Handle an ack from the device (cumulative up to `seq`, `credits` free slots).
@@ -277,9 +312,12 @@ pub enum Receipt {
     Accept(Ack),
     /// Already accepted earlier (a retransmission): do not execute, send `ack`.
     Duplicate(Ack),
-    /// Beyond the expected number (an earlier frame was lost): drop, send `ack` so the
-    /// sender learns where the receiver stands.
+    /// Beyond the expected number (an earlier frame was lost): drop, send a negative ack
+    /// (`ack` plus the number received) so the sender goes back at once.
     OutOfOrder(Ack),
+    /// Beyond the expected number, after a negative ack for this gap was already sent:
+    /// drop, send `ack` (plain).
+    Ahead(Ack),
     /// The next command but the queue is full (the sender ignored the credits): drop,
     /// send `ack` (with 0 credits).
     QueueFull(Ack),
@@ -290,7 +328,11 @@ impl Receipt {
     #[must_use]
     pub const fn ack(&self) -> Ack {
         match self {
-            Self::Accept(a) | Self::Duplicate(a) | Self::OutOfOrder(a) | Self::QueueFull(a) => *a,
+            Self::Accept(a)
+            | Self::Duplicate(a)
+            | Self::OutOfOrder(a)
+            | Self::Ahead(a)
+            | Self::QueueFull(a) => *a,
         }
     }
 }
@@ -322,6 +364,8 @@ pub struct ReceiverStats {
 #[derive(Clone, Copy, Debug)]
 pub struct CommandReceiver {
     expected: Seq,
+    /// The out-of-order frame last answered with a negative ack, for this `expected`.
+    naked: Option<Seq>,
     stats: ReceiverStats,
 }
 
@@ -331,6 +375,7 @@ impl CommandReceiver {
     pub const fn new(first: Seq) -> Self {
         Self {
             expected: first,
+            naked: None,
             stats: ReceiverStats {
                 accepted: 0,
                 duplicates: 0,
@@ -369,12 +414,21 @@ impl CommandReceiver {
             Receipt::Duplicate(self.ack(free_slots))
         } else if d > 0 {
             self.stats.out_of_order = self.stats.out_of_order.saturating_add(1);
-            Receipt::OutOfOrder(self.ack(free_slots))
+            // Nak once per go-back round: again only when the sender has gone back, i.e.
+            // a number at or before the last nak'ed one arrives.
+            match self.naked {
+                Some(n) if seq.is_after(n) => Receipt::Ahead(self.ack(free_slots)),
+                _ => {
+                    self.naked = Some(seq);
+                    Receipt::OutOfOrder(self.ack(free_slots))
+                }
+            }
         } else if free_slots == 0 {
             self.stats.queue_full = self.stats.queue_full.saturating_add(1);
             Receipt::QueueFull(self.ack(0))
         } else {
             self.expected = seq.next();
+            self.naked = None;
             self.stats.accepted = self.stats.accepted.saturating_add(1);
             Receipt::Accept(self.ack(free_slots - 1))
         }

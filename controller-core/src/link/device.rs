@@ -10,7 +10,7 @@
 //! queue drains. Telemetry frames are numbered by [`DeviceLink::telemetry`].
 
 use super::command::{Ack, CommandReceiver, Receipt, ReceiverStats};
-use super::envelope::{RealtimeRequest, RefusedFrame, Refusal, ToDevice, ToHost};
+use super::envelope::{RealtimeRequest, Refusal, RefusedFrame, ToDevice, ToHost};
 use super::handshake::{self, Hello, ProtocolMismatch, Role, Version};
 use super::realtime::{RealtimeReceiver, RealtimeVerdict};
 use super::seq::Seq;
@@ -57,6 +57,13 @@ pub enum Reply {
     Hello(Hello),
     /// Command ack / credit update.
     Ack(Ack),
+    /// Negative ack: `ack`, and command `got` was dropped as out of order.
+    Nak {
+        /// The cumulative ack.
+        ack: Ack,
+        /// The dropped command.
+        got: Seq,
+    },
     /// Refusal.
     Refused {
         /// What was refused.
@@ -75,6 +82,11 @@ impl Reply {
             Self::Ack(a) => ToHost::Ack {
                 seq: a.seq,
                 credits: a.credits,
+            },
+            Self::Nak { ack, got } => ToHost::Nak {
+                seq: ack.seq,
+                credits: ack.credits,
+                got,
             },
             Self::Refused { what, reason } => ToHost::Refused { what, reason },
         }
@@ -178,7 +190,12 @@ impl DeviceLink {
 
     /// Handle one decoded frame received at `now_ms`; `free_slots` is the command queue's
     /// free room now.
-    pub fn on_frame<C>(&mut self, frame: ToDevice<C>, now_ms: u32, free_slots: u16) -> DeviceStep<C> {
+    pub fn on_frame<C>(
+        &mut self,
+        frame: ToDevice<C>,
+        now_ms: u32,
+        free_slots: u16,
+    ) -> DeviceStep<C> {
         // Any valid frame proves the host is alive.
         self.watchdog.feed(now_ms);
         match frame {
@@ -209,7 +226,8 @@ impl DeviceLink {
             DeviceSession::Active(_)
                 if free_slots > 0
                     && (self.advertised == 0
-                        || free_slots.saturating_sub(self.advertised) >= self.credit_update_step) =>
+                        || free_slots.saturating_sub(self.advertised)
+                            >= self.credit_update_step) =>
             {
                 Some(self.ack(self.commands.ack(free_slots)))
             }
@@ -291,7 +309,11 @@ impl DeviceLink {
             };
         }
         let receipt = self.commands.on_command(seq, free_slots);
-        let reply = Some(self.ack(receipt.ack()));
+        let ack = self.ack(receipt.ack());
+        let reply = Some(match receipt {
+            Receipt::OutOfOrder(a) => Reply::Nak { ack: a, got: seq },
+            _ => ack,
+        });
         let event = match receipt {
             Receipt::Accept(_) => DeviceEvent::Command(cmd),
             _ => DeviceEvent::None,

@@ -12,6 +12,7 @@
 //! | host → device | [`ToDevice::Heartbeat`] | watchdog feed on an idle link (answered by an ack) |
 //! | host → device | [`ToDevice::Command`] | reliable, windowed, credit flow control |
 //! | device → host | [`ToHost::Ack`] | cumulative ack + free queue slots (credits) |
+//! | device → host | [`ToHost::Nak`] | ack + "this frame came out of order": go back now |
 //! | device → host | [`ToHost::Refused`] | command / request refused (no session, mismatch) |
 //! | host → device | [`ToDevice::Realtime`] | hold / resume / stop / status, skips the queue |
 //! | device → host | [`ToHost::Status`] | reply to a real-time request (acks it) |
@@ -94,6 +95,16 @@ pub enum ToHost<T, S> {
         seq: Seq,
         /// Free command queue slots: the host may have this many commands in flight.
         credits: u16,
+    },
+    /// Negative ack: command `got` arrived out of order and was dropped; the fields
+    /// `seq` and `credits` are as in [`ToHost::Ack`]. The host sends again from `seq + 1`.
+    Nak {
+        /// Last command accepted in order.
+        seq: Seq,
+        /// Free command queue slots.
+        credits: u16,
+        /// The out-of-order command that was dropped.
+        got: Seq,
     },
     /// A command or request was not executed.
     Refused {

@@ -105,9 +105,7 @@ pub fn encode<T: Serialize + ?Sized>(msg: &T, out: &mut [u8]) -> Result<usize, E
             .ok_or(EncodeError::PayloadTooLarge)?;
         match postcard::to_slice(msg, payload_buf) {
             Ok(used) => used.len(),
-            Err(postcard::Error::SerializeBufferFull) => {
-                return Err(EncodeError::PayloadTooLarge)
-            }
+            Err(postcard::Error::SerializeBufferFull) => return Err(EncodeError::PayloadTooLarge),
             Err(_) => return Err(EncodeError::Serialize),
         }
     };
@@ -279,7 +277,7 @@ impl FrameDecoder {
                     Ok(n) => {
                         let parsed = self.buf.get(..n).map(postcard::take_from_bytes::<T>);
                         match parsed {
-                            Some(Ok((msg, unused))) if unused.is_empty() => {
+                            Some(Ok((msg, []))) => {
                                 self.stats.frames = self.stats.frames.saturating_add(1);
                                 Ok(msg)
                             }

@@ -112,8 +112,7 @@ impl core::fmt::Display for ProtocolMismatch {
 /// [`ProtocolMismatch`] when the protocol version or the schema hash differ.
 pub const fn check(ours: Version, theirs: &Hello) -> Result<(), ProtocolMismatch> {
     let theirs = Version::of(theirs);
-    if ours.protocol_version == theirs.protocol_version && ours.schema_hash == theirs.schema_hash
-    {
+    if ours.protocol_version == theirs.protocol_version && ours.schema_hash == theirs.schema_hash {
         Ok(())
     } else {
         Err(ProtocolMismatch { ours, theirs })

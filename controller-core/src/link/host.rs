@@ -10,7 +10,7 @@
 //! made. Real-time requests still go out in that state, so the user can always stop.
 
 use super::command::{AckOutcome, CommandConfig, CommandError, CommandSender, SenderStats};
-use super::envelope::{RealtimeRequest, RefusedFrame, Refusal, ToDevice, ToHost};
+use super::envelope::{RealtimeRequest, Refusal, RefusedFrame, ToDevice, ToHost};
 use super::handshake::{self, ProtocolMismatch, Role, Version};
 use super::realtime::{RealtimeConfig, RealtimeSender, RealtimeUnanswered};
 use super::seq::Seq;
@@ -83,13 +83,26 @@ impl core::fmt::Display for LinkError {
             Self::ProtocolMismatch(m) => write!(f, "{m}"),
             Self::NoAnswer => write!(f, "link: no handshake answer from the device"),
             Self::RetriesExhausted { seq } => {
-                write!(f, "link: command {} not acknowledged after all retries", seq.0)
+                write!(
+                    f,
+                    "link: command {} not acknowledged after all retries",
+                    seq.0
+                )
             }
             Self::RealtimeUnanswered(r) => {
-                write!(f, "link: real-time request {:?} (id {}) not answered", r.req, r.id.0)
+                write!(
+                    f,
+                    "link: real-time request {:?} (id {}) not answered",
+                    r.req, r.id.0
+                )
             }
-            Self::LinkLost => write!(f, "link lost: no frame from the device within the watchdog timeout"),
-            Self::Refused { what, reason } => write!(f, "link: device refused {what:?}: {reason:?}"),
+            Self::LinkLost => write!(
+                f,
+                "link lost: no frame from the device within the watchdog timeout"
+            ),
+            Self::Refused { what, reason } => {
+                write!(f, "link: device refused {what:?}: {reason:?}")
+            }
         }
     }
 }
@@ -172,7 +185,11 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
     ///
     /// # Errors
     /// [`LinkConfigError`] naming the bad setting.
-    pub fn new(config: &HostLinkConfig, schema_hash: u32, session: u16) -> Result<Self, LinkConfigError> {
+    pub fn new(
+        config: &HostLinkConfig,
+        schema_hash: u32,
+        session: u16,
+    ) -> Result<Self, LinkConfigError> {
         if config.hello_retry_ms == 0 || config.hello_retry_ms > i32::MAX as u32 {
             return Err(LinkConfigError::OutOfRange("hello_retry_ms"));
         }
@@ -232,7 +249,10 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
         match self.state {
             HostState::Failed(e) => Err((e, cmd)),
             HostState::Handshaking => Err((LinkError::NotReady, cmd)),
-            HostState::Ready => self.commands.push(cmd).map_err(|(_, c)| (LinkError::WouldBlock, c)),
+            HostState::Ready => self
+                .commands
+                .push(cmd)
+                .map_err(|(_, c)| (LinkError::WouldBlock, c)),
         }
     }
 
@@ -246,7 +266,11 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
     ///
     /// # Errors
     /// The link failed (latched): see [`LinkError`].
-    pub fn poll<F: FnMut(ToDevice<&C>)>(&mut self, now_ms: u32, mut emit: F) -> Result<(), LinkError> {
+    pub fn poll<F: FnMut(ToDevice<&C>)>(
+        &mut self,
+        now_ms: u32,
+        mut emit: F,
+    ) -> Result<(), LinkError> {
         let mut sent = false;
         let rt = self.realtime.poll(now_ms, |id, req| {
             sent = true;
@@ -315,7 +339,11 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
     ///
     /// # Errors
     /// A mismatch in the device's Hello, or a refusal (both latch).
-    pub fn on_frame<T, S>(&mut self, frame: ToHost<T, S>, now_ms: u32) -> Result<HostEvent<T, S>, LinkError> {
+    pub fn on_frame<T, S>(
+        &mut self,
+        frame: ToHost<T, S>,
+        now_ms: u32,
+    ) -> Result<HostEvent<T, S>, LinkError> {
         self.watchdog.feed(now_ms);
         match frame {
             ToHost::Hello(hello) => {
@@ -349,6 +377,15 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
                     return Ok(HostEvent::None);
                 }
                 match self.commands.on_ack(seq, credits) {
+                    AckOutcome::Acked(n) if n > 0 => Ok(HostEvent::Acked(n)),
+                    _ => Ok(HostEvent::None),
+                }
+            }
+            ToHost::Nak { seq, credits, got } => {
+                if self.state != HostState::Ready {
+                    return Ok(HostEvent::None);
+                }
+                match self.commands.on_nak(seq, credits, got) {
                     AckOutcome::Acked(n) if n > 0 => Ok(HostEvent::Acked(n)),
                     _ => Ok(HostEvent::None),
                 }

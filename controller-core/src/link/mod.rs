@@ -34,9 +34,14 @@ pub mod telemetry;
 pub mod watchdog;
 
 pub use command::{Ack, CommandConfig, CommandReceiver, CommandSender, Receipt};
-pub use device::{DeviceEvent, DeviceLink, DeviceLinkConfig, DevicePoll, DeviceSession, DeviceStep, Reply};
-pub use envelope::{RealtimeRequest, RefusedFrame, Refusal, ToDevice, ToHost};
-pub use frame::{encode, DecodeStats, EncodeError, Feed, FrameDecoder, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD_LEN};
+pub use device::{
+    DeviceEvent, DeviceLink, DeviceLinkConfig, DevicePoll, DeviceSession, DeviceStep, Reply,
+};
+pub use envelope::{RealtimeRequest, Refusal, RefusedFrame, ToDevice, ToHost};
+pub use frame::{
+    encode, DecodeStats, EncodeError, Feed, FrameDecoder, FrameError, MAX_FRAME_LEN,
+    MAX_PAYLOAD_LEN,
+};
 pub use handshake::{schema_hash, Hello, ProtocolMismatch, Role, Version};
 pub use host::{HostEvent, HostLink, HostLinkConfig, HostState, LinkError};
 pub use seq::Seq;

@@ -132,7 +132,10 @@ impl RealtimeSender {
             None => {}
             Some(t) if now_ms.wrapping_sub(t) >= self.config.retry_timeout_ms => {
                 if o.retries >= self.config.max_retries {
-                    let e = RealtimeUnanswered { id: o.id, req: o.req };
+                    let e = RealtimeUnanswered {
+                        id: o.id,
+                        req: o.req,
+                    };
                     self.outstanding = None;
                     return Err(e);
                 }
@@ -221,7 +224,10 @@ mod tests {
 
     #[test]
     fn host_gives_up_after_max_retries() {
-        let cfg = RealtimeConfig { retry_timeout_ms: 10, max_retries: 3 };
+        let cfg = RealtimeConfig {
+            retry_timeout_ms: 10,
+            max_retries: 3,
+        };
         let mut s = RealtimeSender::new(&cfg, Seq(0)).unwrap();
         s.request(RealtimeRequest::Stop);
         let mut sent = 0;
@@ -259,7 +265,10 @@ mod tests {
 
     #[test]
     fn bad_config_is_rejected_by_name() {
-        let cfg = RealtimeConfig { retry_timeout_ms: 0, max_retries: 3 };
+        let cfg = RealtimeConfig {
+            retry_timeout_ms: 0,
+            max_retries: 3,
+        };
         assert_eq!(
             RealtimeSender::new(&cfg, Seq(0)).err(),
             Some(LinkConfigError::OutOfRange("realtime.retry_timeout_ms"))

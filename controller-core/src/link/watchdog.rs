@@ -146,7 +146,11 @@ mod tests {
     #[test]
     fn timeout_range_is_checked() {
         for (t, ok) in [(19, false), (20, true), (60_000, true), (60_001, false)] {
-            assert_eq!(Watchdog::new(&WatchdogConfig { timeout_ms: t }).is_ok(), ok, "{t}");
+            assert_eq!(
+                Watchdog::new(&WatchdogConfig { timeout_ms: t }).is_ok(),
+                ok,
+                "{t}"
+            );
         }
     }
 }

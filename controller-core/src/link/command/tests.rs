@@ -39,7 +39,7 @@ fn credits_and_window_limit_what_is_in_flight() {
 }
 
 #[test]
-fn retransmits_exactly_at_the_timeout_then_gives_up() {
+fn goes_back_exactly_at_the_timeout_then_gives_up() {
     let mut tx = CommandSender::<u32, 4>::new(&CFG, Seq(0)).unwrap();
     tx.on_ack(Seq(65535), 4);
     tx.push(10).unwrap();
@@ -47,15 +47,69 @@ fn retransmits_exactly_at_the_timeout_then_gives_up() {
     assert_eq!(sent_by(&mut tx, 100).len(), 2);
     assert!(sent_by(&mut tx, 149).is_empty());
     assert_eq!(sent_by(&mut tx, 150), [(Seq(0), 10), (Seq(1), 11)]);
-    // First one acked: only the second is retransmitted.
+    // First one acked: the second is now the oldest, its own retries start at 0.
     tx.on_ack(Seq(0), 4);
     assert_eq!(sent_by(&mut tx, 200), [(Seq(1), 11)]);
     assert_eq!(sent_by(&mut tx, 250), [(Seq(1), 11)]);
-    assert_eq!(tx.stats().retransmitted, 4);
-    // Third retransmission was the last allowed.
+    assert_eq!(sent_by(&mut tx, 300), [(Seq(1), 11)]);
+    assert_eq!(tx.stats().retransmitted, 5);
+    // Three retransmissions as the oldest were the last allowed.
     assert_eq!(
-        tx.poll(300, |_, _| {}),
+        tx.poll(350, |_, _| {}),
         Err(CommandError::RetriesExhausted { seq: Seq(1) })
+    );
+}
+
+#[test]
+fn a_nak_goes_back_at_once() {
+    let mut tx = CommandSender::<u32, 4>::new(&CFG, Seq(0)).unwrap();
+    tx.on_ack(Seq(65535), 4);
+    for c in 0..4 {
+        tx.push(c).unwrap();
+    }
+    assert_eq!(sent_by(&mut tx, 0).len(), 4);
+    // Frame 0 lost: the device naks 1 (and acks 2 and 3 plainly).
+    assert_eq!(tx.on_nak(Seq(65535), 4, Seq(1)), AckOutcome::Acked(0));
+    assert_eq!(
+        sent_by(&mut tx, 1),
+        [(Seq(0), 0), (Seq(1), 1), (Seq(2), 2), (Seq(3), 3)]
+    );
+    assert!(sent_by(&mut tx, 2).is_empty());
+    // A nak that also acks 0 and 1: go back from 2.
+    assert_eq!(tx.on_nak(Seq(1), 4, Seq(3)), AckOutcome::Acked(2));
+    assert_eq!(sent_by(&mut tx, 3), [(Seq(2), 2), (Seq(3), 3)]);
+    // A nak for a number no longer in flight changes nothing.
+    assert_eq!(tx.on_nak(Seq(3), 4, Seq(2)), AckOutcome::Acked(2));
+    assert!(sent_by(&mut tx, 4).is_empty());
+    assert_eq!(tx.stats().retransmitted, 6);
+}
+
+#[test]
+fn receiver_naks_once_per_gap_until_the_sender_goes_back() {
+    let mut rx = CommandReceiver::new(Seq(0));
+    let a = Ack {
+        seq: Seq(65535),
+        credits: 5,
+    };
+    assert_eq!(rx.on_command(Seq(1), 5), Receipt::OutOfOrder(a));
+    assert_eq!(rx.on_command(Seq(2), 5), Receipt::Ahead(a));
+    assert_eq!(rx.on_command(Seq(3), 5), Receipt::Ahead(a));
+    // The go-back's frame 0 is lost again; its frame 1 shows the go-back: nak again.
+    assert_eq!(rx.on_command(Seq(1), 5), Receipt::OutOfOrder(a));
+    assert_eq!(rx.on_command(Seq(2), 5), Receipt::Ahead(a));
+    assert_eq!(
+        rx.on_command(Seq(0), 5),
+        Receipt::Accept(Ack {
+            seq: Seq(0),
+            credits: 4
+        })
+    );
+    assert_eq!(
+        rx.on_command(Seq(2), 4),
+        Receipt::OutOfOrder(Ack {
+            seq: Seq(0),
+            credits: 4
+        })
     );
 }
 
@@ -76,25 +130,40 @@ fn stale_and_bogus_acks_are_ignored() {
 #[test]
 fn receiver_accepts_in_order_reacks_duplicates_drops_the_rest() {
     let mut rx = CommandReceiver::new(Seq(65534));
-    let a = |seq, credits| Ack { seq: Seq(seq), credits };
+    let a = |seq, credits| Ack {
+        seq: Seq(seq),
+        credits,
+    };
     assert_eq!(rx.on_command(Seq(65534), 5), Receipt::Accept(a(65534, 4)));
     assert_eq!(rx.on_command(Seq(0), 4), Receipt::OutOfOrder(a(65534, 4)));
     assert_eq!(rx.on_command(Seq(65535), 4), Receipt::Accept(a(65535, 3)));
-    assert_eq!(rx.on_command(Seq(65534), 3), Receipt::Duplicate(a(65535, 3)));
+    assert_eq!(
+        rx.on_command(Seq(65534), 3),
+        Receipt::Duplicate(a(65535, 3))
+    );
     assert_eq!(rx.on_command(Seq(0), 0), Receipt::QueueFull(a(65535, 0)));
     assert_eq!(rx.on_command(Seq(0), 1), Receipt::Accept(a(0, 0)));
     let s = rx.stats();
-    assert_eq!((s.accepted, s.duplicates, s.out_of_order, s.queue_full), (3, 1, 1, 1));
+    assert_eq!(
+        (s.accepted, s.duplicates, s.out_of_order, s.queue_full),
+        (3, 1, 1, 1)
+    );
 }
 
 #[test]
 fn bad_config_is_rejected_by_name() {
-    let bad = CommandConfig { retransmit_timeout_ms: 0, max_retries: 3 };
+    let bad = CommandConfig {
+        retransmit_timeout_ms: 0,
+        max_retries: 3,
+    };
     assert_eq!(
         CommandSender::<u8, 4>::new(&bad, Seq(0)).err(),
         Some(LinkConfigError::OutOfRange("retransmit_timeout_ms"))
     );
-    let bad = CommandConfig { retransmit_timeout_ms: 10, max_retries: 0 };
+    let bad = CommandConfig {
+        retransmit_timeout_ms: 10,
+        max_retries: 0,
+    };
     assert_eq!(
         CommandSender::<u8, 4>::new(&bad, Seq(0)).err(),
         Some(LinkConfigError::OutOfRange("max_retries"))
@@ -132,7 +201,11 @@ impl Lossy {
         }
         let copies = if self.next() < self.dup { 2 } else { 1 };
         for _ in 0..copies {
-            let late = if self.next() < self.delay { 1 + self.next() % 30 } else { 1 };
+            let late = if self.next() < self.delay {
+                1 + self.next() % 30
+            } else {
+                1
+            };
             q.push_back((now + late, x));
         }
     }
@@ -156,11 +229,23 @@ fn take_due<T>(q: &mut VecDeque<(u32, T)>, now: u32) -> Vec<T> {
 /// device consumes one queued command per tick. Returns (executed, retransmissions).
 fn exchange(n: u32, first: u16, seed: u64, loss: u32, dup: u32, delay: u32) -> (Vec<u32>, u32) {
     const QUEUE: u16 = 6;
-    let mut tx = CommandSender::<u32, 8>::new(&CommandConfig { retransmit_timeout_ms: 40, max_retries: 50 }, Seq(first)).unwrap();
+    let mut tx = CommandSender::<u32, 8>::new(
+        &CommandConfig {
+            retransmit_timeout_ms: 40,
+            max_retries: 50,
+        },
+        Seq(first),
+    )
+    .unwrap();
     let mut rx = CommandReceiver::new(Seq(first));
-    let mut ch = Lossy { rng: seed, loss, dup, delay };
+    let mut ch = Lossy {
+        rng: seed,
+        loss,
+        dup,
+        delay,
+    };
     let mut down: VecDeque<(u32, (Seq, u32))> = VecDeque::new();
-    let mut up: VecDeque<(u32, Ack)> = VecDeque::new();
+    let mut up: VecDeque<(u32, (Ack, Option<Seq>))> = VecDeque::new();
     let mut queue: VecDeque<u32> = VecDeque::new();
     let mut executed = Vec::new();
     let mut next_cmd = 0;
@@ -179,27 +264,35 @@ fn exchange(n: u32, first: u16, seed: u64, loss: u32, dup: u32, delay: u32) -> (
         for (seq, cmd) in take_due(&mut down, now) {
             let free = QUEUE - queue.len() as u16;
             let r = rx.on_command(seq, free);
-            if let Receipt::Accept(_) = r {
-                queue.push_back(cmd);
-            }
-            ch.send(r.ack(), now, &mut up);
+            let nak = match r {
+                Receipt::Accept(_) => {
+                    queue.push_back(cmd);
+                    None
+                }
+                Receipt::OutOfOrder(_) => Some(seq),
+                _ => None,
+            };
+            ch.send((r.ack(), nak), now, &mut up);
         }
         if let Some(c) = queue.pop_front() {
             executed.push(c);
             // Credit update every 4 freed slots, as DeviceLink does.
             if (now % 4) == 0 {
-                ch.send(rx.ack(QUEUE - queue.len() as u16), now, &mut up);
+                ch.send((rx.ack(QUEUE - queue.len() as u16), None), now, &mut up);
             }
         }
-        for a in take_due(&mut up, now) {
-            tx.on_ack(a.seq, a.credits);
+        for (a, nak) in take_due(&mut up, now) {
+            match nak {
+                Some(got) => tx.on_nak(a.seq, a.credits, got),
+                None => tx.on_ack(a.seq, a.credits),
+            };
         }
         if executed.len() as u32 == n && tx.in_flight() == 0 {
             break;
         }
         // Periodic ack refresh (the device's answer to the host heartbeat).
         if now % 100 == 0 {
-            ch.send(rx.ack(QUEUE - queue.len() as u16), now, &mut up);
+            ch.send((rx.ack(QUEUE - queue.len() as u16), None), now, &mut up);
         }
     }
     (executed, tx.stats().retransmitted)
