@@ -19,6 +19,8 @@
 //! - [`contour`]: 3-D contour error and cross-coupling (paper eqs. 6-15).
 //! - [`estimator`]: velocity from quantised positions (tracking observer, spec 6).
 //! - [`gantry`]: the complete 3-axis control step the firmware runs every period.
+//! - [`link`]: the host-link protocol (framing, handshake, command / telemetry /
+//!   real-time channels, watchdog), shared by the firmware and the host tools.
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering.
 //! - [`params`]: named parameter presets with their sources.
 //! - Seed methods (patent, XY-table paper): [`physical_plant`] (friction, load, torque
