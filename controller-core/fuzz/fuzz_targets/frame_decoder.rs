@@ -9,7 +9,9 @@ use controller_core::link::host::DEFAULT_HOST_LINK_CONFIG;
 use controller_core::link::kernels::{
     ExampleCommand, ExampleStatus, ExampleTelemetry, ExampleToDevice, ExampleToHost,
 };
-use controller_core::link::{encode, schema_hash, DeviceLink, FrameDecoder, HostLink, MAX_FRAME_LEN};
+use controller_core::link::{
+    encode, schema_hash, DeviceLink, FrameDecoder, HostLink, MAX_FRAME_LEN,
+};
 use libfuzzer_sys::fuzz_target;
 
 const HASH: u32 = schema_hash::<ExampleCommand, ExampleTelemetry, ExampleStatus>();
