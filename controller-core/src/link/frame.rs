@@ -374,9 +374,11 @@ impl FrameDecoder {
             return Err(FrameError::TooShort);
         }
         let payload = self.buf.get(..payload_len).ok_or(FrameError::TooShort)?;
-        let crc_bytes = self.buf.get(payload_len..n).ok_or(FrameError::TooShort)?;
-        let mut received = [0u8; CRC_LEN];
-        received.copy_from_slice(crc_bytes);
+        let received: [u8; CRC_LEN] = self
+            .buf
+            .get(payload_len..n)
+            .and_then(|b| b.try_into().ok())
+            .ok_or(FrameError::TooShort)?;
         if crc32(payload) == u32::from_le_bytes(received) {
             Ok(payload_len)
         } else {

@@ -529,3 +529,14 @@ fn config_errors_name_the_field() {
         Some(LinkConfigError::OutOfRange("credit_update_step"))
     );
 }
+
+#[test]
+fn a_borrowed_command_frame_encodes_to_the_same_bytes() {
+    let owned: ExampleToDevice = ToDevice::Command {
+        seq: Seq(300),
+        cmd: EXAMPLE_COMMAND,
+    };
+    let mut a = [0u8; MAX_FRAME_LEN];
+    let n = encode(&owned.as_ref(), &mut a).unwrap();
+    assert_eq!(&a[..n], &EXAMPLE_COMMAND_FRAME[..]);
+}
