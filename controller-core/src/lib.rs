@@ -18,6 +18,8 @@
 //! - [`motion`]: reference trajectories and their configuration;
 //! - [`servo`]: the per-period servo step over an IO trait, and its safety state machine;
 //! - [`sim`]: plant models and the simulated world the servo step runs against;
+//! - [`link`]: the host-link protocol (framing, handshake, command / telemetry /
+//!   real-time channels, watchdog), shared by the firmware and the host tools;
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering;
 //! - [`presets`]: named parameter sets with their sources.
 #![no_std]
@@ -32,6 +34,7 @@ pub mod controller;
 pub mod coupling;
 pub mod estimator;
 pub mod law;
+pub mod link;
 pub mod metrics;
 pub mod model;
 pub mod motion;
