@@ -63,6 +63,8 @@ pub struct ControlOutput<R> {
     pub correction: Vec3<R>,
     /// Per-axis evaluations, for [`Controller3::commit`].
     pub evals: [LawEval<R>; AXES],
+    /// Axes whose law produced a non-finite raw output this period (replaced by 0).
+    pub nonfinite: [bool; AXES],
     vg: VariableGainOutput<R>,
 }
 
@@ -172,6 +174,7 @@ impl<R: Real> Controller3<R> {
             let ev = law.evaluate(st, &sig);
             out.u[i] = ev.u;
             out.s[i] = ev.s;
+            out.nonfinite[i] = !ev.finite;
             out.evals[i] = ev;
         }
         if let Coupling::VariableGain(vg) = &self.coupling {
@@ -179,7 +182,9 @@ impl<R: Real> Controller3<R> {
             out.correction = out.vg.correction;
             out.errors.contour = out.vg.contour;
             for i in 0..AXES {
-                out.u[i] = (out.u[i] + out.correction[i]).finite_or_zero();
+                let u = out.u[i] + out.correction[i];
+                out.nonfinite[i] |= !u.is_finite();
+                out.u[i] = u.finite_or_zero();
             }
         }
         out
@@ -221,6 +226,28 @@ impl<R: Real> Controller3<R> {
         let out = self.evaluate(reference, meas);
         self.commit(&out, reference, meas, out.u, dt);
         out
+    }
+
+    /// The first axis whose state is not finite or has saturated the number type
+    /// (including the variable-gain coupling's integral, reported on its axis).
+    pub fn unhealthy_axis(&self) -> Option<usize> {
+        let big = R::from_f32(f32::MAX);
+        (0..AXES).find(|&i| {
+            let vg = self.vg_state.integral[i];
+            !self.laws[i].state_healthy(&self.states[i]) || !(vg.is_finite() && vg.abs() < big)
+        })
+    }
+
+    /// Corrupt axis `axis`'s law state (∞ in floating point, the type's limit in fixed
+    /// point): fault injection for the simulator's and the QEMU build's fault matrix (the
+    /// servo step must detect it).
+    pub fn inject_corrupt_state(&mut self, axis: usize) {
+        if let Some(st) = self.states.get_mut(axis) {
+            let bad = R::from_f32(f32::INFINITY);
+            st.integral = bad;
+            st.dob.d_hat = bad;
+            st.adapt.b = bad;
+        }
     }
 
     pub fn states(&self) -> &[LawState<R>; AXES] {

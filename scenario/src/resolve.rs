@@ -132,7 +132,11 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
             axes: sc.estimator.axes,
             accel_input,
         },
-        following_error_mm: m.axes.each_ref().map(|a| a.following_error_mm),
+        safety: if m.fault_checks {
+            m.safety.with_axes(m.axes.each_ref().map(|a| a.safety))
+        } else {
+            controller_core::servo::monitor::SafetyConfig::OFF
+        },
         path: Some(PathPlan {
             path: sc.path,
             start: sc.path_start,
@@ -167,6 +171,8 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
         world,
         truth: sc.metrics,
         periods,
+        hold: sc.hold,
+        inject: sc.fault,
     };
     validate(&run, sc)?;
     Ok((run, reference))

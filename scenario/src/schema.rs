@@ -12,6 +12,8 @@ use controller_core::law::pid::PidConfig;
 use controller_core::law::smc::SmcConfig;
 use controller_core::motion::path::{PathConfig, PathStart};
 use controller_core::servo::io::{AmplifierConfig, EncoderConfig};
+use controller_core::servo::monitor::{AxisSafetyConfig, SafetyConfig};
+use controller_core::sim::run::TimedInjection;
 use controller_core::sim::truth::TruthSpec;
 use controller_core::sim::world::{InitialState, PlantConfig};
 use serde::{Deserialize, Serialize};
@@ -78,6 +80,12 @@ pub struct Scenario {
     pub path_start: PathStart,
     #[serde(default)]
     pub metrics: TruthSpec,
+    /// Arm and hold position instead of following the path.
+    #[serde(default)]
+    pub hold: bool,
+    /// A fault injected during the run (the fault matrix).
+    #[serde(default)]
+    pub fault: Option<TimedInjection>,
     /// Parameters of the study that interprets this file (each study checks its own).
     #[serde(default)]
     pub study: Option<toml::Value>,
@@ -95,12 +103,24 @@ pub struct MachineSpec {
     /// `initial`.
     #[serde(default)]
     pub start_on_path: bool,
+    /// Timings of the fault checks (overspeed ratio, stuck and runaway times, overrun
+    /// window, stop settling, encoder check); the per-axis limits are the axes' `safety`.
+    #[serde(default)]
+    pub safety: SafetyTimings,
+    /// `false` switches every fault check off (studies that compare figures, not trips;
+    /// never on a machine).
+    #[serde(default = "yes")]
+    pub fault_checks: bool,
     #[serde(with = "controller_core::axes::per_axis")]
     pub axes: [AxisSpec; 3],
 }
 
 fn four() -> u32 {
     4
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// One axis of the machine.
@@ -110,15 +130,66 @@ pub struct AxisSpec {
     pub plant: PlantConfig,
     pub encoder: EncoderConfig,
     pub amplifier: AmplifierConfig,
-    /// Following-error trip level, mm (`inf`: no check; simulation studies only).
-    #[serde(default = "inf")]
-    pub following_error_mm: f32,
+    /// Limits and fault thresholds (default: every check off, for studies that compare
+    /// figures rather than trips; a machine file gives real ones).
+    #[serde(default = "safety_off")]
+    pub safety: AxisSafetyConfig,
     #[serde(default)]
     pub initial: InitialState,
 }
 
-fn inf() -> f32 {
-    f32::INFINITY
+fn safety_off() -> AxisSafetyConfig {
+    AxisSafetyConfig::OFF
+}
+
+/// The machine-wide part of [`SafetyConfig`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SafetyTimings {
+    pub overspeed_ratio: f32,
+    pub stuck_time_s: f32,
+    pub runaway_time_s: f32,
+    pub overrun_max: u16,
+    pub overrun_window_s: f32,
+    pub stop_settle_s: f32,
+    pub stop_timeout_s: f32,
+    pub encoder_check_time_s: f32,
+    pub encoder_check_counts: u32,
+}
+
+impl Default for SafetyTimings {
+    fn default() -> Self {
+        let d = SafetyConfig::OFF;
+        Self {
+            overspeed_ratio: d.overspeed_ratio,
+            stuck_time_s: d.stuck_time_s,
+            runaway_time_s: d.runaway_time_s,
+            overrun_max: d.overrun_max,
+            overrun_window_s: d.overrun_window_s,
+            stop_settle_s: d.stop_settle_s,
+            stop_timeout_s: d.stop_timeout_s,
+            encoder_check_time_s: d.encoder_check_time_s,
+            encoder_check_counts: d.encoder_check_counts,
+        }
+    }
+}
+
+impl SafetyTimings {
+    /// The full safety configuration with these timings and the axes' limits.
+    pub fn with_axes(&self, axes: [AxisSafetyConfig; 3]) -> SafetyConfig {
+        SafetyConfig {
+            axes,
+            overspeed_ratio: self.overspeed_ratio,
+            stuck_time_s: self.stuck_time_s,
+            runaway_time_s: self.runaway_time_s,
+            overrun_max: self.overrun_max,
+            overrun_window_s: self.overrun_window_s,
+            stop_settle_s: self.stop_settle_s,
+            stop_timeout_s: self.stop_timeout_s,
+            encoder_check_time_s: self.encoder_check_time_s,
+            encoder_check_counts: self.encoder_check_counts,
+        }
+    }
 }
 
 /// The controller: a law per axis and the coupling.

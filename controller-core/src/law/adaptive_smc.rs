@@ -202,6 +202,7 @@ impl<R: Real> AdaptiveSmc<R> {
                 u: u.finite_or_zero().clamp_sym(self.u_max),
                 integral_rate: R::ZERO,
                 s: s.finite_or_zero(),
+                finite: u.is_finite(),
             },
             s_delta: s_delta.finite_or_zero(),
             acc_ref: acc_ref.finite_or_zero(),

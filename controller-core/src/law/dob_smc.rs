@@ -115,11 +115,12 @@ impl<R: Real> DobSmc<R> {
         let acc = self.c * sig.e_dot + sig.qd_ddot + self.a * sig.q_dot - st.d_hat
             + self.k * s
             + self.eta * switch;
-        let u = (self.inv_b * acc).finite_or_zero().clamp_sym(self.u_max);
+        let raw = self.inv_b * acc;
         LawOutput {
-            u,
+            u: raw.finite_or_zero().clamp_sym(self.u_max),
             integral_rate: R::ZERO,
             s: s.finite_or_zero(),
+            finite: raw.is_finite(),
         }
     }
 

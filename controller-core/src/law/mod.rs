@@ -54,12 +54,16 @@ pub struct LawOutput<R> {
     pub integral_rate: R,
     /// Sliding variable (0 for PID), for telemetry and plots.
     pub s: R,
+    /// False when the law's raw output was not finite (then replaced by 0): a fault the
+    /// servo step reports instead of letting the replacement hide it.
+    pub finite: bool,
 }
 
 /// Saturation and conditional integration shared by PID and the sliding-mode laws: the
 /// output is clamped to `±u_max`, and the error is not integrated while the output is
 /// saturated in the direction the error would push it further.
 pub(crate) fn finish<R: Real>(u_raw: R, e: R, u_max: R, s: R) -> LawOutput<R> {
+    let finite = u_raw.is_finite();
     let u_raw = u_raw.finite_or_zero();
     let u = u_raw.clamp_sym(u_max);
     let saturated = u != u_raw;
@@ -72,6 +76,7 @@ pub(crate) fn finish<R: Real>(u_raw: R, e: R, u_max: R, s: R) -> LawOutput<R> {
             e.finite_or_zero()
         },
         s: s.finite_or_zero(),
+        finite,
     }
 }
 
@@ -142,6 +147,8 @@ pub struct LawEval<R> {
     pub integral_rate: R,
     /// Regressors of the adaptive law's update (default otherwise).
     pub adapt: AdaptiveOutput<R>,
+    /// False when the raw output was not finite (see [`LawOutput::finite`]).
+    pub finite: bool,
 }
 
 impl<R: Real> Law<R> {
@@ -178,6 +185,7 @@ impl<R: Real> Law<R> {
             s: o.s,
             integral_rate: o.integral_rate,
             adapt: AdaptiveOutput::default(),
+            finite: o.finite,
         };
         match self {
             Self::Pid(l) => plain(l.evaluate(st, sig)),
@@ -190,6 +198,7 @@ impl<R: Real> Law<R> {
                     s: o.law.s,
                     integral_rate: R::ZERO,
                     adapt: o,
+                    finite: o.law.finite,
                 }
             }
         }
@@ -207,6 +216,20 @@ impl<R: Real> Law<R> {
             }
             Self::DobSmc(l) => l.observe(&mut st.dob, u_applied, q_dot, dt),
             Self::AdaptiveSmc(l) => l.adapt(&mut st.adapt, &ev.adapt, dt),
+        }
+    }
+
+    /// True when every state of the law is finite and inside the number type's range
+    /// (a fixed-point state pinned at the type's limit has saturated).
+    pub fn state_healthy(&self, st: &LawState<R>) -> bool {
+        let big = R::from_f32(f32::MAX);
+        let ok = |x: R| x.is_finite() && x.abs() < big;
+        match self {
+            Self::Pid(_) | Self::Smc(_) => ok(st.integral),
+            Self::DobSmc(_) => ok(st.dob.v_hat) && ok(st.dob.d_hat),
+            Self::AdaptiveSmc(_) => {
+                ok(st.adapt.j) && ok(st.adapt.b) && ok(st.adapt.f_pos) && ok(st.adapt.f_neg)
+            }
         }
     }
 

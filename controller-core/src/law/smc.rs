@@ -19,7 +19,10 @@ use crate::{Exponent, Real};
 /// Sliding surface (spec 2.2/2.3).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(
+    feature = "serde",
+    serde(rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum SurfaceConfig {
     /// `s = e' + α e + β sig(e)^(q/p)`, p, q odd, 0 < q < p. The `|e|^(q/p-1)` factor of the
     /// equivalent control is evaluated with `|e|` floored at `singular_floor`, which bounds
@@ -40,7 +43,10 @@ pub enum SurfaceConfig {
 /// Reaching law (spec 2.2/2.3).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(
+    feature = "serde",
+    serde(rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum ReachingConfig {
     /// `s' = -k s - ε sign(s)`; with `boundary_layer > 0`, `sign(s)` is replaced by
     /// `sat(s / boundary_layer)` (0 = the paper's pure sign).

@@ -9,7 +9,10 @@ use crate::Vec3;
 /// A reference path. TOML: `path = { helix = { radius = 1.0, omega = 1.0, z_rate = 5.0 } }`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(
+    feature = "serde",
+    serde(rename_all = "snake_case", deny_unknown_fields)
+)]
 pub enum PathConfig {
     /// Every axis jumps from 0 to `target` at `t0_s`.
     Step {

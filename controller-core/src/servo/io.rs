@@ -18,11 +18,27 @@ pub struct Inputs {
     pub estop: bool,
     /// Per axis `[min, max]` limit switch active.
     pub limits: [[bool; 2]; AXES],
+    /// Per axis: the amplifier's fault output is active.
+    pub amp_fault: [bool; AXES],
+    /// The previous control period missed its deadline (the board's timer had already
+    /// fired again when it ended).
+    pub overrun: bool,
+}
+
+impl Inputs {
+    /// The first active limit switch: (axis, high end).
+    pub fn first_limit(&self) -> Option<(usize, bool)> {
+        (0..AXES).find_map(|i| match self.limits[i] {
+            [true, _] => Some((i, false)),
+            [_, true] => Some((i, true)),
+            _ => None,
+        })
+    }
 }
 
 /// Per-period access to sensors and actuators.
 pub trait ServoIo<R> {
-    /// Samples e-stop and limit switches.
+    /// Samples e-stop, limit switches, amplifier faults and the deadline flag.
     fn read_inputs(&mut self) -> Inputs;
 
     /// Raw encoder counter registers, X, Y, Z (each meaningful in its timer's width).

@@ -1,42 +1,60 @@
 //! The per-period servo step: the one control sequence the board's control interrupt, the
-//! simulator's discrete mode and the firmware's QEMU rig all run.
+//! simulator's discrete mode and the firmware's QEMU rig all run, with its supervisor
+//! (states, fault detection, stops, reset rules).
 //!
 //! [`Servo::period`], in order:
 //!
-//! 1. sample e-stop and limits and apply the period's commands to the safety state
-//!    machine; if the outputs may not be driven, switch them off *before anything else*;
+//! 1. sample the inputs; e-stop and amplifier faults latch in any state, limit switches
+//!    while the outputs are on; apply the period's commands; if the outputs may not be
+//!    driven, switch them off *before anything else*;
 //! 2. read the encoder counters and extend them to wide counts ([`WideCounter`]: the
 //!    signed difference of successive readings modulo the counter width, so a wrap can be
 //!    neither lost nor double counted);
-//! 3. sample the reference (holding position, or the configured path);
+//! 3. sample the reference ([`motion::Motion`]: hold, path, controlled stop);
 //! 4. positions from counts and velocity estimates ([`EstimatorBank`]);
-//! 5. if enabled: evaluate the 3-axis controller, saturate to the amplifiers' range,
-//!    check the following error, write the outputs (or switch them off on a trip), and
-//!    commit every controller and estimator state with the output actually applied;
+//! 5. while enabled: the encoder checks ([`monitor`]); evaluate the 3-axis controller and
+//!    check its outputs and states are finite; saturate to the amplifiers' range; check
+//!    following error and speed; write the outputs, or switch them off on an immediate
+//!    fault, or start a controlled stop; commit every controller and estimator state with
+//!    the output actually applied;
 //! 6. publish the telemetry [`Snapshot`] (plain copies).
+//!
+//! States ([`ServoState`]): `Disabled` (boot; outputs off) → arm → `Idle` (holding the
+//! position it armed at: arming never starts motion) → start path → `Run`. A fault of the
+//! immediate category goes straight to `Fault` (outputs off in that period); a controlled
+//! one goes through `Stopping`. `Fault` → reset → `Disabled` only once every cause is
+//! gone; an encoder fault first runs the encoder check (`EncoderCheck`): the axis must
+//! follow a small effort in both directions, or the reset is refused.
 //!
 //! Nothing here allocates, blocks, formats or panics; every number that reaches an output
 //! is finite and within the amplifier's range.
 
+pub mod faults;
 pub mod io;
-pub mod safety;
+pub mod monitor;
+pub mod motion;
 pub mod snapshot;
 
-use crate::axes::AXES;
-use crate::config::{limit, ConfigError};
+use crate::axes::{Axis, AXES};
+use crate::config::ConfigError;
 use crate::controller::{Controller3, ControllerConfig, Measured};
 use crate::estimator::{EstimatorBank, EstimatorBankConfig, EstimatorTiming, WideCounter};
 use crate::motion::path::{PathConfig, PathStart};
 use crate::motion::trajectory::{RefSample, Trajectory};
 use crate::{Real, Vec3};
-use io::{AmplifierConfig, EncoderConfig, ServoIo};
-use safety::{Request, SafetyMonitor, SafetyState};
+use faults::{Fault, FaultKind, FaultLog, FaultRecord, StopCategory};
+use io::{AmplifierConfig, EncoderConfig, Inputs, ServoIo};
+use monitor::{Monitor, SafetyConfig};
+use motion::Motion;
 use snapshot::Snapshot;
 
 /// Highest control rate the servo accepts, Hz.
 pub const MAX_RATE_HZ: u32 = 50_000;
 /// Lowest control rate the servo accepts, Hz.
 pub const MIN_RATE_HZ: u32 = 100;
+/// During a controlled stop the following-error limit is this many times the normal one;
+/// beyond it the stop becomes immediate.
+pub const STOPPING_FERROR_SCALE: f32 = 2.0;
 
 /// A path the servo can be told to follow ([`Command::StartPath`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,9 +82,8 @@ pub struct ServoConfig {
     pub amplifiers: [AmplifierConfig; AXES],
     pub controller: ControllerConfig,
     pub estimator: EstimatorBankConfig,
-    /// Following-error trip level per axis, mm (`inf` disables the check, simulation only).
-    #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
-    pub following_error_mm: [f32; AXES],
+    /// Limits and fault thresholds.
+    pub safety: SafetyConfig,
     /// The path [`Command::StartPath`] starts, if any.
     #[cfg_attr(feature = "serde", serde(default))]
     pub path: Option<PathPlan>,
@@ -76,23 +93,55 @@ pub struct ServoConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Command {
-    /// Disabled -> Enabled (inputs clear), holding the current position.
+    /// Disabled -> Idle (inputs clear, no fault latched), holding the current position.
     Arm,
-    /// Enabled -> Disabled.
+    /// Idle -> Disabled; Run -> controlled stop -> Disabled.
     Disarm,
-    /// Fault -> Disabled once the cause is gone.
+    /// Fault -> Disabled once every cause is gone (an encoder fault runs the encoder
+    /// check first).
     Reset,
-    /// Follow the configured path (while enabled).
+    /// Follow the configured path (from Idle or Run).
     StartPath,
 }
 
-/// What produces the reference.
+/// State of the servo and its outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ServoState {
+    /// Outputs off, waiting for an explicit arm.
+    Disabled,
+    /// Outputs on, holding position.
+    Idle,
+    /// Outputs on, following the path.
+    Run,
+    /// Outputs on, decelerating to rest (after a controlled-stop fault, or a disarm while
+    /// moving); then outputs off.
+    Stopping,
+    /// Reset of an encoder fault: a small effort on the faulted axes must move them.
+    EncoderCheck,
+    /// Outputs off, fault latched.
+    Fault,
+}
+
+impl ServoState {
+    /// The outputs are driven in this state.
+    pub const fn drives(self) -> bool {
+        matches!(
+            self,
+            Self::Idle | Self::Run | Self::Stopping | Self::EncoderCheck
+        )
+    }
+}
+
+/// Progress of an encoder check.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Motion<R> {
-    /// Hold a point.
-    Hold(Vec3<R>),
-    /// Follow the path: `k` periods since it started, shifted by `origin`.
-    Path { k: u32, origin: Option<Vec3<R>> },
+struct Check {
+    axis: usize,
+    positive: bool,
+    k: u32,
+    n0: i64,
 }
 
 /// The servo step's state, owned by the control interrupt.
@@ -104,9 +153,25 @@ pub struct Servo<R> {
     full_scale: Vec3<R>,
     estimators: EstimatorBank<R>,
     controller: Controller3<R>,
-    safety: SafetyMonitor,
-    path: Option<(Trajectory<R>, PathStart, Option<u32>)>,
+    monitor: Monitor,
+    faults: FaultLog,
+    state: ServoState,
+    /// The state a controlled stop ends in (Fault, or Disabled after a disarm).
+    stop_then: ServoState,
+    /// The configured path and the period after which its end point is held.
+    path: Option<(Trajectory<R>, Option<u32>)>,
+    path_start: PathStart,
     motion: Motion<R>,
+    /// Periods the stop reference has been at rest.
+    rest_periods: u32,
+    settle_periods: u32,
+    stop_timeout_periods: u32,
+    stop_decel: [f32; AXES],
+    check: Option<Check>,
+    check_periods: u32,
+    check_counts: i64,
+    check_effort: [f32; AXES],
+    applied: Vec3<R>,
     snapshot: Snapshot,
 }
 
@@ -129,11 +194,12 @@ impl<R: Real> Servo<R> {
             count_size: 0.0,
         }; AXES];
         let mut full_scale = Vec3::zero();
+        let mut counts_per_mm = [0.0; AXES];
         for i in 0..AXES {
             count_len[i] = cfg.encoders[i].count_len()?;
+            counts_per_mm[i] = cfg.encoders[i].counts_per_mm;
             timing[i].count_size = count_len[i] as f32;
             full_scale[i] = R::from_f32(cfg.amplifiers[i].checked_full_scale()?);
-            limit(cfg.following_error_mm[i], "following_error_mm")?;
         }
         let path = match &cfg.path {
             Some(p) => {
@@ -144,10 +210,13 @@ impl<R: Real> Servo<R> {
                     Some(_) => return Err(ConfigError::Negative("path.duration_s")),
                     None => None,
                 };
-                Some((p.path.build()?.cast(), p.start, duration))
+                Some((p.path.build()?.cast(), duration))
             }
             None => None,
         };
+        let path_start = cfg.path.map_or(PathStart::Absolute, |p| p.start);
+        let s = &cfg.safety;
+        let positive = |v: f32, n| crate::config::positive(v, n);
         let counters =
             [0, 1, 2].map(|i| WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i]));
         Ok(Self {
@@ -158,9 +227,31 @@ impl<R: Real> Servo<R> {
             full_scale,
             estimators: EstimatorBank::new(&cfg.estimator, &timing, count_len, start_counts)?,
             controller: Controller3::new(&cfg.controller)?,
-            safety: SafetyMonitor::new(cfg.following_error_mm),
+            monitor: Monitor::new(s, counts_per_mm, period_s)?,
+            faults: FaultLog::new(),
+            state: ServoState::Disabled,
+            stop_then: ServoState::Fault,
             path,
+            path_start,
             motion: Motion::Hold(Vec3::zero()),
+            rest_periods: 0,
+            settle_periods: monitor::periods(
+                positive(s.stop_settle_s, "safety.stop_settle_s")?,
+                period_s,
+            ),
+            stop_timeout_periods: monitor::periods(
+                positive(s.stop_timeout_s, "safety.stop_timeout_s")?,
+                period_s,
+            ),
+            stop_decel: s.axes.map(|a| a.stop_decel_mm_s2),
+            check: None,
+            check_periods: monitor::periods(
+                positive(s.encoder_check_time_s, "safety.encoder_check_time_s")?,
+                period_s,
+            ),
+            check_counts: i64::from(s.encoder_check_counts.max(1)),
+            check_effort: s.axes.map(|a| a.stuck_effort_change),
+            applied: Vec3::zero(),
             snapshot: Snapshot::boot(),
         })
     }
@@ -170,14 +261,24 @@ impl<R: Real> Servo<R> {
         &self.snapshot
     }
 
-    /// Safety state.
-    pub fn state(&self) -> SafetyState {
-        self.safety.state()
+    pub fn state(&self) -> ServoState {
+        self.state
+    }
+
+    /// Latched faults, the first one, and the history.
+    pub fn faults(&self) -> &FaultLog {
+        &self.faults
     }
 
     /// The controller (e.g. to read the adaptive estimates).
     pub fn controller(&self) -> &Controller3<R> {
         &self.controller
+    }
+
+    /// Fault injection for the fault matrix (simulator and QEMU test builds): corrupt the
+    /// state of `axis`' law.
+    pub fn inject_corrupt_state(&mut self, axis: usize) {
+        self.controller.inject_corrupt_state(axis);
     }
 
     /// Control period, s.
@@ -193,51 +294,147 @@ impl<R: Real> Servo<R> {
         p
     }
 
-    /// The reference of this period, and the path time.
-    fn reference(&self) -> (RefSample<R>, f64) {
-        let hold = |pos| {
-            let r = RefSample {
-                pos,
-                vel: Vec3::zero(),
-                acc: Vec3::zero(),
-            };
-            (r, 0.0)
-        };
-        let (k, origin, traj, end) = match (self.motion, &self.path) {
-            (Motion::Hold(p), _) => return hold(p),
-            (Motion::Path { .. }, None) => return hold(Vec3::zero()),
-            (Motion::Path { k, origin }, Some((traj, _, end))) => (k, origin, traj, *end),
-        };
-        // after the path's duration its point at that time is held
-        let held_at = end.filter(|e| k > *e);
-        let t = f64::from(held_at.unwrap_or(k)) * self.period_s;
-        let mut r = traj.sample(R::from_f64(t));
-        if held_at.is_some() {
-            r.vel = Vec3::zero();
-            r.acc = Vec3::zero();
+    /// Latch `f`; immediate faults switch the outputs off now, controlled ones start a stop
+    /// from the current reference.
+    fn trip(&mut self, f: Fault, value: f32, reference: &RefSample<R>) {
+        self.faults.record(FaultRecord {
+            fault: f,
+            period: self.snapshot.period,
+            value,
+        });
+        match (f.kind.stop(), self.state) {
+            (_, ServoState::Fault) => {}
+            (StopCategory::Controlled, ServoState::Idle | ServoState::Run) => {
+                self.motion = Motion::stop_from(reference, &self.stop_decel);
+                self.rest_periods = 0;
+                self.stop_then = ServoState::Fault;
+                self.state = ServoState::Stopping;
+            }
+            (StopCategory::Controlled, ServoState::Stopping) => {
+                self.stop_then = ServoState::Fault;
+            }
+            _ => {
+                self.state = ServoState::Fault;
+                self.check = None;
+            }
         }
-        if let Some(o) = origin {
-            r.pos = r.pos + o;
+    }
+
+    /// Every latched cause gone? Encoder faults are cleared by the encoder check.
+    fn causes_gone(&self, inputs: &Inputs) -> bool {
+        let still = |k: FaultKind, a: Option<Axis>| self.faults.is_latched(k, a);
+        if inputs.estop && still(FaultKind::EStop, None) {
+            return false;
         }
-        (r, f64::from(k) * self.period_s)
+        if still(FaultKind::ConfigInvalid, None) {
+            return false;
+        }
+        for a in Axis::ALL {
+            let i = a.index();
+            if inputs.amp_fault[i] && still(FaultKind::AmplifierFault, Some(a)) {
+                return false;
+            }
+            if (inputs.limits[i][0] && still(FaultKind::LimitMin, Some(a)))
+                || (inputs.limits[i][1] && still(FaultKind::LimitMax, Some(a)))
+            {
+                return false;
+            }
+        }
+        // the link's watchdog clears LinkLost when a new session starts (not here)
+        !still(FaultKind::LinkLost, None)
+    }
+
+    fn next_check(&self, after: Option<usize>) -> Option<usize> {
+        let from = after.map_or(0, |a| a + 1);
+        (from..AXES).find(|&i| {
+            FaultKind::ALL
+                .iter()
+                .any(|k| k.is_encoder() && self.faults.is_latched(*k, Axis::from_index(i)))
+        })
+    }
+
+    fn apply_command(&mut self, c: Command, inputs: &Inputs, counts: &[i64; AXES]) {
+        match (c, self.state) {
+            (Command::Arm, ServoState::Disabled)
+                if !self.faults.any() && !inputs.estop && inputs.first_limit().is_none() =>
+            {
+                self.state = ServoState::Idle;
+                self.estimators.reset(*counts);
+                self.controller.reset();
+                self.monitor.reset();
+                self.motion = Motion::Hold(self.position_of(counts));
+            }
+            (Command::Disarm, ServoState::Idle) => self.state = ServoState::Disabled,
+            (Command::Disarm, ServoState::Run) => {
+                let (r, _, _) = motion::sample(&self.motion, self.path.as_ref(), self.period_s);
+                self.motion = Motion::stop_from(&r, &self.stop_decel);
+                self.rest_periods = 0;
+                self.stop_then = ServoState::Disabled;
+                self.state = ServoState::Stopping;
+            }
+            (Command::Disarm, ServoState::EncoderCheck) => {
+                self.check = None;
+                self.state = ServoState::Fault;
+            }
+            (Command::Reset, ServoState::Fault) if self.causes_gone(inputs) => {
+                match self.next_check(None) {
+                    Some(axis) => {
+                        self.check = Some(Check {
+                            axis,
+                            positive: true,
+                            k: 0,
+                            n0: counts[axis],
+                        });
+                        self.state = ServoState::EncoderCheck;
+                    }
+                    None => {
+                        self.faults.clear();
+                        self.state = ServoState::Disabled;
+                    }
+                }
+            }
+            (Command::StartPath, ServoState::Idle | ServoState::Run) => {
+                if let Some((traj, _)) = &self.path {
+                    let origin = match self.path_start {
+                        PathStart::Absolute => None,
+                        PathStart::FromCurrentPosition => {
+                            Some(self.position_of(counts) - traj.sample(R::ZERO).pos)
+                        }
+                    };
+                    self.motion = Motion::Path { k: 0, origin };
+                    self.state = ServoState::Run;
+                }
+            }
+            _ => {}
+        }
     }
 
     /// One control period. See the module documentation for the sequence.
     pub fn period<IO: ServoIo<R>>(&mut self, io: &mut IO, commands: &[Command]) -> &Snapshot {
-        // 1. Safety first: decide before reading or computing anything else.
+        self.snapshot.period = self.snapshot.period.wrapping_add(1);
+
+        // 1. Safety first: hard inputs and commands decide before anything is computed.
         let inputs = io.read_inputs();
-        let mut request = Request::None;
-        let mut start_path = false;
-        for c in commands {
-            match c {
-                Command::Arm | Command::Reset => request = Request::ArmOrReset,
-                Command::Disarm => request = Request::Disarm,
-                Command::StartPath => start_path = true,
+        let held = motion::sample(&self.motion, self.path.as_ref(), self.period_s).0;
+        if inputs.estop {
+            self.trip(Fault::system(FaultKind::EStop), 0.0, &held);
+        }
+        for a in Axis::ALL {
+            if inputs.amp_fault[a.index()] {
+                self.trip(Fault::on(FaultKind::AmplifierFault, a), 0.0, &held);
             }
         }
-        let was_enabled = self.safety.outputs_enabled();
-        let mut state = self.safety.update(&inputs, request);
-        if state != SafetyState::Enabled {
+        if self.state.drives() {
+            if let Some((i, high)) = inputs.first_limit() {
+                let kind = if high {
+                    FaultKind::LimitMax
+                } else {
+                    FaultKind::LimitMin
+                };
+                self.trip(Fault::on(kind, Axis::ALL[i]), 0.0, &held);
+            }
+        }
+        if !self.state.drives() {
             io.disable_outputs();
         }
 
@@ -247,78 +444,127 @@ impl<R: Real> Servo<R> {
         for ((n, c), r) in counts.iter_mut().zip(self.counters.iter_mut()).zip(raw) {
             *n = c.update(r);
         }
+        for &c in commands {
+            self.apply_command(c, &inputs, &counts);
+        }
+        if !self.state.drives() {
+            io.disable_outputs();
+        }
 
-        // 3. Reference: a fresh start of every state when the outputs get enabled, which
-        //    then hold the position they are at.
-        let enabled = state == SafetyState::Enabled;
-        if enabled && !was_enabled {
-            self.estimators.reset(counts);
-            self.controller.reset();
-            self.motion = Motion::Hold(self.position_of(&counts));
-        }
-        if enabled && start_path {
-            if let Some((traj, start, _)) = &self.path {
-                let origin = match start {
-                    PathStart::Absolute => None,
-                    PathStart::FromCurrentPosition => {
-                        Some(self.position_of(&counts) - traj.sample(R::ZERO).pos)
-                    }
-                };
-                self.motion = Motion::Path { k: 0, origin };
-            }
-        }
-        let (reference, path_t) = if enabled {
-            self.reference()
-        } else {
-            (RefSample::default(), 0.0)
-        };
+        // 3. Reference.
+        let (reference, motion_t, at_rest) =
+            motion::sample(&self.motion, self.path.as_ref(), self.period_s);
 
         // 4. Positions and velocities.
         let meas: Measured<R> = self
             .estimators
             .update(counts, reference.acc, io.true_velocity());
+        let vel = meas.vel.to_array().map(Real::to_f32);
 
         // 5. Control.
         let mut applied = Vec3::zero();
-        let mut snap_out = None;
-        if enabled {
-            let out = self.controller.evaluate(&reference, &meas);
-            let mut u = out.u;
-            for i in 0..AXES {
-                u[i] = u[i].finite_or_zero().clamp_sym(self.full_scale[i]);
+        let mut out = None;
+        match self.state {
+            ServoState::Idle | ServoState::Run | ServoState::Stopping => {
+                let prev = self.applied.to_array().map(Real::to_f32);
+                if let Some((f, v)) = self.monitor.check_encoders(&counts, &vel, &prev) {
+                    self.trip(f, v, &reference);
+                }
+                if let Some((f, v)) = self
+                    .monitor
+                    .check_overrun(inputs.overrun, self.snapshot.period)
+                {
+                    self.trip(f, v, &reference);
+                }
+                let o = self.controller.evaluate(&reference, &meas);
+                let bad = (0..AXES)
+                    .find(|&i| o.nonfinite[i])
+                    .or_else(|| self.controller.unhealthy_axis());
+                if let Some(i) = bad {
+                    self.trip(
+                        Fault::on(FaultKind::NonFinite, Axis::ALL[i]),
+                        0.0,
+                        &reference,
+                    );
+                }
+                let mut u = o.u;
+                for i in 0..AXES {
+                    u[i] = u[i].finite_or_zero().clamp_sym(self.full_scale[i]);
+                }
+                if self.state.drives() {
+                    let tracking = o.errors.tracking.to_array().map(Real::to_f32);
+                    let v_ref = reference.vel.to_array().map(Real::to_f32);
+                    let stopping = self.state == ServoState::Stopping;
+                    let scale = if stopping { STOPPING_FERROR_SCALE } else { 1.0 };
+                    if let Some((f, v)) =
+                        self.monitor.check_tracking(&tracking, &v_ref, &vel, scale)
+                    {
+                        if stopping && f.kind == FaultKind::FollowingError {
+                            // the stop itself cannot be followed: off at once
+                            self.faults.record(FaultRecord {
+                                fault: f,
+                                period: self.snapshot.period,
+                                value: v,
+                            });
+                            self.state = ServoState::Fault;
+                        } else {
+                            self.trip(f, v, &reference);
+                        }
+                    }
+                }
+                if self.state == ServoState::Stopping && at_rest {
+                    self.rest_periods = self.rest_periods.saturating_add(1);
+                    let settled = self.rest_periods >= self.settle_periods
+                        && vel
+                            .iter()
+                            .zip(0..AXES)
+                            .all(|(v, i)| v.abs() <= 0.02 * self.monitor.vel_max(i));
+                    if settled || self.rest_periods >= self.stop_timeout_periods {
+                        self.state = self.stop_then;
+                    }
+                }
+                if self.state.drives() {
+                    io.write_outputs(&u.to_array());
+                    applied = u;
+                } else {
+                    io.disable_outputs();
+                }
+                self.controller
+                    .commit(&o, &reference, &meas, applied, self.dt);
+                self.motion.advance();
+                out = Some(o);
             }
-            let tracking = out.errors.tracking.to_array().map(Real::to_f32);
-            state = self.safety.check_following_error(&tracking);
-            if state == SafetyState::Enabled {
-                io.write_outputs(&u.to_array());
-                applied = u;
-            } else {
-                io.disable_outputs();
+            ServoState::EncoderCheck => {
+                applied = self.encoder_check(&counts);
+                if self.state.drives() {
+                    io.write_outputs(&applied.to_array());
+                } else {
+                    applied = Vec3::zero();
+                    io.disable_outputs();
+                }
             }
-            self.controller
-                .commit(&out, &reference, &meas, applied, self.dt);
-            if let Motion::Path { k, .. } = &mut self.motion {
-                *k = k.saturating_add(1);
-            }
-            snap_out = Some(out);
+            ServoState::Disabled | ServoState::Fault => {}
         }
+        self.applied = applied;
         self.estimators.applied(applied);
 
         // 6. Telemetry (plain copies).
         let s = &mut self.snapshot;
-        s.period = s.period.wrapping_add(1);
-        s.path_t_s = path_t as f32;
-        s.state = state;
+        s.motion_t_s = motion_t as f32;
+        s.state = self.state;
+        s.fault = self.faults.first();
+        s.fault_bits = self.faults.bits();
         s.pos = meas.pos.to_array().map(Real::to_f32);
-        s.vel = meas.vel.to_array().map(Real::to_f32);
+        s.vel = vel;
         s.counts = counts;
         s.effort = applied.to_array().map(Real::to_f32);
-        match snap_out {
-            Some(out) => {
+        s.outputs_on = self.state.drives();
+        match out {
+            Some(o) => {
                 s.reference = reference.pos.to_array().map(Real::to_f32);
-                s.tracking = out.errors.tracking.to_array().map(Real::to_f32);
-                s.contour = out.errors.contour.to_array().map(Real::to_f32);
-                s.s = out.s.to_array().map(Real::to_f32);
+                s.tracking = o.errors.tracking.to_array().map(Real::to_f32);
+                s.contour = o.errors.contour.to_array().map(Real::to_f32);
+                s.s = o.s.to_array().map(Real::to_f32);
             }
             None => {
                 s.tracking = [0.0; AXES];
@@ -327,5 +573,56 @@ impl<R: Real> Servo<R> {
             }
         }
         &self.snapshot
+    }
+
+    /// One period of the encoder check: the effort on the checked axis (others zero).
+    fn encoder_check(&mut self, counts: &[i64; AXES]) -> Vec3<R> {
+        let mut u = Vec3::zero();
+        let Some(mut c) = self.check else {
+            self.state = ServoState::Fault;
+            return u;
+        };
+        let moved = counts[c.axis].saturating_sub(c.n0);
+        let sign: i64 = if c.positive { 1 } else { -1 };
+        if moved * sign >= self.check_counts {
+            // followed: the other direction, or the next axis, or done
+            if c.positive {
+                c = Check {
+                    positive: false,
+                    k: 0,
+                    n0: counts[c.axis],
+                    ..c
+                };
+            } else {
+                match self.next_check(Some(c.axis)) {
+                    Some(axis) => {
+                        c = Check {
+                            axis,
+                            positive: true,
+                            k: 0,
+                            n0: counts[axis],
+                        }
+                    }
+                    None => {
+                        self.check = None;
+                        self.faults.clear();
+                        self.state = ServoState::Disabled;
+                        return u;
+                    }
+                }
+            }
+        } else if moved * sign <= -self.check_counts || c.k >= self.check_periods {
+            // moved the wrong way, or not at all: the encoder is still faulty
+            self.check = None;
+            self.state = ServoState::Fault;
+            return u;
+        }
+        // ramp to the check effort over the first half, then hold it
+        let ramp = (2 * c.k).min(self.check_periods) as f32 / self.check_periods.max(1) as f32;
+        let effort = ramp * self.check_effort[c.axis] * sign as f32;
+        u[c.axis] = R::from_f32(effort).clamp_sym(self.full_scale[c.axis]);
+        c.k += 1;
+        self.check = Some(c);
+        u
     }
 }

@@ -3,17 +3,22 @@
 //! statistics outside the control interrupt).
 
 use crate::axes::AXES;
-use crate::servo::safety::SafetyState;
+use crate::servo::faults::FaultRecord;
+use crate::servo::ServoState;
 
 /// Everything a logger or a recorder needs about the last period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Snapshot {
     /// Control periods since boot.
     pub period: u32,
-    /// Time along the current path since it started, s (0 while holding).
-    pub path_t_s: f32,
-    /// Safety state after this period.
-    pub state: SafetyState,
+    /// Time since the current motion (path, stop) started, s (0 while holding).
+    pub motion_t_s: f32,
+    /// State after this period.
+    pub state: ServoState,
+    /// The first latched fault, if any.
+    pub fault: Option<FaultRecord>,
+    /// Latched fault kinds as bit sets (bit = `FaultKind` code): system, per axis.
+    pub fault_bits: (u16, [u16; AXES]),
     /// Measured positions (encoder counts converted to length).
     pub pos: [f32; AXES],
     /// Estimated velocities.
@@ -30,6 +35,8 @@ pub struct Snapshot {
     pub effort: [f32; AXES],
     /// Wide encoder positions, counts.
     pub counts: [i64; AXES],
+    /// The outputs were driven this period.
+    pub outputs_on: bool,
 }
 
 impl Snapshot {
@@ -37,8 +44,10 @@ impl Snapshot {
     pub const fn boot() -> Self {
         Self {
             period: 0,
-            path_t_s: 0.0,
-            state: SafetyState::Disabled,
+            motion_t_s: 0.0,
+            state: ServoState::Disabled,
+            fault: None,
+            fault_bits: (0, [0; AXES]),
             pos: [0.0; AXES],
             vel: [0.0; AXES],
             reference: [0.0; AXES],
@@ -47,6 +56,7 @@ impl Snapshot {
             s: [0.0; AXES],
             effort: [0.0; AXES],
             counts: [0; AXES],
+            outputs_on: false,
         }
     }
 

@@ -4,8 +4,10 @@
 //! step, the part the board's interrupt runs) followed by [`SimRun::finish_period`]
 //! (figures, then the world advances one period).
 //!
-//! The operator's commands are scripted: arm and start the configured path in the first
-//! period.
+//! The operator's commands are scripted: arm (and, unless the run only holds, start the
+//! configured path) in the first period. A fault can be injected at a given time
+//! ([`Injection`]): into the world (sensors, inputs, plant) or, for a corrupted controller
+//! state, through the servo's injection hook.
 
 use crate::axes::AXES;
 use crate::config::ConfigError;
@@ -14,7 +16,7 @@ use crate::motion::trajectory::Trajectory;
 use crate::servo::snapshot::Snapshot;
 use crate::servo::{Command, Servo, ServoConfig};
 use crate::sim::truth::{Truth, TruthFigures, TruthSpec};
-use crate::sim::world::{World, WorldConfig};
+use crate::sim::world::{Injection, World, WorldConfig};
 use crate::{Real, Vec3};
 
 /// Everything a simulated run needs.
@@ -27,6 +29,22 @@ pub struct RunConfig {
     pub truth: TruthSpec,
     /// Control periods to run.
     pub periods: u32,
+    /// Arm and hold position instead of starting the path.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub hold: bool,
+    /// A fault injected during the run.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub inject: Option<TimedInjection>,
+}
+
+/// A fault and when it is injected.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct TimedInjection {
+    /// Simulated time of the injection, s.
+    pub at_s: f64,
+    pub fault: Injection,
 }
 
 /// A run in progress.
@@ -37,6 +55,9 @@ pub struct SimRun<R> {
     reference: Trajectory<f64>,
     periods: u32,
     k: u32,
+    hold: bool,
+    inject: Option<(u32, Injection)>,
+    injected_at: Option<u32>,
 }
 
 impl<R: Real> SimRun<R> {
@@ -59,6 +80,14 @@ impl<R: Real> SimRun<R> {
             reference = shifted(reference, origin)?;
         }
         let servo = Servo::new(&cfg.servo, world.counter_registers(), counts)?;
+        let inject = match cfg.inject {
+            Some(i) if i.at_s >= 0.0 && i.at_s.is_finite() => {
+                let k = libm::round(i.at_s / servo.period_s()).min(f64::from(u32::MAX)) as u32;
+                Some((k, i.fault))
+            }
+            Some(_) => return Err(ConfigError::Negative("inject.at_s")),
+            None => None,
+        };
         Ok(Self {
             servo,
             world,
@@ -66,17 +95,42 @@ impl<R: Real> SimRun<R> {
             reference,
             periods: cfg.periods,
             k: 0,
+            hold: cfg.hold,
+            inject,
+            injected_at: None,
         })
     }
 
     /// The servo step of the current period (arm and start the path in the first one).
     pub fn control(&mut self) -> &Snapshot {
-        let cmds: &[Command] = if self.k == 0 {
-            &[Command::Arm, Command::StartPath]
-        } else {
-            &[]
+        let cmds: &[Command] = match (self.k, self.hold) {
+            (0, false) => &[Command::Arm, Command::StartPath],
+            (0, true) => &[Command::Arm],
+            _ => &[],
         };
+        self.control_with(cmds)
+    }
+
+    /// The servo step of the current period with the caller's commands (after the
+    /// scripted injection, if due).
+    pub fn control_with(&mut self, cmds: &[Command]) -> &Snapshot {
+        if let Some((k, inj)) = self.inject {
+            if self.k == k {
+                match inj {
+                    Injection::CorruptState { axis } => {
+                        self.servo.inject_corrupt_state(axis.index())
+                    }
+                    other => self.world.inject(&other),
+                }
+                self.injected_at = Some(self.k);
+            }
+        }
         self.servo.period(&mut self.world, cmds)
+    }
+
+    /// The run's period of the injection, once it happened.
+    pub fn injected_at(&self) -> Option<u32> {
+        self.injected_at
     }
 
     /// Record the period's figures, then advance the world over it. Returns the true

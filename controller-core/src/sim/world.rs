@@ -133,6 +133,79 @@ pub struct World {
     periods: u64,
     /// Safety inputs as the servo will read them (the simulation may set them).
     pub inputs: Inputs,
+    /// Injected sensor and plant faults.
+    faults: WorldFaults,
+}
+
+/// Faults injected into the simulated machine (fault matrix, tests).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct WorldFaults {
+    /// The counter reads this count from now on.
+    frozen: [Option<i64>; AXES],
+    /// Added to the count.
+    offset: [i64; AXES],
+    /// The counter counts backwards from this count on.
+    reversed: [Option<i64>; AXES],
+    /// External acceleration on the plant (a collision, a falling load), units/s².
+    ext_accel: [f64; AXES],
+}
+
+/// A fault the simulated machine can be given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(rename_all = "snake_case", deny_unknown_fields)
+)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Injection {
+    /// The e-stop input becomes active.
+    Estop,
+    /// A limit switch becomes active.
+    Limit { axis: crate::axes::Axis, high: bool },
+    /// An amplifier reports a fault.
+    AmplifierFault { axis: crate::axes::Axis },
+    /// The encoder stops counting (the counter keeps its value).
+    EncoderStuck { axis: crate::axes::Axis },
+    /// The count jumps by `counts` (noise, a lost connection that comes back).
+    EncoderJump {
+        axis: crate::axes::Axis,
+        counts: i32,
+    },
+    /// The encoder counts backwards from here on (swapped A/B).
+    EncoderReversed { axis: crate::axes::Axis },
+    /// An external acceleration acts on the axis from here on (units/s²): an obstruction,
+    /// a falling load.
+    ExternalAccel {
+        axis: crate::axes::Axis,
+        accel_mm_s2: f32,
+    },
+    /// Every control period overruns its deadline from here on.
+    Overrun,
+    /// The controller's state on the axis is corrupted (the servo's injection hook).
+    CorruptState { axis: crate::axes::Axis },
+}
+
+/// A plant with an external acceleration.
+struct Pushed<'a> {
+    plants: &'a [Plant; AXES],
+    ext: [f64; AXES],
+}
+
+impl AxisDynamics<f64> for (&Plant, f64) {
+    fn accel(&self, s: AxisState<f64>, u: f64, t: f64) -> f64 {
+        self.0.accel(s, u, t) + self.1
+    }
+}
+
+impl Pushed<'_> {
+    fn axes(&self) -> [(&Plant, f64); AXES] {
+        [
+            (&self.plants[0], self.ext[0]),
+            (&self.plants[1], self.ext[1]),
+            (&self.plants[2], self.ext[2]),
+        ]
+    }
 }
 
 impl World {
@@ -161,6 +234,7 @@ impl World {
             outputs_on: false,
             periods: 0,
             inputs: Inputs::default(),
+            faults: WorldFaults::default(),
         };
         for i in 0..AXES {
             let init = &cfg.initial[i];
@@ -214,21 +288,64 @@ impl World {
     /// Whole counts of the true positions (nearest count).
     pub fn counts(&self) -> [i64; AXES] {
         let mut c = [0; AXES];
-        for i in 0..AXES {
-            c[i] = libm::round(self.state[i].pos / self.count_len[i]) as i64;
+        for (n, (s, len)) in c.iter_mut().zip(self.state.iter().zip(self.count_len)) {
+            *n = libm::round(s.pos / len) as i64;
+        }
+        c
+    }
+
+    /// The counts the encoders report (the true counts, unless a fault was injected).
+    pub fn reported_counts(&self) -> [i64; AXES] {
+        let mut c = self.counts();
+        let f = &self.faults;
+        for (i, n) in c.iter_mut().enumerate() {
+            if let Some(pivot) = f.reversed[i] {
+                *n = pivot.saturating_mul(2).saturating_sub(*n);
+            }
+            *n = n.saturating_add(f.offset[i]);
+            if let Some(frozen) = f.frozen[i] {
+                *n = frozen;
+            }
         }
         c
     }
 
     /// The counter registers as the board's timers would read them.
     pub fn counter_registers(&self) -> [u32; AXES] {
-        let counts = self.counts();
-        let mut raw = [0; AXES];
-        for i in 0..AXES {
+        let mut raw = self.reported_counts().map(|n| n as u32);
+        for (r, mask) in raw.iter_mut().zip(self.counter_mask) {
             // two's-complement truncation to the register width, as the timer counts
-            raw[i] = (counts[i] as u32) & self.counter_mask[i];
+            *r &= mask;
         }
         raw
+    }
+
+    /// Give the machine a fault (the servo-side ones, `CorruptState`, are the run's).
+    pub fn inject(&mut self, inj: &Injection) {
+        let reported = self.reported_counts();
+        let counts = self.counts();
+        match *inj {
+            Injection::Estop => self.inputs.estop = true,
+            Injection::Limit { axis, high } => {
+                self.inputs.limits[axis.index()][usize::from(high)] = true
+            }
+            Injection::AmplifierFault { axis } => self.inputs.amp_fault[axis.index()] = true,
+            Injection::EncoderStuck { axis } => {
+                self.faults.frozen[axis.index()] = Some(reported[axis.index()])
+            }
+            Injection::EncoderJump { axis, counts } => {
+                let o = &mut self.faults.offset[axis.index()];
+                *o = o.saturating_add(i64::from(counts));
+            }
+            Injection::EncoderReversed { axis } => {
+                self.faults.reversed[axis.index()] = Some(counts[axis.index()])
+            }
+            Injection::ExternalAccel { axis, accel_mm_s2 } => {
+                self.faults.ext_accel[axis.index()] = f64::from(accel_mm_s2)
+            }
+            Injection::Overrun => self.inputs.overrun = true,
+            Injection::CorruptState { .. } => {}
+        }
     }
 
     /// Integrate the plants over one period with the commanded effort held, quantised to
@@ -236,20 +353,31 @@ impl World {
     pub fn advance(&mut self) {
         let t = self.time_s();
         let mut u = self.effort;
-        for i in 0..AXES {
-            if self.effort_step[i] > 0.0 {
-                u[i] = libm::round(u[i] / self.effort_step[i]) * self.effort_step[i];
+        for (u, step) in u.iter_mut().zip(self.effort_step) {
+            if step > 0.0 {
+                *u = libm::round(*u / step) * step;
             }
         }
         let h = self.period_s / f64::from(self.substeps);
-        for j in 0..self.substeps {
-            rk4_step(
-                &self.plants,
-                &mut self.state,
-                t + f64::from(j) * h,
-                h,
-                |_, _| u,
-            );
+        if self.faults.ext_accel == [0.0; AXES] {
+            for j in 0..self.substeps {
+                rk4_step(
+                    &self.plants,
+                    &mut self.state,
+                    t + f64::from(j) * h,
+                    h,
+                    |_, _| u,
+                );
+            }
+        } else {
+            let pushed = Pushed {
+                plants: &self.plants,
+                ext: self.faults.ext_accel,
+            };
+            let axes = pushed.axes();
+            for j in 0..self.substeps {
+                rk4_step(&axes, &mut self.state, t + f64::from(j) * h, h, |_, _| u);
+            }
         }
         self.periods += 1;
     }
@@ -265,9 +393,8 @@ impl<R: Real> ServoIo<R> for World {
     }
 
     fn write_outputs(&mut self, effort: &[R; AXES]) {
-        for i in 0..AXES {
-            let lim = self.full_scale[i];
-            self.effort[i] = effort[i].to_f64().max(-lim).min(lim);
+        for ((e, u), lim) in self.effort.iter_mut().zip(effort).zip(self.full_scale) {
+            *e = u.to_f64().max(-lim).min(lim);
         }
         self.outputs_on = true;
     }

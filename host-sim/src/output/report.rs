@@ -140,11 +140,15 @@ pub fn paper_tables(sc: &PaperInfo, r: &PaperReport) -> String {
 
 /// Write `value` as pretty JSON to `path` (creating its folder), naming the path on error.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
     let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+    (|| -> Result<()> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create {}", dir.display()))?;
+        }
+        Ok(std::fs::write(path, text)?)
+    })()
+    .with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// One CSV per run: time, reference, position, control, sliding variables, model contour error.

@@ -1,0 +1,450 @@
+//! Fault detection: the checks the servo step runs every period, with their detection
+//! bounds (docs/safety.md has the table).
+//!
+//! Per axis, on the wide encoder counts `n`, the velocity estimate `v`, the effort applied
+//! in the previous period `u` and the reference:
+//!
+//! - **encoder jump**: the second difference `|n[k] - 2 n[k-1] + n[k-2]|` (counts per
+//!   period²) beyond what the axis can physically do, `a_max T² / count + 3` (the `+3`
+//!   absorbs the quantisation of three readings, ±2 counts, and one count of margin).
+//!   Detected in the period it happens. When the counts *stop* with such a step, the
+//!   encoder stopped while the axis moved: reported as stuck.
+//! - **encoder stuck**: the effort has changed by at least `stuck_effort_change` since
+//!   the last count change, and still no count for `stuck_time_s`. At rest, friction holds
+//!   the axis only while `|u - load| <= f_s` (breakaway friction), and when it last moved
+//!   `|u - load|` was about the friction level, so an effort change beyond `2 f_s` plus a
+//!   margin must move it (whatever the static load: gravity, a cutting force); the margin
+//!   sets how soon (docs/safety.md). A reading frozen while the effort stays where it was
+//!   carries no information at all; it is caught as soon as the effort has to change (a
+//!   commanded move, an integral winding up, a chattering law switching).
+//! - **runaway** (reversed encoder or motor): `|u| >= stuck_effort_change`, `u` and `v`
+//!   of opposite sign, `|v|` above 2 % of the maximum speed and larger than when this
+//!   began, for `runaway_time_s`.
+//! - **following error** (LinuxCNC's rule): `|e| > min_ferror + (ferror - min_ferror) ×
+//!   min(1, |v_ref| / vel_max)`, in the period it happens.
+//! - **overspeed**: `|v| > overspeed_ratio × vel_max`.
+//! - **deadline overrun**: `overrun_max` overruns within `overrun_window_s`.
+//!
+//! Every limit may be `inf` (the check is off): simulation studies only; a machine's
+//! configuration is checked with [`SafetyConfig::check_for_machine`].
+
+use crate::axes::{Axis, AXES};
+use crate::config::{limit, positive, ConfigError};
+use crate::servo::faults::{Fault, FaultKind};
+
+/// One axis' limits and fault thresholds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct AxisSafetyConfig {
+    /// Maximum speed of the axis, mm/s: scales the following error and bounds the speed.
+    pub vel_max_mm_s: f32,
+    /// Largest acceleration the axis can physically make, mm/s² (peak torque over
+    /// inertia, with margin for external loads): bounds the count step per period.
+    pub accel_max_mm_s2: f32,
+    /// Following error allowed at rest, mm (LinuxCNC MIN_FERROR).
+    pub min_ferror_mm: f32,
+    /// Following error allowed at maximum speed, mm (LinuxCNC FERROR).
+    pub ferror_mm: f32,
+    /// Effort change (laws' units) that must move a resting axis: twice its breakaway
+    /// friction plus a margin. The stuck-encoder and runaway threshold, and the encoder
+    /// check's effort (which must also exceed the static load plus breakaway).
+    pub stuck_effort_change: f32,
+    /// Deceleration of a controlled stop, mm/s².
+    pub stop_decel_mm_s2: f32,
+}
+
+impl AxisSafetyConfig {
+    /// Every check off (simulation studies that compare figures, not trips).
+    pub const OFF: Self = Self {
+        vel_max_mm_s: f32::INFINITY,
+        accel_max_mm_s2: f32::INFINITY,
+        min_ferror_mm: f32::INFINITY,
+        ferror_mm: f32::INFINITY,
+        stuck_effort_change: f32::INFINITY,
+        stop_decel_mm_s2: f32::INFINITY,
+    };
+}
+
+/// The fault checks' configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct SafetyConfig {
+    #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
+    pub axes: [AxisSafetyConfig; AXES],
+    /// Overspeed trips above this multiple of `vel_max_mm_s`.
+    #[cfg_attr(feature = "serde", serde(default = "d_overspeed"))]
+    pub overspeed_ratio: f32,
+    /// Effort at or above `stuck_effort` without a count for this long: encoder stuck.
+    #[cfg_attr(feature = "serde", serde(default = "d_stuck"))]
+    pub stuck_time_s: f32,
+    /// Velocity growing against the effort for this long: runaway.
+    #[cfg_attr(feature = "serde", serde(default = "d_runaway"))]
+    pub runaway_time_s: f32,
+    /// Overruns allowed within [`Self::overrun_window_s`] before the fault.
+    #[cfg_attr(feature = "serde", serde(default = "d_overrun_max"))]
+    pub overrun_max: u16,
+    #[cfg_attr(feature = "serde", serde(default = "d_overrun_window"))]
+    pub overrun_window_s: f32,
+    /// After a controlled stop's reference is at rest, the outputs stay on this long.
+    #[cfg_attr(feature = "serde", serde(default = "d_settle"))]
+    pub stop_settle_s: f32,
+    /// A controlled stop ends (outputs off) at the latest this long after its reference
+    /// came to rest.
+    #[cfg_attr(feature = "serde", serde(default = "d_stop_timeout"))]
+    pub stop_timeout_s: f32,
+    /// Length of each direction of the encoder check at reset.
+    #[cfg_attr(feature = "serde", serde(default = "d_check_time"))]
+    pub encoder_check_time_s: f32,
+    /// Counts the axis must move in the commanded direction for the check to pass.
+    #[cfg_attr(feature = "serde", serde(default = "d_check_counts"))]
+    pub encoder_check_counts: u32,
+}
+
+/// Defaults, with their reasoning (docs/safety.md).
+pub mod defaults {
+    /// 10 % over the maximum speed: room for the controller's transient overshoot.
+    pub const OVERSPEED_RATIO: f32 = 1.1;
+    /// 5 ms: at 20 mN·m beyond breakaway, the heaviest gantry axis (Y, J = 0.18) moves
+    /// its first count (0.625 µm) from rest within 3.4 ms.
+    pub const STUCK_TIME_S: f32 = 0.005;
+    /// 10 ms of velocity growing against the effort.
+    pub const RUNAWAY_TIME_S: f32 = 0.01;
+    /// 3 overruns within 100 ms: an occasional late period is survivable, a pattern is not.
+    pub const OVERRUN_MAX: u16 = 3;
+    pub const OVERRUN_WINDOW_S: f32 = 0.1;
+    /// 20 ms of holding at the stop point before the outputs go off.
+    pub const STOP_SETTLE_S: f32 = 0.02;
+    /// 0.5 s at most beyond the stop reference reaching rest.
+    pub const STOP_TIMEOUT_S: f32 = 0.5;
+    /// 40 ms per direction: enough for the check effort to move any gantry axis by 16
+    /// counts, short enough that a still-stuck encoder lets the axis drift < 1 mm.
+    pub const ENCODER_CHECK_TIME_S: f32 = 0.04;
+    /// 16 counts (10 µm at 1600 counts/mm).
+    pub const ENCODER_CHECK_COUNTS: u32 = 16;
+}
+
+#[cfg(feature = "serde")]
+fn d_overspeed() -> f32 {
+    defaults::OVERSPEED_RATIO
+}
+#[cfg(feature = "serde")]
+fn d_stuck() -> f32 {
+    defaults::STUCK_TIME_S
+}
+#[cfg(feature = "serde")]
+fn d_runaway() -> f32 {
+    defaults::RUNAWAY_TIME_S
+}
+#[cfg(feature = "serde")]
+fn d_overrun_max() -> u16 {
+    defaults::OVERRUN_MAX
+}
+#[cfg(feature = "serde")]
+fn d_overrun_window() -> f32 {
+    defaults::OVERRUN_WINDOW_S
+}
+#[cfg(feature = "serde")]
+fn d_settle() -> f32 {
+    defaults::STOP_SETTLE_S
+}
+#[cfg(feature = "serde")]
+fn d_stop_timeout() -> f32 {
+    defaults::STOP_TIMEOUT_S
+}
+#[cfg(feature = "serde")]
+fn d_check_time() -> f32 {
+    defaults::ENCODER_CHECK_TIME_S
+}
+#[cfg(feature = "serde")]
+fn d_check_counts() -> u32 {
+    defaults::ENCODER_CHECK_COUNTS
+}
+
+impl SafetyConfig {
+    /// The given axis limits with the default timings.
+    pub const fn with_axes(axes: [AxisSafetyConfig; AXES]) -> Self {
+        Self {
+            axes,
+            overspeed_ratio: defaults::OVERSPEED_RATIO,
+            stuck_time_s: defaults::STUCK_TIME_S,
+            runaway_time_s: defaults::RUNAWAY_TIME_S,
+            overrun_max: defaults::OVERRUN_MAX,
+            overrun_window_s: defaults::OVERRUN_WINDOW_S,
+            stop_settle_s: defaults::STOP_SETTLE_S,
+            stop_timeout_s: defaults::STOP_TIMEOUT_S,
+            encoder_check_time_s: defaults::ENCODER_CHECK_TIME_S,
+            encoder_check_counts: defaults::ENCODER_CHECK_COUNTS,
+        }
+    }
+
+    /// Every check off.
+    pub const OFF: Self = Self::with_axes([AxisSafetyConfig::OFF; AXES]);
+
+    /// A machine may not run with a check switched off: every limit must be finite.
+    pub fn check_for_machine(&self) -> Result<(), ConfigError> {
+        for a in &self.axes {
+            let all = [
+                a.vel_max_mm_s,
+                a.accel_max_mm_s2,
+                a.min_ferror_mm,
+                a.ferror_mm,
+                a.stuck_effort_change,
+                a.stop_decel_mm_s2,
+            ];
+            if all.iter().any(|v| !v.is_finite()) {
+                return Err(ConfigError::NotFinite(
+                    "safety.axes (every limit must be finite on a machine)",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Validated per-axis thresholds in the units the checks use.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct AxisLimits {
+    vel_max: f32,
+    overspeed: f32,
+    min_ferror: f32,
+    /// `(ferror - min_ferror) / vel_max`: following-error growth per mm/s.
+    ferror_slope: f32,
+    ferror_max: f32,
+    stuck_effort: f32,
+    /// Largest physical second difference of the counts, counts/period².
+    jump_counts: f32,
+    runaway_speed: f32,
+}
+
+/// Per-axis memory of the checks.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct AxisWatch {
+    n1: i64,
+    n2: i64,
+    /// Readings since the last reset (the second difference needs two before).
+    primed: u8,
+    stuck: u32,
+    /// Effort applied when the count last changed.
+    u_ref: f32,
+    runaway: u32,
+    runaway_from: f32,
+}
+
+/// Quantisation of three readings in a second difference (±2 counts) plus one of margin.
+pub const JUMP_QUANTISATION_COUNTS: f32 = 3.0;
+
+/// The fault checks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Monitor {
+    lim: [AxisLimits; AXES],
+    watch: [AxisWatch; AXES],
+    stuck_periods: u32,
+    runaway_periods: u32,
+    overrun_max: u16,
+    overrun_window: u32,
+    overruns: u16,
+    window_start: u32,
+}
+
+/// Periods in `s` at `period_s`, at least 1.
+pub(crate) fn periods(s: f32, period_s: f64) -> u32 {
+    let p = libm::ceil(f64::from(s) / period_s);
+    if p.is_finite() {
+        p.clamp(1.0, f64::from(u32::MAX)) as u32
+    } else {
+        u32::MAX
+    }
+}
+
+impl Monitor {
+    /// `counts_per_mm` per axis, the control period.
+    pub fn new(
+        cfg: &SafetyConfig,
+        counts_per_mm: [f32; AXES],
+        period_s: f64,
+    ) -> Result<Self, ConfigError> {
+        let mut lim = [AxisLimits {
+            vel_max: 0.0,
+            overspeed: 0.0,
+            min_ferror: 0.0,
+            ferror_slope: 0.0,
+            ferror_max: 0.0,
+            stuck_effort: 0.0,
+            jump_counts: 0.0,
+            runaway_speed: 0.0,
+        }; AXES];
+        let ratio = positive(cfg.overspeed_ratio, "safety.overspeed_ratio")?;
+        if ratio < 1.0 {
+            return Err(ConfigError::OutOfRange("safety.overspeed_ratio (>= 1)"));
+        }
+        let t2 = (period_s * period_s) as f32;
+        for ((l, a), counts) in lim.iter_mut().zip(&cfg.axes).zip(counts_per_mm) {
+            let vel_max = limit(a.vel_max_mm_s, "safety.vel_max_mm_s")?;
+            let accel = limit(a.accel_max_mm_s2, "safety.accel_max_mm_s2")?;
+            let min_fe = limit(a.min_ferror_mm, "safety.min_ferror_mm")?;
+            let fe = limit(a.ferror_mm, "safety.ferror_mm")?;
+            if fe < min_fe {
+                return Err(ConfigError::OutOfRange(
+                    "safety.ferror_mm (>= min_ferror_mm)",
+                ));
+            }
+            limit(a.stop_decel_mm_s2, "safety.stop_decel_mm_s2")?;
+            *l = AxisLimits {
+                vel_max,
+                overspeed: ratio * vel_max,
+                min_ferror: min_fe,
+                ferror_slope: if fe.is_finite() && vel_max.is_finite() {
+                    (fe - min_fe) / vel_max
+                } else {
+                    0.0
+                },
+                ferror_max: fe,
+                stuck_effort: limit(a.stuck_effort_change, "safety.stuck_effort_change")?,
+                jump_counts: accel * t2 * counts + JUMP_QUANTISATION_COUNTS,
+                runaway_speed: 0.02 * vel_max,
+            };
+        }
+        let window = periods(
+            positive(cfg.overrun_window_s, "safety.overrun_window_s")?,
+            period_s,
+        );
+        Ok(Self {
+            lim,
+            watch: [AxisWatch::default(); AXES],
+            stuck_periods: periods(positive(cfg.stuck_time_s, "safety.stuck_time_s")?, period_s),
+            runaway_periods: periods(
+                positive(cfg.runaway_time_s, "safety.runaway_time_s")?,
+                period_s,
+            ),
+            overrun_max: cfg.overrun_max.max(1),
+            overrun_window: window,
+            overruns: 0,
+            window_start: 0,
+        })
+    }
+
+    /// Forget the history (when the outputs get enabled).
+    pub fn reset(&mut self) {
+        self.watch = [AxisWatch::default(); AXES];
+    }
+
+    /// The speed-scaled following-error limit of `axis` at reference speed `v_ref`, mm.
+    pub fn ferror_limit(&self, axis: usize, v_ref: f32) -> f32 {
+        let l = &self.lim[axis];
+        if l.ferror_slope == 0.0 {
+            return l.min_ferror;
+        }
+        (l.min_ferror + l.ferror_slope * v_ref.abs()).min(l.ferror_max)
+    }
+
+    /// The encoder checks of this period: wide counts, velocity estimates (mm/s) and the
+    /// efforts applied during the period that just ended.
+    pub fn check_encoders(
+        &mut self,
+        counts: &[i64; AXES],
+        vel: &[f32; AXES],
+        effort: &[f32; AXES],
+    ) -> Option<(Fault, f32)> {
+        let mut found = None;
+        for i in 0..AXES {
+            let (l, w) = (&self.lim[i], &mut self.watch[i]);
+            let n = counts[i];
+            let axis = Axis::ALL[i];
+            let step = n.saturating_sub(w.n1);
+            if w.primed >= 2 {
+                let d2 = step.saturating_sub(w.n1.saturating_sub(w.n2));
+                let d2f = d2 as f32;
+                if !(d2f.abs() <= l.jump_counts) {
+                    let kind = if step == 0 {
+                        FaultKind::EncoderStuck
+                    } else {
+                        FaultKind::EncoderJump
+                    };
+                    found = found.or(Some((Fault::on(kind, axis), d2f)));
+                }
+            }
+            if w.primed >= 1 {
+                // an effort change that must move the axis, and no count
+                if step != 0 {
+                    w.u_ref = effort[i];
+                    w.stuck = 0;
+                } else if (effort[i] - w.u_ref).abs() >= l.stuck_effort {
+                    w.stuck = w.stuck.saturating_add(1);
+                } else {
+                    w.stuck = 0;
+                }
+                if w.stuck >= self.stuck_periods {
+                    found = found.or(Some((Fault::on(FaultKind::EncoderStuck, axis), effort[i])));
+                }
+                // velocity growing against the effort
+                let v = vel[i];
+                let against = effort[i].abs() >= l.stuck_effort
+                    && effort[i] * v < 0.0
+                    && v.abs() >= l.runaway_speed;
+                if against {
+                    if w.runaway == 0 {
+                        w.runaway_from = v.abs();
+                    }
+                    w.runaway = w.runaway.saturating_add(1);
+                    if w.runaway >= self.runaway_periods && v.abs() > w.runaway_from {
+                        found = found.or(Some((Fault::on(FaultKind::EncoderRunaway, axis), v)));
+                    }
+                } else {
+                    w.runaway = 0;
+                }
+            }
+            w.n2 = w.n1;
+            w.n1 = n;
+            w.primed = w.primed.saturating_add(1).min(2);
+        }
+        found
+    }
+
+    /// Following error (`error` mm, reference velocity `v_ref` mm/s; the limit is scaled
+    /// by `scale`, 1 normally) and overspeed (`vel` mm/s).
+    pub fn check_tracking(
+        &self,
+        error: &[f32; AXES],
+        v_ref: &[f32; AXES],
+        vel: &[f32; AXES],
+        scale: f32,
+    ) -> Option<(Fault, f32)> {
+        for i in 0..AXES {
+            let axis = Axis::ALL[i];
+            // NaN trips as well: `!(x <= limit)`
+            if !(error[i].abs() <= scale * self.ferror_limit(i, v_ref[i])) {
+                return Some((Fault::on(FaultKind::FollowingError, axis), error[i]));
+            }
+            if !(vel[i].abs() <= self.lim[i].overspeed) {
+                return Some((Fault::on(FaultKind::Overspeed, axis), vel[i]));
+            }
+        }
+        None
+    }
+
+    /// Count a deadline overrun reported at `period`; the fault when too many fall in the
+    /// window.
+    pub fn check_overrun(&mut self, overran: bool, period: u32) -> Option<(Fault, f32)> {
+        if period.wrapping_sub(self.window_start) >= self.overrun_window {
+            self.window_start = period;
+            self.overruns = 0;
+        }
+        if overran {
+            self.overruns = self.overruns.saturating_add(1);
+            if self.overruns >= self.overrun_max {
+                return Some((
+                    Fault::system(FaultKind::DeadlineOverrun),
+                    f32::from(self.overruns),
+                ));
+            }
+        }
+        None
+    }
+
+    /// The configured maximum speed of `axis`, mm/s.
+    pub fn vel_max(&self, axis: usize) -> f32 {
+        self.lim[axis].vel_max
+    }
+}
