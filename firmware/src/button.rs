@@ -1,9 +1,24 @@
-//! Debounced push-button edge detection, sampled once per control period.
+//! The arm/reset button: debounced press detection and the commands a press sends.
 //!
-//! The arm/reset button is read in the control interrupt (no extra interrupt, no
-//! blocking delay). A press is reported once, after the contact has read "pressed" for
-//! `hold_periods` consecutive periods; the button must be released before the next press
-//! is reported, so holding it down arms at most once.
+//! The button task samples the contact every millisecond (no extra interrupt, no blocking
+//! delay). A press is reported once, after the contact has read "pressed" for
+//! `hold_periods` consecutive samples; the button must be released before the next press
+//! is reported, so holding it down arms at most once. [`press_commands`] turns a press
+//! into servo commands, which the control task takes from its mailbox at the start of
+//! the next period.
+
+use controller_core::servo::safety::SafetyState;
+use controller_core::servo::Command;
+
+/// What one press of the arm button asks for, given the servo's state: a latched fault
+/// is reset (to `Disabled`; the next press arms); otherwise the outputs are armed and the
+/// configured path starts from where the axes are.
+pub fn press_commands(state: SafetyState) -> &'static [Command] {
+    match state {
+        SafetyState::Fault(_) => &[Command::Reset],
+        SafetyState::Disabled | SafetyState::Enabled => &[Command::Arm, Command::StartPath],
+    }
+}
 
 /// Debouncer for one active button.
 #[derive(Clone, Copy, Debug)]
@@ -56,6 +71,18 @@ mod tests {
         assert!(!d.update(true));
         assert!(!d.update(true));
         assert!(d.update(true));
+    }
+
+    #[test]
+    fn a_press_resets_a_fault_and_otherwise_arms_and_starts_the_path() {
+        use controller_core::servo::safety::FaultReason;
+        assert_eq!(
+            press_commands(SafetyState::Fault(FaultReason::EStop)),
+            &[Command::Reset]
+        );
+        for s in [SafetyState::Disabled, SafetyState::Enabled] {
+            assert_eq!(press_commands(s), &[Command::Arm, Command::StartPath]);
+        }
     }
 
     #[test]

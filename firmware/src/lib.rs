@@ -1,31 +1,21 @@
-//! Hardware-free building blocks of the gantry firmware.
+//! Hardware-free pieces of the gantry firmware; they build for the microcontroller and
+//! for the host (unit tests). The control sequence, its safety state machine and the
+//! simulated machine are controller-core's (`servo`, `sim`); the binary (`main.rs`,
+//! `board/`, `qemu/`) adds the board glue and the RTIC tasks.
 //!
-//! Everything here compiles for the microcontroller and for the host (unit tests, and
-//! the host-side reference run of the QEMU scenario). The binary (`main.rs`) adds the
-//! board support and the RTIC application.
-//!
-//! - [`config`]: rates, scaling, limits, the board's law selection.
-//! - [`safety`]: the output-enable state machine (boot disabled, latched faults).
-//! - [`button`]: debounced arm/reset button.
-//! - [`drive`]: effort to PWM duty and direction.
-//! - [`io`]: the per-period hardware interface the control loop uses.
-//! - [`control`]: the control-interrupt sequence around controller-core.
-//! - [`telemetry`]: the snapshot published to the logger task.
-//! - [`sim`]: the simulated gantry of the QEMU build (controller-core's plant model).
-//! - [`scenario`]: the QEMU scenario (paper helix) and its pass bounds.
+//! - [`config`]: the board's rates, scaling and servo configuration;
+//! - [`button`]: the debounced arm/reset button and the commands a press sends;
+//! - [`drive`]: effort to PWM duty and direction;
+//! - [`telemetry`]: what the telemetry task gets besides the core's snapshot (interrupt
+//!   timing);
+//! - [`scenarios`] (feature `qemu`): the QEMU rig's scenario table.
 #![cfg_attr(not(test), no_std)]
-// `!(x <= limit)` is deliberate: it is also true for NaN, which must trip, not pass.
+// `!(x > 0.0)` is deliberate: it is also true for NaN, which must give no output.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod button;
 pub mod config;
-pub mod control;
 pub mod drive;
-pub mod io;
-pub mod safety;
-pub mod scenario;
-pub mod sim;
+#[cfg(feature = "qemu")]
+pub mod scenarios;
 pub mod telemetry;
-
-/// Number of axes (X, Y, Z).
-pub const AXES: usize = 3;

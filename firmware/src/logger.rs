@@ -1,7 +1,7 @@
-//! Turns telemetry snapshots into defmt log lines (low-priority task only).
+//! Turns the control interrupt's telemetry into defmt log lines (low-priority task only).
 
-use firmware::safety::SafetyState;
-use firmware::telemetry::{Figures, Snapshot};
+use controller_core::servo::safety::SafetyState;
+use firmware::telemetry::Telemetry;
 
 /// Logs state changes (with the fault reason) as they are seen, and a status line.
 pub struct Logger {
@@ -16,7 +16,8 @@ impl Logger {
     }
 
     /// One call per telemetry period.
-    pub fn report(&mut self, s: &Snapshot) {
+    pub fn report(&mut self, t: &Telemetry) {
+        let s = &t.snapshot;
         if s.state != self.last_state {
             match s.state {
                 SafetyState::Fault(reason) => {
@@ -30,37 +31,20 @@ impl Logger {
         defmt::info!(
             "k={=u32} t={=f32}s pos=[{=f32},{=f32},{=f32}] trk=[{=f32},{=f32},{=f32}] ctr={=f32} u=[{=f32},{=f32},{=f32}] overruns={=u32} isr_cyc={=u32}/{=u32}",
             s.period,
-            s.traj_t_s,
+            s.path_t_s,
             s.pos[0],
             s.pos[1],
             s.pos[2],
             s.tracking[0],
             s.tracking[1],
             s.tracking[2],
-            s.contour,
+            s.contour_norm(),
             s.effort[0],
             s.effort[1],
             s.effort[2],
-            s.timing.overruns,
-            s.timing.last_cycles,
-            s.timing.max_cycles
+            t.timing.overruns,
+            t.timing.last,
+            t.timing.max
         );
     }
-}
-
-/// Logs a set of run figures under `label`.
-pub fn figures(label: &str, f: &Figures) {
-    defmt::info!(
-        "{=str}: samples={=u32} ITSE=[{=f32}, {=f32}, {=f32}] max|e|=[{=f32}, {=f32}, {=f32}] contour max={=f32} rms={=f32}",
-        label,
-        f.samples,
-        f.itse[0],
-        f.itse[1],
-        f.itse[2],
-        f.tracking_max[0],
-        f.tracking_max[1],
-        f.tracking_max[2],
-        f.contour_max,
-        f.contour_rms
-    );
 }

@@ -1,20 +1,20 @@
-//! RTIC 2 firmware of the gantry controller (STM32F407VGT6), and its QEMU build.
+//! RTIC 2 firmware of the gantry controller (STM32F407VGT6), and its QEMU rig.
 //!
 //! Tasks, highest priority first:
 //!
 //! | task | priority | trigger | does |
 //! | --- | --- | --- | --- |
-//! | `control` | 3 (hardware) | TIM4 update, 10 kHz | safety, encoders, controller-core step, PWM, snapshot |
-//! | `telemetry` | 1 (software) | every 100 ms (SysTick monotonic) | copies the snapshot, logs it with defmt |
+//! | `control` | 3 (hardware) | TIM4 update, 10 kHz | commands from the mailbox, the core's servo step, snapshot |
+//! | `button` | 2 (software) | every 1 ms | debounces the arm button, posts its commands to the mailbox |
+//! | `telemetry` | 1 (software) | every 100 ms | copies the snapshot, logs it with defmt |
 //!
-//! The control task never logs, allocates or blocks; it publishes a [`Snapshot`] through
-//! an RTIC resource (its own lock is free: it has the ceiling priority) and counts its
-//! deadline overruns. Idle sleeps.
+//! The control task never logs, allocates or blocks; it publishes the core's snapshot and
+//! its own timing through an RTIC resource (its own lock is free: it has the ceiling
+//! priority). Idle sleeps.
 //!
-//! With the `qemu` feature the same application runs on QEMU's netduinoplus2: HSI clocks,
-//! defmt over semihosting, and the encoder reads and PWM writes replaced by the simulated
-//! gantry ([`firmware::sim`]). The scenario ends after its horizon; the telemetry task
-//! then prints the figures and exits QEMU with the verdict (see `qemu.rs`).
+//! With the `qemu` feature the same application runs on QEMU's netduinoplus2 with the
+//! rig of `qemu/`: the control task runs a scenario of host-sim's against the core's
+//! simulated world, and at the end the telemetry task prints the figures and exits QEMU.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
@@ -27,12 +27,10 @@ fn main() {
 
 #[cfg(target_os = "none")]
 mod board;
-#[cfg(all(target_os = "none", not(feature = "qemu")))]
-mod board_io;
-#[cfg(target_os = "none")]
-mod cycles;
 #[cfg(target_os = "none")]
 mod logger;
+#[cfg(all(target_os = "none", not(feature = "qemu")))]
+mod period;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 mod qemu;
 
@@ -46,42 +44,66 @@ use defmt_semihosting as _;
 rtic_monotonics::systick_monotonic!(Mono, 1_000);
 
 #[cfg(target_os = "none")]
-#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART6])]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART6, UART4])]
 mod app {
     use rtic_monotonics::fugit::ExtU32 as MonoExtU32;
     use rtic_monotonics::Timebase as _;
 
+    use controller_core::servo::safety::SafetyState;
     use firmware::config::CONTROL_RATE_HZ;
-    use firmware::control::ControlLoop;
-    use firmware::io::GantryIo;
-    use firmware::safety::SafetyState;
-    use firmware::telemetry::Snapshot;
+    use firmware::telemetry::Telemetry;
 
-    use crate::board::{self, ControlTick, Leds, SYSCLK_HZ};
+    use crate::board::{self, cycles, leds::Leds, tick::ControlTick, SYSCLK_HZ};
     use crate::logger::Logger;
     use crate::Mono;
 
     #[cfg(not(feature = "qemu"))]
-    type Io = crate::board_io::BoardIo;
+    use crate::period::{BoardPeriod as Period, End};
     #[cfg(feature = "qemu")]
-    type Io = firmware::sim::SimGantry<board::InputPins>;
+    use crate::qemu::rig::{End, Rig as Period};
+
+    // (RTIC names the types of every local resource, cfg'd ones too.)
+    use controller_core::servo::Command;
+    use heapless::spsc::Producer;
+    #[cfg(not(feature = "qemu"))]
+    use {
+        controller_core::servo::Servo,
+        firmware::button::{press_commands, Debounce},
+        firmware::config::{ARM_BUTTON_HOLD_SAMPLES, BUTTON_POLL_MS, SERVO},
+    };
+
+    /// Telemetry log interval (virtual time in QEMU), milliseconds.
+    #[cfg(not(feature = "qemu"))]
+    const TELEMETRY_PERIOD_MS: u32 = firmware::config::TELEMETRY_PERIOD_MS;
+    /// QEMU: one line every 10 emulated seconds (2 500 periods at the 4 ms emulated
+    /// period of `board::tick`).
+    #[cfg(feature = "qemu")]
+    const TELEMETRY_PERIOD_MS: u32 = 10_000;
 
     #[shared]
     struct Shared {
-        telemetry: Snapshot,
-        /// QEMU build: true-state figures of the simulated plant, set at the end.
-        plant_figures: firmware::telemetry::Figures,
+        telemetry: Telemetry,
+        /// Set once by a finite run (the QEMU rig) when it is over.
+        end: Option<End>,
     }
 
     #[local]
     struct Local {
-        control: ControlLoop,
-        io: Io,
+        period: Period,
         tick: ControlTick,
         leds: Leds,
+        #[cfg(not(feature = "qemu"))]
+        arm: board::inputs::ArmButton,
+        #[cfg(not(feature = "qemu"))]
+        commands: Producer<'static, Command>,
     }
 
-    #[init]
+    /// The command mailbox: lock-free single producer (the button task), single consumer
+    /// (the control task); holds 7 commands. Unused by the QEMU rig, whose commands are
+    /// scripted by the simulated run.
+    type Mailbox = heapless::spsc::Queue<Command, 8>;
+
+    #[init(local = [mailbox: Mailbox = Mailbox::new()])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
         core.DCB.enable_trace();
@@ -91,35 +113,31 @@ mod app {
         Mono::start(core.SYST, SYSCLK_HZ);
 
         #[cfg(not(feature = "qemu"))]
-        let (io, loop_cfg) = (
-            crate::board_io::BoardIo::new(
+        let (period, arm, commands) = {
+            let (producer, consumer) = cx.local.mailbox.split();
+            let io = board::io::BoardIo::new(
                 board.encoders,
                 board.servo,
-                board.inputs,
-                firmware::config::ARM_BUTTON_HOLD_PERIODS,
-                firmware::config::BOARD_EFFORT_LIMIT,
-            ),
-            firmware::config::board_loop(),
-        );
-        #[cfg(not(feature = "qemu"))]
-        let raw = io.encoder_raw();
-
-        #[cfg(feature = "qemu")]
-        let (io, loop_cfg, raw) = {
-            // The encoder timers are configured but not read: the simulated gantry
-            // supplies the counts. PWM writes go to the plant model instead of TIM1.
-            let _ = (board.encoders, board.servo);
-            let io = firmware::sim::SimGantry::new(firmware::scenario::sim_config(), board.inputs);
-            (io, firmware::scenario::loop_config(), [0; firmware::AXES])
+                board.safety,
+                SERVO.amplifiers.map(|a| a.full_scale),
+            );
+            let servo = match Servo::<f32>::new(&SERVO, io.encoder_raw(), [0; 3]) {
+                Ok(s) => s,
+                Err(e) => config_error(e),
+            };
+            (BoardPeriod::new(servo, io, consumer), board.arm, producer)
         };
-
-        let control = match ControlLoop::new(loop_cfg, raw) {
-            Ok(c) => c,
-            Err(e) => config_error(e),
+        #[cfg(feature = "qemu")]
+        let period = {
+            let _ = cx.local.mailbox;
+            // The encoder timers and TIM1 are configured (and TIM1's outputs disabled)
+            // but not used: the simulated world stands in for them.
+            let _ = (board.encoders, board.servo, board.arm);
+            Period::boot(board.safety)
         };
 
         let mut tick = board.tick;
-        tick.start(board::CONTROL_TICK_PROGRAMMED_HZ);
+        tick.start(board::tick::CONTROL_TICK_PROGRAMMED_HZ);
         defmt::info!(
             "gantry firmware up: control {=u32} Hz, outputs disabled until armed",
             CONTROL_RATE_HZ
@@ -127,26 +145,34 @@ mod app {
         if telemetry::spawn().is_err() {
             defmt::error!("telemetry task already running");
         }
+        #[cfg(not(feature = "qemu"))]
+        if button::spawn().is_err() {
+            defmt::error!("button task already running");
+        }
         (
             Shared {
-                telemetry: Snapshot::boot(),
-                plant_figures: firmware::telemetry::Figures::default(),
+                telemetry: Telemetry::boot(),
+                end: None,
             },
             Local {
-                control,
-                io,
+                period,
                 tick,
                 leds: board.leds,
+                #[cfg(not(feature = "qemu"))]
+                arm,
+                #[cfg(not(feature = "qemu"))]
+                commands,
             },
         )
     }
 
+    #[cfg(not(feature = "qemu"))]
+    use crate::period::BoardPeriod;
+
     /// Invalid build-time configuration: outputs stay off, nothing runs.
-    fn config_error(e: controller_core::params::ConfigError) -> ! {
-        defmt::error!("invalid configuration: {}", defmt::Debug2Format(&e));
-        #[cfg(feature = "qemu")]
-        crate::qemu::exit(crate::qemu::EXIT_CONFIG);
-        #[cfg(not(feature = "qemu"))]
+    #[cfg(not(feature = "qemu"))]
+    fn config_error(e: controller_core::config::ConfigError) -> ! {
+        defmt::error!("invalid configuration: {}", defmt::Display2Format(&e));
         loop {
             cortex_m::asm::wfi();
         }
@@ -160,53 +186,67 @@ mod app {
     }
 
     /// The control period. Highest priority; never logs, allocates or blocks.
-    #[task(binds = TIM4, priority = 3, local = [control, io, tick, leds], shared = [telemetry, plant_figures])]
+    #[task(binds = TIM4, priority = 3, local = [period, tick, leds], shared = [telemetry, end])]
     fn control(mut cx: control::Context) {
-        let start = crate::cycles::start();
+        let start = cycles::start();
         cx.local.tick.acknowledge();
-        let control = cx.local.control;
-        control.step(cx.local.io);
-        let cycles = crate::cycles::since(start);
-        // Board: nothing. QEMU: the simulated plant advances one period (not timed).
-        cx.local.io.period_end();
-        control.record_timing(cycles, cx.local.tick.overran());
-        let snap = control.snapshot();
-        let state = snap.state;
+        let period = cx.local.period;
+        period.control();
+        let cyc = cycles::since(start);
+        // Board: nothing. QEMU: the period's figures, then the simulated world advances.
+        let end = period.finish();
+        let overran = cx.local.tick.overran();
+        let snap = *period.snapshot();
         cx.local.leds.show(
-            state == SafetyState::Enabled,
-            matches!(state, SafetyState::Fault(_)),
+            snap.state == SafetyState::Enabled,
+            matches!(snap.state, SafetyState::Fault(_)),
         );
-        cx.shared.telemetry.lock(|t| *t = *snap);
-        if snap.finished {
+        cx.shared.telemetry.lock(|t| {
+            t.snapshot = snap;
+            t.timing.record(cyc, overran);
+        });
+        if let Some(e) = end {
             // A finite run (QEMU scenario) is over: stop the control interrupt.
             cx.local.tick.stop();
-            #[cfg(feature = "qemu")]
-            {
-                let f = cx.local.io.truth_figures();
-                cx.shared.plant_figures.lock(|p| *p = f);
+            cx.shared.end.lock(|x| *x = Some(e));
+        }
+    }
+
+    /// The arm/reset button, sampled every millisecond: a debounced press posts its
+    /// commands (see `firmware::button::press_commands`) to the control task's mailbox.
+    #[cfg(not(feature = "qemu"))]
+    #[task(priority = 2, local = [arm, commands], shared = [telemetry])]
+    async fn button(mut cx: button::Context) {
+        let mut debounce = Debounce::new(ARM_BUTTON_HOLD_SAMPLES);
+        loop {
+            Mono::delay(BUTTON_POLL_MS.millis()).await;
+            if debounce.update(cx.local.arm.pressed()) {
+                let state = cx.shared.telemetry.lock(|t| t.snapshot.state);
+                for c in press_commands(state) {
+                    if cx.local.commands.enqueue(*c).is_err() {
+                        defmt::warn!("command mailbox full: {} dropped", c);
+                    }
+                }
             }
         }
     }
 
     /// Low-priority telemetry: snapshot copies become defmt log lines.
-    #[task(priority = 1, shared = [telemetry, plant_figures])]
+    #[task(priority = 1, shared = [telemetry, end])]
     async fn telemetry(mut cx: telemetry::Context) {
         let mut logger = Logger::new();
         loop {
-            Mono::delay(board::TELEMETRY_PERIOD_MS.millis()).await;
-            let snap = cx.shared.telemetry.lock(|t| *t);
-            logger.report(&snap);
-            if snap.finished {
-                let plant = cx.shared.plant_figures.lock(|p| *p);
-                #[cfg(feature = "qemu")]
-                crate::qemu::finish(&snap, &plant);
-                #[cfg(not(feature = "qemu"))]
-                {
-                    crate::logger::figures("run", &snap.metrics.figures());
-                    let _ = plant;
-                    break;
-                }
+            Mono::delay(TELEMETRY_PERIOD_MS.millis()).await;
+            // `end` first: the control task publishes its last telemetry before `end`.
+            let end = cx.shared.end.lock(|e| *e);
+            let t = cx.shared.telemetry.lock(|t| *t);
+            logger.report(&t);
+            #[cfg(feature = "qemu")]
+            if let Some(end) = end {
+                crate::qemu::report::finish(&t, &end);
             }
+            #[cfg(not(feature = "qemu"))]
+            let _: Option<End> = end;
         }
     }
 }

@@ -14,10 +14,10 @@
 //! set `INSNS_PYTHON` to choose the interpreter (default `python3`). See `insns/README.md`.
 
 use anyhow::{bail, Context, Result};
-use controller_core::fixed::{FxQ16, FxQ32};
-use controller_core::gantry::{Gantry3, Measured};
-use controller_core::plant::{rk4_step, AxisState, DisturbedPaperAxis, PaperAxis};
-use controller_core::trajectory::Trajectory;
+use controller_core::controller::{Controller3, Measured};
+use controller_core::motion::trajectory::Trajectory;
+use controller_core::num::fixed::{FxQ16, FxQ32};
+use controller_core::sim::plant::{rk4_step, AxisState, DisturbedPaperAxis, PaperAxis};
 use controller_core::{LibmF32, Vec3};
 use insns_kernels::{paper_dsmc_config, replay, RawBits, KERNEL_PERIOD_S, REPLAY_IN, REPLAY_OUT};
 use std::path::{Path, PathBuf};
@@ -112,7 +112,7 @@ fn count(elf: &Path) -> Result<()> {
 /// `REPLAY_T0_S` on, with quantised positions and backward-difference velocities, as
 /// the discrete scenario measures them. Returns `REPLAY_IN` f32 per step.
 fn record_inputs() -> Result<Vec<f32>> {
-    let mut g = Gantry3::<f32>::new(&paper_dsmc_config())
+    let mut g = Controller3::<f32>::new(&paper_dsmc_config())
         .map_err(|e| anyhow::anyhow!("paper DSMC configuration rejected: {e}"))?;
     let traj = Trajectory::<f64>::paper_helix();
     let traj32 = traj.cast::<f32>();

@@ -4,7 +4,7 @@
 //!
 //! `cargo bench -p insns-kernels` (criterion; reports in target/criterion).
 
-use controller_core::fixed::{FxQ16, FxQ32};
+use controller_core::num::fixed::{FxQ16, FxQ32};
 use controller_core::{LibmF32, Real};
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use insns_kernels::Dsmc3;

@@ -1,4 +1,4 @@
-//! Cost kernels of the control step and the bit-exactness replay, generic over
+//! Cost kernels of the control period and the bit-exactness replay, generic over
 //! controller-core's [`Real`].
 //!
 //! A *kernel* is a state built once (`setup`, not counted) and a step run on it (counted).
@@ -6,19 +6,33 @@
 //! `insns_setup_<name>` / `insns_kernel_<name>`; `insns/count.py` finds them by that prefix
 //! and prints `<name> instructions=<N> cycles_est=<M>`. See `insns/README.md` for adding one.
 //!
-//! The DSMC kernels run what the firmware's control interrupt runs for the paper's helix:
-//! [`Trajectory::sample`] + [`Gantry3::step`] (tracking error, 3-D contour error,
-//! cross-coupling, DSMC on three axes, integrator update).
+//! - [`Dsmc3`]: the paper's helix sample + [`Controller3::step`] with the paper's DSMC
+//!   and its contour coupling, in every number type;
+//! - [`Law3`]: one 3-axis controller step with one law on every axis, no coupling;
+//! - [`Estimator3`]: the estimator bank as the servo step runs it;
+//! - [`ServoPeriod`]: the whole control period as the board's interrupt runs it
+//!   ([`Servo::period`] with the board's configuration, `presets::board`).
 #![no_std]
 
-use controller_core::estimator::{EstimatorConfig, EstimatorTiming, Estimators3};
-use controller_core::fixed::{FxQ16, FxQ32};
-use controller_core::gantry::{Gantry3, GantryConfig, GantryOutput, Measured};
-use controller_core::params::{LawConfig, PAPER_DSMC, PAPER_LAMBDA, PAPER_PLANT};
-use controller_core::trajectory::Trajectory;
+use controller_core::axes::AXES;
+use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, Measured};
+use controller_core::coupling::CouplingConfig;
+use controller_core::estimator::{
+    AccelInput, CounterWidth, EstimatorBank, EstimatorBankConfig, EstimatorConfig, EstimatorTiming,
+};
+use controller_core::law::LawConfig;
+use controller_core::motion::trajectory::{RefSample, Trajectory};
+use controller_core::num::fixed::{FxQ16, FxQ32};
+use controller_core::presets::board::{servo_config, BOARD_PATH, BOARD_RATE_HZ};
+use controller_core::presets::gantry::{adaptive_for, dob_smc_for, GANTRY_X, GANTRY_Y, GANTRY_Z};
+use controller_core::presets::paper::{PAPER_DSMC, PAPER_LAMBDA, PAPER_PID, PAPER_PLANT};
+use controller_core::servo::io::{Inputs, ServoIo};
+use controller_core::servo::safety::SafetyState;
+use controller_core::servo::snapshot::Snapshot;
+use controller_core::servo::{Command, Servo};
 use controller_core::{LibmF32, Real, Vec3};
 
-/// Control period of the cost kernels: the firmware's 20 kHz rate.
+/// Control period of the controller and estimator kernels: the firmware's 20 kHz rate.
 pub const KERNEL_PERIOD_S: f32 = 5.0e-5;
 
 /// Time of the measured sample: far enough into the helix that `sin`/`cos` take their
@@ -34,13 +48,25 @@ pub const WORST_CASE_ERROR: [f32; 3] = [2.0e-3, -1.5e-3, 3.0e-3];
 pub const WORST_CASE_RATE_ERROR: [f32; 3] = [5.0e-2, -3.0e-2, 8.0e-2];
 
 /// The paper's DSMC on all three axes with its cross-coupling gain (Table 2, λ = 0.01).
-pub fn paper_dsmc_config() -> GantryConfig {
-    GantryConfig::uniform(LawConfig::Smc(PAPER_DSMC), PAPER_LAMBDA)
+pub fn paper_dsmc_config() -> ControllerConfig {
+    ControllerConfig::uniform(LawConfig::Smc(PAPER_DSMC), PAPER_LAMBDA)
+}
+
+fn vec3<R: Real>(v: [f32; 3]) -> Vec3<R> {
+    Vec3::new(R::from_f32(v[0]), R::from_f32(v[1]), R::from_f32(v[2]))
+}
+
+/// The measurement that leaves the worst-case errors on reference `r`.
+fn measured_off<R: Real>(r: &RefSample<R>) -> Measured<R> {
+    Measured {
+        pos: r.pos - vec3(WORST_CASE_ERROR),
+        vel: r.vel - vec3(WORST_CASE_RATE_ERROR),
+    }
 }
 
 /// State of one DSMC kernel.
 pub struct Dsmc3<R> {
-    gantry: Gantry3<R>,
+    controller: Controller3<R>,
     traj: Trajectory<R>,
     t: R,
     dt: R,
@@ -52,39 +78,103 @@ impl<R: Real> Dsmc3<R> {
     /// the worst-case errors. One step is run so every state (integrals, previous
     /// reference) is populated as in steady operation.
     pub fn setup() -> Option<Self> {
-        let gantry = Gantry3::new(&paper_dsmc_config()).ok()?;
+        let controller = Controller3::new(&paper_dsmc_config()).ok()?;
         let traj = Trajectory::paper_helix();
         let t = R::from_f32(WORST_CASE_T_S);
-        let r = traj.sample(t);
-        let err = Vec3::new(
-            R::from_f32(WORST_CASE_ERROR[0]),
-            R::from_f32(WORST_CASE_ERROR[1]),
-            R::from_f32(WORST_CASE_ERROR[2]),
-        );
-        let rate = Vec3::new(
-            R::from_f32(WORST_CASE_RATE_ERROR[0]),
-            R::from_f32(WORST_CASE_RATE_ERROR[1]),
-            R::from_f32(WORST_CASE_RATE_ERROR[2]),
-        );
+        let meas = measured_off(&traj.sample(t));
         let mut k = Self {
-            gantry,
+            controller,
             traj,
             t,
             dt: R::from_f32(KERNEL_PERIOD_S),
-            meas: Measured {
-                pos: r.pos - err,
-                vel: r.vel - rate,
-            },
+            meas,
         };
         k.step();
         Some(k)
     }
 
-    /// One 3-axis control step: trajectory sample + `Gantry3::step`.
+    /// One 3-axis control step: trajectory sample + `Controller3::step`.
     #[inline(never)]
-    pub fn step(&mut self) -> GantryOutput<R> {
+    pub fn step(&mut self) -> ControlOutput<R> {
         let r = self.traj.sample(self.t);
-        self.gantry.step(&r, &self.meas, self.dt)
+        self.controller.step(&r, &self.meas, self.dt)
+    }
+}
+
+/// Which law a [`Law3`] kernel runs on every axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LawKind {
+    /// The paper's PID (Table 2).
+    Pid,
+    /// The paper's DSMC (Table 2).
+    Dsmc,
+    /// DOB-SMC tuned for the gantry's X, Y, Z axes (`presets::gantry::dob_smc_for`).
+    DobSmc,
+    /// Adaptive friction SMC tuned for the gantry's axes (`presets::gantry::adaptive_for`).
+    AdaptiveSmc,
+}
+
+impl LawKind {
+    /// The controller: this law on every axis, no coupling.
+    pub fn config(self) -> ControllerConfig {
+        let axes = [GANTRY_X, GANTRY_Y, GANTRY_Z];
+        let laws = match self {
+            Self::Pid => [LawConfig::Pid(PAPER_PID); AXES],
+            Self::Dsmc => [LawConfig::Smc(PAPER_DSMC); AXES],
+            Self::DobSmc => axes.map(|a| LawConfig::DobSmc(dob_smc_for(&a))),
+            Self::AdaptiveSmc => axes.map(|a| LawConfig::AdaptiveSmc(adaptive_for(&a))),
+        };
+        ControllerConfig {
+            laws,
+            coupling: CouplingConfig::None,
+        }
+    }
+}
+
+/// The reference of the law kernels: the contouring scenarios' 20 mm circle at 50 mm/s
+/// (with a 5 mm/s rise on Z) at [`WORST_CASE_T_S`]: every position, velocity and
+/// acceleration non-zero.
+pub fn law_reference<R: Real>() -> RefSample<R> {
+    let traj = Trajectory::Helix {
+        center: Vec3::new(R::ZERO, R::from_f32(-20.0), R::ZERO),
+        radius: R::from_f32(20.0),
+        omega: R::from_f32(2.5),
+        z_rate: R::from_f32(5.0),
+    };
+    traj.sample(R::from_f32(WORST_CASE_T_S))
+}
+
+/// State of one law kernel: one 3-axis controller step with the same law on every axis.
+pub struct Law3<R> {
+    controller: Controller3<R>,
+    reference: RefSample<R>,
+    meas: Measured<R>,
+    dt: R,
+}
+
+impl<R: Real> Law3<R> {
+    /// The law on every axis; the measurement is [`law_reference`] minus the worst-case
+    /// errors: every law works off its boundary layers' edges, the adaptive law outside
+    /// its dead zone (it adapts). Two steps are run so the observer and the estimates are
+    /// in operation.
+    pub fn setup(kind: LawKind) -> Option<Self> {
+        let controller = Controller3::new(&kind.config()).ok()?;
+        let reference = law_reference();
+        let mut k = Self {
+            controller,
+            meas: measured_off(&reference),
+            reference,
+            dt: R::from_f32(KERNEL_PERIOD_S),
+        };
+        k.step();
+        k.step();
+        Some(k)
+    }
+
+    /// One step: `Controller3::step` (evaluate every law, commit every state).
+    #[inline(never)]
+    pub fn step(&mut self) -> ControlOutput<R> {
+        self.controller.step(&self.reference, &self.meas, self.dt)
     }
 }
 
@@ -96,30 +186,28 @@ pub const ESTIMATOR_COUNTS: [i64; 3] = [12_345, -6_789, 50_000_000];
 pub const ESTIMATOR_STEP_COUNTS: [i64; 3] = [3, -2, 5];
 
 /// State of one estimator kernel: the three axes' velocity estimators exactly as the
-/// control interrupt runs them ([`Estimators3`]: wide counts in, positions and velocities
-/// out, the applied output fed back for the Kalman filter's commanded acceleration).
+/// servo step runs them ([`EstimatorBank`]: wide counts in, positions and velocities out,
+/// the applied output fed back for the Kalman filter's commanded acceleration).
 pub struct Estimator3<R> {
-    bank: Estimators3<R>,
+    bank: EstimatorBank<R>,
     counts: [i64; 3],
     u: Vec3<R>,
 }
 
 impl<R: Real> Estimator3<R> {
-    /// The paper-simulation preset of `cfg` on all three axes with the paper plant as the
-    /// acceleration model, at [`KERNEL_PERIOD_S`] and 1e-4-unit counts; one update is run
-    /// so the state is populated.
+    /// `cfg` on all three axes with the paper plant as the acceleration model, at
+    /// [`KERNEL_PERIOD_S`] and 1e-4-unit counts; one update is run so the state is
+    /// populated.
     pub fn setup(cfg: EstimatorConfig) -> Option<Self> {
         let timing = EstimatorTiming {
             period_s: KERNEL_PERIOD_S,
             count_size: 1e-4,
         };
-        let bank = Estimators3::new(
-            &[cfg; 3],
-            &[Some(PAPER_PLANT); 3],
-            &timing,
-            ESTIMATOR_COUNTS,
-        )
-        .ok()?;
+        let bank_cfg = EstimatorBankConfig {
+            axes: [cfg; 3],
+            accel_input: AccelInput::Model([PAPER_PLANT; 3]),
+        };
+        let bank = EstimatorBank::new(&bank_cfg, &[timing; 3], [1e-4; 3], ESTIMATOR_COUNTS).ok()?;
         let mut k = Self {
             bank,
             counts: ESTIMATOR_COUNTS,
@@ -135,9 +223,116 @@ impl<R: Real> Estimator3<R> {
         for (c, d) in self.counts.iter_mut().zip(ESTIMATOR_STEP_COUNTS) {
             *c += d;
         }
-        let m = self.bank.update(self.counts);
+        let m = self.bank.update(self.counts, Vec3::zero(), None);
         self.bank.applied(self.u);
         m
+    }
+}
+
+/// Periods the uncounted setup of [`ServoPeriod`] runs (arm, start the path, follow it):
+/// long enough for the PLL (100 Hz) to settle on the path's velocity.
+pub const SERVO_SETUP_PERIODS: usize = 400;
+
+/// Tracking error the [`ServoIo`] stub leaves per axis once it has grown in, mm (tens of
+/// counts: every error, power and sliding variable is non-zero, far below the 2 mm trip).
+pub const SERVO_STUB_ERROR_MM: [f64; 3] = [0.02, -0.015, 0.03];
+
+/// Periods over which the stub's error grows from 0 to [`SERVO_STUB_ERROR_MM`].
+const SERVO_STUB_ERROR_RAMP: usize = 100;
+
+/// The machine of the [`ServoPeriod`] kernel: encoder registers precomputed for every
+/// period (in the uncounted setup), so reading them costs what reading a timer costs;
+/// inputs healthy; outputs recorded.
+pub struct StubIo {
+    raw: [[u32; AXES]; SERVO_SETUP_PERIODS + 2],
+    next: usize,
+    /// The last efforts written (0 after a switch-off).
+    pub effort: [f32; AXES],
+}
+
+impl StubIo {
+    /// The board's helix from the origin, as the encoders would count it with the stub's
+    /// error, at the board's rate and 1600 counts/mm (Z on its 16-bit timer).
+    fn new() -> Option<Self> {
+        let cfg = servo_config(BOARD_RATE_HZ);
+        let traj = BOARD_PATH.path.build().ok()?;
+        let p0 = traj.sample(0.0).pos;
+        let period_s = 1.0 / f64::from(BOARD_RATE_HZ);
+        let mut raw = [[0u32; AXES]; SERVO_SETUP_PERIODS + 2];
+        for (k, r) in raw.iter_mut().enumerate() {
+            // period k reads row k + 1 (row 0 is the register value at boot)
+            let t = k.saturating_sub(1) as f64 * period_s;
+            let p = traj.sample(t).pos;
+            let ramp = (k.min(SERVO_STUB_ERROR_RAMP) as f64) / SERVO_STUB_ERROR_RAMP as f64;
+            for i in 0..AXES {
+                let mm = p[i] - p0[i] - SERVO_STUB_ERROR_MM[i] * ramp;
+                let counts = libm::round(mm * f64::from(cfg.encoders[i].counts_per_mm)) as i64;
+                r[i] = match cfg.encoders[i].counter {
+                    CounterWidth::Bits16 => (counts as u32) & 0xFFFF,
+                    CounterWidth::Bits32 => counts as u32,
+                };
+            }
+        }
+        Some(Self {
+            raw,
+            next: 0,
+            effort: [0.0; AXES],
+        })
+    }
+
+    fn boot_registers(&mut self) -> [u32; AXES] {
+        self.next = 1;
+        self.raw[0]
+    }
+}
+
+impl ServoIo<f32> for StubIo {
+    fn read_inputs(&mut self) -> Inputs {
+        Inputs::default()
+    }
+
+    fn read_counters(&mut self) -> [u32; AXES] {
+        let r = self.raw.get(self.next).copied().unwrap_or_default();
+        self.next += 1;
+        r
+    }
+
+    fn write_outputs(&mut self, effort: &[f32; AXES]) {
+        self.effort = *effort;
+    }
+
+    fn disable_outputs(&mut self) {
+        self.effort = [0.0; AXES];
+    }
+}
+
+/// State of the `servo_period` kernel: the board's servo (controller-core
+/// `presets::board`: DSMC + contour coupling, PLL, helix) on the stub.
+pub struct ServoPeriod {
+    servo: Servo<f32>,
+    io: StubIo,
+}
+
+impl ServoPeriod {
+    /// Arms, starts the path and follows it for [`SERVO_SETUP_PERIODS`]; `None` unless
+    /// the servo is then enabled and following the path.
+    pub fn setup() -> Option<Self> {
+        let mut io = StubIo::new()?;
+        let raw = io.boot_registers();
+        let mut servo = Servo::<f32>::new(&servo_config(BOARD_RATE_HZ), raw, [0; AXES]).ok()?;
+        servo.period(&mut io, &[Command::Arm, Command::StartPath]);
+        for _ in 1..SERVO_SETUP_PERIODS {
+            servo.period(&mut io, &[]);
+        }
+        let s = servo.snapshot();
+        let following = s.path_t_s > 0.0 && s.tracking.iter().all(|e| *e != 0.0);
+        (servo.state() == SafetyState::Enabled && following).then_some(Self { servo, io })
+    }
+
+    /// One control period with no new command.
+    #[inline(never)]
+    pub fn step(&mut self) -> Snapshot {
+        *self.servo.period(&mut self.io, &[])
     }
 }
 
@@ -180,7 +375,7 @@ pub const REPLAY_OUT: usize = 9;
 /// Records beyond the shorter of the two buffers are ignored. Returns the number of
 /// steps run (0 if the configuration were rejected).
 pub fn replay<R: RawBits>(inputs: &[f32], outputs: &mut [u64]) -> usize {
-    let Ok(mut g) = Gantry3::<R>::new(&paper_dsmc_config()) else {
+    let Ok(mut g) = Controller3::<R>::new(&paper_dsmc_config()) else {
         return 0;
     };
     let traj = Trajectory::<R>::paper_helix();

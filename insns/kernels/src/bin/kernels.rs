@@ -12,10 +12,10 @@
 use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
-use insns_kernels::{replay, Dsmc3, Estimator3, REPLAY_IN, REPLAY_OUT};
+use insns_kernels::{replay, Dsmc3, Estimator3, Law3, LawKind, ServoPeriod, REPLAY_IN, REPLAY_OUT};
 
 use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
-use controller_core::fixed::{FxQ16, FxQ32};
+use controller_core::num::fixed::{FxQ16, FxQ32};
 use controller_core::LibmF32;
 
 /// A statically allocated kernel state. Only the emulator calls into this binary, one
@@ -90,6 +90,29 @@ kernel!(
     Estimator3::<f32>::setup(EstimatorConfig::Kalman(PAPER_SIM_KALMAN)),
     |k| k.step()
 );
+
+kernel!(law_pid3, Law3<f32>, Law3::<f32>::setup(LawKind::Pid), |k| k
+    .step());
+kernel!(
+    law_dsmc3,
+    Law3<f32>,
+    Law3::<f32>::setup(LawKind::Dsmc),
+    |k| k.step()
+);
+kernel!(
+    law_dob_smc3,
+    Law3<f32>,
+    Law3::<f32>::setup(LawKind::DobSmc),
+    |k| k.step()
+);
+kernel!(
+    law_adaptive_smc3,
+    Law3<f32>,
+    Law3::<f32>::setup(LawKind::AdaptiveSmc),
+    |k| k.step()
+);
+kernel!(servo_period, ServoPeriod, ServoPeriod::setup(), |k| k
+    .step());
 
 /// Replay `n` records from `inp` (REPLAY_IN f32 each) through the Q32.32 controller,
 /// writing REPLAY_OUT raw u64 per record to `out`. Returns the steps run.

@@ -1,4 +1,4 @@
-//! Execution-time measurement of the control task.
+//! Execution-time measurement of the control task (the board's cycle counter).
 //!
 //! On the board: the DWT cycle counter (core cycles at 168 MHz).
 //!

@@ -1,0 +1,68 @@
+//! The core's [`ServoIo`] for the board: encoder timer registers in, e-stop and limit pins
+//! in, TIM1 PWM + direction + drive enables out (through [`DriveCommand`]: full duty is
+//! the amplifier's `full_scale` of the servo configuration).
+
+use controller_core::axes::AXES;
+use controller_core::servo::io::{Inputs, ServoIo};
+use firmware::drive::DriveCommand;
+
+use super::encoders::Encoders;
+use super::inputs::SafetyPins;
+use super::pwm::ServoOutputs;
+
+/// The machine as the servo step sees it.
+pub struct BoardIo {
+    encoders: Encoders,
+    servo: ServoOutputs,
+    safety: SafetyPins,
+    /// Effort that maps to 100 % duty, per axis.
+    full_scale: [f32; AXES],
+}
+
+impl BoardIo {
+    pub fn new(
+        encoders: Encoders,
+        servo: ServoOutputs,
+        safety: SafetyPins,
+        full_scale: [f32; AXES],
+    ) -> Self {
+        Self {
+            encoders,
+            servo,
+            safety,
+            full_scale,
+        }
+    }
+
+    /// Encoder registers now (the servo's count origin at boot).
+    pub fn encoder_raw(&self) -> [u32; AXES] {
+        self.encoders.read_raw()
+    }
+}
+
+impl ServoIo<f32> for BoardIo {
+    #[inline]
+    fn read_inputs(&mut self) -> Inputs {
+        self.safety.read()
+    }
+
+    #[inline]
+    fn read_counters(&mut self) -> [u32; AXES] {
+        self.encoders.read_raw()
+    }
+
+    #[inline]
+    fn write_outputs(&mut self, effort: &[f32; AXES]) {
+        let max = self.servo.max_duty_counts();
+        let mut cmd = [DriveCommand::OFF; AXES];
+        for ((c, u), fs) in cmd.iter_mut().zip(effort).zip(self.full_scale) {
+            *c = DriveCommand::from_effort(*u, fs, max);
+        }
+        self.servo.write(&cmd);
+    }
+
+    #[inline]
+    fn disable_outputs(&mut self) {
+        self.servo.disable();
+    }
+}

@@ -1,0 +1,104 @@
+//! Servo outputs: TIM1 PWM magnitude (CH1..CH3 on PE9/PE11/PE13, 20 kHz), direction pins
+//! and drive enables. (The QEMU rig configures and disables them, and drives the
+//! simulated machine instead.)
+//!
+//! All three PWM channels are on TIM1, so one register write (clearing BDTR.MOE) turns
+//! every servo output off at once; OSSI/OSSR keep a disabled output at its idle level.
+
+use stm32f4xx_hal::{
+    gpio::{AnyPin, Output, PinState},
+    pac,
+    timer::{ErasedChannel, PwmHzManager},
+};
+
+use controller_core::axes::AXES;
+use firmware::drive::DriveCommand;
+
+/// TIM1's three PWM channels, direction and enable pins.
+#[cfg_attr(feature = "qemu", allow(dead_code))]
+pub struct ServoOutputs {
+    pwm: [ErasedChannel<pac::TIM1>; AXES],
+    direction: [AnyPin<Output>; AXES],
+    enable: [AnyPin<Output>; AXES],
+    max_duty_counts: u16,
+    active: bool,
+    /// Owns TIM1's period settings (kept so nothing else can reconfigure the timer).
+    _timer: PwmHzManager<pac::TIM1>,
+}
+
+#[cfg_attr(feature = "qemu", allow(dead_code))]
+impl ServoOutputs {
+    /// Takes the configured timer and pins and switches everything off.
+    pub fn new(
+        timer: PwmHzManager<pac::TIM1>,
+        mut pwm: [ErasedChannel<pac::TIM1>; AXES],
+        direction: [AnyPin<Output>; AXES],
+        enable: [AnyPin<Output>; AXES],
+    ) -> Self {
+        tim1_main_output(false);
+        for ch in pwm.iter_mut() {
+            ch.set_duty(0);
+            ch.enable();
+        }
+        let mut s = Self {
+            max_duty_counts: timer.get_max_duty(),
+            pwm,
+            direction,
+            enable,
+            active: true,
+            _timer: timer,
+        };
+        s.disable();
+        s
+    }
+
+    /// Compare value for 100 % duty.
+    pub fn max_duty_counts(&self) -> u16 {
+        self.max_duty_counts
+    }
+
+    /// Writes duty and direction per axis and turns the output stage on if needed.
+    #[inline]
+    pub fn write(&mut self, cmd: &[DriveCommand; AXES]) {
+        for ((pwm, dir), c) in self.pwm.iter_mut().zip(self.direction.iter_mut()).zip(cmd) {
+            dir.set_state(PinState::from(c.reverse));
+            pwm.set_duty(c.duty_counts);
+        }
+        if !self.active {
+            for en in self.enable.iter_mut() {
+                en.set_high();
+            }
+            tim1_main_output(true);
+            self.active = true;
+        }
+    }
+
+    /// Main output off first (all three PWM pins to idle low in one write), then duties
+    /// to zero and drive enables low. Cheap enough to call every period.
+    #[inline]
+    pub fn disable(&mut self) {
+        tim1_main_output(false);
+        for pwm in self.pwm.iter_mut() {
+            pwm.set_duty(0);
+        }
+        for en in self.enable.iter_mut() {
+            en.set_low();
+        }
+        self.active = false;
+    }
+}
+
+/// Sets or clears TIM1 BDTR.MOE (with AOE kept clear, so only software re-enables it).
+#[inline]
+fn tim1_main_output(on: bool) {
+    // SAFETY: after `init` the HAL only touches TIM1's CCR/CCER registers (duty, channel
+    // enable); BDTR is owned by this function, and it is only called from the control
+    // interrupt (or from `init` before interrupts run), so there is no concurrent access.
+    let tim1 = unsafe { &*pac::TIM1::ptr() };
+    tim1.bdtr().modify(|_, w| {
+        w.ossi().set_bit();
+        w.ossr().set_bit();
+        w.aoe().clear_bit();
+        w.moe().bit(on)
+    });
+}

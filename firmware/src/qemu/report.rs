@@ -1,0 +1,83 @@
+//! The end of a QEMU run: human-readable figures and interrupt statistics, then one
+//! machine-readable line for host-sim's `qemu-verdict`, then the exit code.
+//!
+//! The machine-readable line carries every figure as the IEEE-754 bits of its `f64` in
+//! lower-case hex (`f64::to_bits`, no `0x`), so the host compares bit for bit:
+//!
+//! ```text
+//! gantry-figures name=<name> samples=<u64> itse=<h>,<h>,<h> itse_window=<h>,<h>,<h>
+//!   iae=<h>,<h>,<h> max_abs_error=<h>,<h>,<h> contour_max=<h> contour_rms=<h>
+//!   tv_u=<h>,<h>,<h> peak_u=<h>,<h>,<h>
+//! ```
+//!
+//! (one line).
+
+use controller_core::servo::safety::SafetyState;
+use firmware::telemetry::Telemetry;
+
+use super::rig::End;
+use super::{exit, EXIT_COMPLETED, EXIT_FAULT};
+
+/// Prints the figures and exits: 0 if the run completed, 3 if it ended in a fault.
+pub fn finish(t: &Telemetry, end: &End) -> ! {
+    let f = &end.figures;
+    defmt::info!(
+        "{=str}: {=u32} periods; true-state figures: ITSE=[{=f64}, {=f64}, {=f64}] IAE=[{=f64}, {=f64}, {=f64}] max|e|=[{=f64}, {=f64}, {=f64}] contour max={=f64} rms={=f64} peak|u|=[{=f64}, {=f64}, {=f64}]",
+        end.name,
+        end.periods,
+        f.itse[0],
+        f.itse[1],
+        f.itse[2],
+        f.iae[0],
+        f.iae[1],
+        f.iae[2],
+        f.max_abs_error[0],
+        f.max_abs_error[1],
+        f.max_abs_error[2],
+        f.contour_max,
+        f.contour_rms,
+        f.peak_u[0],
+        f.peak_u[1],
+        f.peak_u[2]
+    );
+    let tm = &t.timing;
+    defmt::info!(
+        "control ISR (servo step, QEMU -icount instructions): min={=u32} mean={=u32} max={=u32} over {=u32} periods, {=u32} overruns of the emulated period",
+        tm.min,
+        tm.mean(),
+        tm.max,
+        tm.periods,
+        tm.overruns
+    );
+    defmt::info!(
+        "gantry-figures name={=str} samples={=u64} itse={=u64:x},{=u64:x},{=u64:x} itse_window={=u64:x},{=u64:x},{=u64:x} iae={=u64:x},{=u64:x},{=u64:x} max_abs_error={=u64:x},{=u64:x},{=u64:x} contour_max={=u64:x} contour_rms={=u64:x} tv_u={=u64:x},{=u64:x},{=u64:x} peak_u={=u64:x},{=u64:x},{=u64:x}",
+        end.name,
+        f.samples,
+        f.itse[0].to_bits(),
+        f.itse[1].to_bits(),
+        f.itse[2].to_bits(),
+        f.itse_window[0].to_bits(),
+        f.itse_window[1].to_bits(),
+        f.itse_window[2].to_bits(),
+        f.iae[0].to_bits(),
+        f.iae[1].to_bits(),
+        f.iae[2].to_bits(),
+        f.max_abs_error[0].to_bits(),
+        f.max_abs_error[1].to_bits(),
+        f.max_abs_error[2].to_bits(),
+        f.contour_max.to_bits(),
+        f.contour_rms.to_bits(),
+        f.tv_u[0].to_bits(),
+        f.tv_u[1].to_bits(),
+        f.tv_u[2].to_bits(),
+        f.peak_u[0].to_bits(),
+        f.peak_u[1].to_bits(),
+        f.peak_u[2].to_bits()
+    );
+    if let SafetyState::Fault(reason) = t.snapshot.state {
+        defmt::error!("{=str}: the run ended in fault {}", end.name, reason);
+        exit(EXIT_FAULT)
+    }
+    defmt::info!("{=str}: run completed", end.name);
+    exit(EXIT_COMPLETED)
+}
