@@ -7,16 +7,22 @@
 //! into servo commands, which the control task takes from its mailbox at the start of
 //! the next period.
 
-use controller_core::servo::safety::SafetyState;
-use controller_core::servo::Command;
+use controller_core::servo::{Command, ServoState};
 
-/// What one press of the arm button asks for, given the servo's state: a latched fault
-/// is reset (to `Disabled`; the next press arms); otherwise the outputs are armed and the
-/// configured path starts from where the axes are.
-pub fn press_commands(state: SafetyState) -> &'static [Command] {
+/// What one press of the arm button asks for, given the servo's state:
+///
+/// - a latched fault is reset (to `Disabled`, once its cause is gone; the next press arms);
+/// - `Disabled`: arm, which holds the position (arming never starts motion);
+/// - `Idle`: with the `demo-helix` build feature, start the demo path; otherwise disarm;
+/// - `Run`: disarm (a controlled stop, then outputs off);
+/// - while stopping or checking an encoder: nothing.
+pub fn press_commands(state: ServoState, demo: bool) -> &'static [Command] {
     match state {
-        SafetyState::Fault(_) => &[Command::Reset],
-        SafetyState::Disabled | SafetyState::Enabled => &[Command::Arm, Command::StartPath],
+        ServoState::Fault => &[Command::Reset],
+        ServoState::Disabled => &[Command::Arm],
+        ServoState::Idle if demo => &[Command::StartPath],
+        ServoState::Idle | ServoState::Run => &[Command::Disarm],
+        ServoState::Stopping | ServoState::EncoderCheck => &[],
     }
 }
 
@@ -74,15 +80,19 @@ mod tests {
     }
 
     #[test]
-    fn a_press_resets_a_fault_and_otherwise_arms_and_starts_the_path() {
-        use controller_core::servo::safety::FaultReason;
-        assert_eq!(
-            press_commands(SafetyState::Fault(FaultReason::EStop)),
-            &[Command::Reset]
-        );
-        for s in [SafetyState::Disabled, SafetyState::Enabled] {
-            assert_eq!(press_commands(s), &[Command::Arm, Command::StartPath]);
+    fn a_press_resets_arms_or_disarms_and_never_arms_into_motion() {
+        for demo in [false, true] {
+            assert_eq!(press_commands(ServoState::Fault, demo), &[Command::Reset]);
+            assert_eq!(press_commands(ServoState::Disabled, demo), &[Command::Arm]);
+            assert_eq!(press_commands(ServoState::Run, demo), &[Command::Disarm]);
+            assert!(press_commands(ServoState::Stopping, demo).is_empty());
         }
+        // the path starts only from holding, and only in the demo build
+        assert_eq!(
+            press_commands(ServoState::Idle, true),
+            &[Command::StartPath]
+        );
+        assert_eq!(press_commands(ServoState::Idle, false), &[Command::Disarm]);
     }
 
     #[test]

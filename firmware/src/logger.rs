@@ -1,17 +1,17 @@
 //! Turns the control interrupt's telemetry into defmt log lines (low-priority task only).
 
-use controller_core::servo::safety::SafetyState;
+use controller_core::servo::ServoState;
 use firmware::telemetry::Telemetry;
 
 /// Logs state changes (with the fault reason) as they are seen, and a status line.
 pub struct Logger {
-    last_state: SafetyState,
+    last_state: ServoState,
 }
 
 impl Logger {
     pub const fn new() -> Self {
         Self {
-            last_state: SafetyState::Disabled,
+            last_state: ServoState::Disabled,
         }
     }
 
@@ -19,19 +19,18 @@ impl Logger {
     pub fn report(&mut self, t: &Telemetry) {
         let s = &t.snapshot;
         if s.state != self.last_state {
-            match s.state {
-                SafetyState::Fault(reason) => {
-                    defmt::error!("FAULT, outputs disabled: {}", reason)
+            match (s.state, s.fault) {
+                (ServoState::Fault, Some(f)) => {
+                    defmt::error!("FAULT, outputs off: {}", f)
                 }
-                SafetyState::Enabled => defmt::info!("outputs ENABLED"),
-                SafetyState::Disabled => defmt::warn!("outputs disabled"),
+                (state, _) => defmt::info!("state {}", state),
             }
             self.last_state = s.state;
         }
         defmt::info!(
             "k={=u32} t={=f32}s pos=[{=f32},{=f32},{=f32}] trk=[{=f32},{=f32},{=f32}] ctr={=f32} u=[{=f32},{=f32},{=f32}] overruns={=u32} isr_cyc={=u32}/{=u32}",
             s.period,
-            s.path_t_s,
+            s.motion_t_s,
             s.pos[0],
             s.pos[1],
             s.pos[2],

@@ -49,7 +49,7 @@ mod app {
     use rtic_monotonics::fugit::ExtU32 as MonoExtU32;
     use rtic_monotonics::Timebase as _;
 
-    use controller_core::servo::safety::SafetyState;
+    use controller_core::servo::ServoState;
     use firmware::config::CONTROL_RATE_HZ;
     use firmware::telemetry::Telemetry;
 
@@ -197,10 +197,9 @@ mod app {
         let end = period.finish();
         let overran = cx.local.tick.overran();
         let snap = *period.snapshot();
-        cx.local.leds.show(
-            snap.state == SafetyState::Enabled,
-            matches!(snap.state, SafetyState::Fault(_)),
-        );
+        cx.local
+            .leds
+            .show(snap.outputs_on, snap.state == ServoState::Fault);
         cx.shared.telemetry.lock(|t| {
             t.snapshot = snap;
             t.timing.record(cyc, overran);
@@ -222,7 +221,7 @@ mod app {
             Mono::delay(BUTTON_POLL_MS.millis()).await;
             if debounce.update(cx.local.arm.pressed()) {
                 let state = cx.shared.telemetry.lock(|t| t.snapshot.state);
-                for c in press_commands(state) {
+                for c in press_commands(state, cfg!(feature = "demo-helix")) {
                     if cx.local.commands.enqueue(*c).is_err() {
                         defmt::warn!("command mailbox full: {} dropped", c);
                     }

@@ -64,11 +64,7 @@ mod tests {
                 run.finish_period();
             }
             let s = run.servo().snapshot();
-            assert_eq!(
-                s.state,
-                controller_core::servo::safety::SafetyState::Enabled,
-                "{name}"
-            );
+            assert!(s.outputs_on, "{name}: {:?}", s.state);
             assert!(s.effort.iter().all(|u| u.is_finite()), "{name}");
             assert_eq!(run.figures().samples, 300, "{name}");
         }

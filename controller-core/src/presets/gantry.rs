@@ -9,11 +9,14 @@
 //! 0.1257 mN·m/(mm/s²) at the table.
 
 use crate::coupling::variable_gain::{VariableGainConfig, VariableGainMode};
+use crate::estimator::CounterWidth;
 use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
 use crate::law::smc::{ReachingConfig, SmcConfig, SurfaceConfig};
 use crate::model::PlantParams;
+use crate::servo::io::{AmplifierConfig, EncoderConfig};
+use crate::servo::monitor::AxisSafetyConfig;
 use crate::sim::physical::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
 use crate::Exponent;
 
@@ -73,6 +76,81 @@ pub const GANTRY_Z: PhysicalAxisConfig = PhysicalAxisConfig {
 
 /// The three physical axes.
 pub const GANTRY_AXES: [PhysicalAxisConfig; 3] = [GANTRY_X, GANTRY_Y, GANTRY_Z];
+
+/// Maximum axis speed: 250 mm/s, a 3000 rpm servo motor on the 5 mm lead.
+pub const GANTRY_VEL_MAX_MM_S: f32 = 250.0;
+
+/// Counts per mm of the gantry's encoders (2000 lines × 4 per 5 mm lead).
+pub const GANTRY_COUNTS_PER_MM: f32 = 1600.0;
+
+/// Command resolution of the amplifiers as the simulator models it: 12 bits over the ±
+/// range, coarser than the board's TIM1 duty (8400 steps per direction at 20 kHz from
+/// 168 MHz, about 14 bits), so the simulated quantisation is on the safe side.
+pub const GANTRY_AMPLIFIER_BITS: u8 = 12;
+
+/// The gantry's encoders: X and Y on 32-bit timers (TIM2, TIM5), Z on a 16-bit one
+/// (TIM3).
+pub const GANTRY_ENCODERS: [EncoderConfig; 3] = [
+    EncoderConfig {
+        counts_per_mm: GANTRY_COUNTS_PER_MM,
+        counter: CounterWidth::Bits32,
+    },
+    EncoderConfig {
+        counts_per_mm: GANTRY_COUNTS_PER_MM,
+        counter: CounterWidth::Bits32,
+    },
+    EncoderConfig {
+        counts_per_mm: GANTRY_COUNTS_PER_MM,
+        counter: CounterWidth::Bits16,
+    },
+];
+
+/// Torque-mode amplifiers whose full command is the motor's peak torque.
+pub const GANTRY_AMPLIFIERS: [AmplifierConfig; 3] = [
+    amplifier(&GANTRY_X),
+    amplifier(&GANTRY_Y),
+    amplifier(&GANTRY_Z),
+];
+
+const fn amplifier(a: &PhysicalAxisConfig) -> AmplifierConfig {
+    AmplifierConfig {
+        full_scale: a.torque_max_mnm,
+        resolution_bits: GANTRY_AMPLIFIER_BITS,
+    }
+}
+
+/// Fault thresholds of one gantry axis (docs/safety.md):
+/// - speed limit [`GANTRY_VEL_MAX_MM_S`];
+/// - physical acceleration bound twice peak torque (plus gravity) over inertia, room for
+///   external loads;
+/// - following error 0.1 mm at rest growing to 1 mm at full speed (the loaded contouring
+///   runs stay below 40 µm);
+/// - stuck-encoder effort change: twice the breakaway friction (1.3 × the larger Coulomb
+///   level) plus 20 mN·m, rounded up to 5 mN·m;
+/// - controlled-stop deceleration `stop_decel` (well below the axis' capability).
+pub const fn gantry_safety(a: &PhysicalAxisConfig, stop_decel_mm_s2: f32) -> AxisSafetyConfig {
+    let coulomb = if a.coulomb_pos_mnm > -a.coulomb_neg_mnm {
+        a.coulomb_pos_mnm
+    } else {
+        -a.coulomb_neg_mnm
+    };
+    let change = 2.0 * a.stiction_ratio * coulomb + 20.0;
+    AxisSafetyConfig {
+        vel_max_mm_s: GANTRY_VEL_MAX_MM_S,
+        accel_max_mm_s2: 2.0 * (a.torque_max_mnm + a.load_const_mnm) / a.inertia,
+        min_ferror_mm: 0.1,
+        ferror_mm: 1.0,
+        stuck_effort_change: 5.0 * ((change / 5.0) as u32 + 1) as f32,
+        stop_decel_mm_s2,
+    }
+}
+
+/// The three axes' fault thresholds: controlled stops at 2000 mm/s² (1500 on the heavy Y).
+pub const GANTRY_SAFETY: [AxisSafetyConfig; 3] = [
+    gantry_safety(&GANTRY_X, 2000.0),
+    gantry_safety(&GANTRY_Y, 1500.0),
+    gantry_safety(&GANTRY_Z, 2000.0),
+];
 
 /// Load step of the contouring scenarios: a 200 N cutting force on the X table,
 /// 200 N · 5 mm / 2π = 159 mN·m, rounded to 150 mN·m.

@@ -12,7 +12,7 @@
 //!
 //! (one line).
 
-use controller_core::servo::safety::SafetyState;
+use controller_core::servo::ServoState;
 use firmware::telemetry::Telemetry;
 
 use super::rig::End;
@@ -74,8 +74,8 @@ pub fn finish(t: &Telemetry, end: &End) -> ! {
         f.peak_u[1].to_bits(),
         f.peak_u[2].to_bits()
     );
-    if let SafetyState::Fault(reason) = t.snapshot.state {
-        defmt::error!("{=str}: the run ended in fault {}", end.name, reason);
+    if let (ServoState::Fault, Some(f)) = (t.snapshot.state, t.snapshot.fault) {
+        defmt::error!("{=str}: the run ended in fault {}", end.name, f);
         exit(EXIT_FAULT)
     }
     defmt::info!("{=str}: run completed", end.name);
