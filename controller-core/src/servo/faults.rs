@@ -5,7 +5,7 @@
 //!
 //! | category | kinds | what happens |
 //! | --- | --- | --- |
-//! | immediate | e-stop, hard limit, amplifier fault, encoder stuck / jump / runaway, non-finite controller state, invalid configuration | every output off in the period of detection |
+//! | immediate | e-stop, hard limit, amplifier fault, encoder stuck / jump / runaway, non-finite controller state, invalid configuration, clock fault | every output off in the period of detection |
 //! | controlled | following error, overspeed, deadline overrun, link lost | the reference decelerates to rest along its direction at the axes' stop deceleration, the controller keeps tracking it, then every output goes off |
 //!
 //! A controlled stop is used only where the position is still trustworthy (the encoders
@@ -49,6 +49,9 @@ pub enum FaultKind {
     LinkLost = 11,
     /// The configuration was rejected at boot: the outputs never get enabled.
     ConfigInvalid = 12,
+    /// The board's crystal failed (at start-up or later, by the clock security system)
+    /// and the controller runs on its internal oscillator: its timing is not trustworthy.
+    ClockFault = 13,
 }
 
 /// How the machine stops on a fault.
@@ -65,7 +68,7 @@ pub enum StopCategory {
 
 impl FaultKind {
     /// Every kind, in code order.
-    pub const ALL: [FaultKind; 13] = [
+    pub const ALL: [FaultKind; 14] = [
         Self::EStop,
         Self::LimitMin,
         Self::LimitMax,
@@ -79,6 +82,7 @@ impl FaultKind {
         Self::DeadlineOverrun,
         Self::LinkLost,
         Self::ConfigInvalid,
+        Self::ClockFault,
     ];
 
     pub const fn stop(self) -> StopCategory {
@@ -115,6 +119,7 @@ impl FaultKind {
             Self::DeadlineOverrun => "deadline_overrun",
             Self::LinkLost => "link_lost",
             Self::ConfigInvalid => "config_invalid",
+            Self::ClockFault => "clock_fault",
         }
     }
 

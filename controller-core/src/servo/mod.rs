@@ -275,6 +275,17 @@ impl<R: Real> Servo<R> {
         &self.controller
     }
 
+    /// Latch a fault the board found outside the servo step (a failed crystal, a
+    /// configuration rejected at boot): always immediate, outputs off from the next period
+    /// on (the caller switches them off now).
+    pub fn latch_board_fault(&mut self, kind: FaultKind) {
+        let here = motion::sample(&self.motion, self.path.as_ref(), self.period_s).0;
+        self.trip(Fault::system(kind), 0.0, &here);
+        if self.state.drives() {
+            self.state = ServoState::Fault;
+        }
+    }
+
     /// Fault injection for the fault matrix (simulator and QEMU test builds): corrupt the
     /// state of `axis`' law.
     pub fn inject_corrupt_state(&mut self, axis: usize) {
@@ -326,7 +337,7 @@ impl<R: Real> Servo<R> {
         if inputs.estop && still(FaultKind::EStop, None) {
             return false;
         }
-        if still(FaultKind::ConfigInvalid, None) {
+        if still(FaultKind::ConfigInvalid, None) || still(FaultKind::ClockFault, None) {
             return false;
         }
         for a in Axis::ALL {
