@@ -24,6 +24,8 @@
 //! - Seed methods (patent, XY-table paper): [`physical_plant`] (friction, load, torque
 //!   limit), [`dob_smc`], [`adaptive_smc`], [`variable_gain_ccc`], combined per axis by
 //!   [`seed_gantry`]; presets and their reasoning in [`seed_params`].
+//! - [`sysid`]: identification of an axis (friction, inertia, validation) and the law
+//!   gains from the identified model.
 #![no_std]
 #![forbid(unsafe_code)]
 // `!(x > y)` is deliberate throughout: it is also true for NaN, which is how NaN inputs are
@@ -49,6 +51,7 @@ pub mod seed_gantry;
 pub mod seed_params;
 pub mod shared_root;
 pub mod smc;
+pub mod sysid;
 pub mod trajectory;
 pub mod variable_gain_ccc;
 pub mod vec3;
