@@ -86,7 +86,8 @@ pub enum AbortReason {
     LeftWindow,
     /// |velocity| above `velocity_limit_mm_s` (zero effort at once).
     VelocityLimit,
-    /// The predicted stopping point lies outside the window (braked to rest first).
+    /// The predicted stopping point lies outside the window (braked to rest with the
+    /// whole cap first).
     WouldLeaveWindow,
     /// `time_budget_s` exceeded (braked to rest first).
     TimeBudget,
@@ -98,6 +99,10 @@ pub enum AbortReason {
     NoTorqueMargin,
     /// The window is too short for the inertia or validation move.
     WindowTooShort,
+    /// The effort has been at the cap for [`SATURATION_LIMIT_S`]: the axis does not
+    /// follow (blocked, friction above the cap, or an encoder or amplifier fault, in
+    /// which case the window check could not see a runaway). Zero effort at once.
+    Saturated,
 }
 
 /// Overall state for the caller.
@@ -193,6 +198,10 @@ const SETTLE_TOL_FRACTION: f32 = 0.01;
 /// A pass whose loop has not settled after this many `settle_s` records anyway (the
 /// integrated rows stay valid, only less accurate).
 const SETTLE_TIMEOUT_FACTOR: f32 = 6.0;
+/// Longest time the effort may stay at the cap, s. Planned motion uses at most
+/// `torque_fraction` of the cap; the loop saturates only briefly (a ramp planned with a
+/// too small inertia guess: tens of milliseconds).
+pub const SATURATION_LIMIT_S: f32 = 0.5;
 /// A clipped pass speed must exceed the one before by this factor, else the passes end
 /// (a repeated speed adds no information on the viscous slope).
 const MIN_SPEED_STEP: f32 = 1.1;
@@ -416,6 +425,8 @@ pub struct Identifier {
     steady_since: u32,
     /// Period at which braking or the validation move started.
     stage_since: u32,
+    /// Period since which the effort has been at the cap.
+    saturated_since: Option<u32>,
     within_since: Option<u32>,
     win: Window,
     /// Phase 1, all rows.
@@ -468,6 +479,7 @@ impl Identifier {
             hold_since: None,
             steady_since: 0,
             stage_since: 0,
+            saturated_since: None,
             within_since: None,
             win: Window::open(RowKind::Discard, 0.0, start_pos_mm),
             ne_passes: NormalEquations::new(),
@@ -549,7 +561,9 @@ impl Identifier {
         self.output(0.0)
     }
 
-    /// Controlled stop: ramp the setpoint from the measured velocity to rest.
+    /// Controlled stop. A predicted window exit is urgent: the setpoint drops to zero at
+    /// once and the loop brakes with the whole cap. Otherwise the setpoint ramps from the
+    /// measured velocity to rest at the planned deceleration.
     fn brake(&mut self, reason: AbortReason, vel_mm_s: f32) {
         if matches!(self.stage, Stage::Braking(_) | Stage::Finished) {
             return;
@@ -558,8 +572,12 @@ impl Identifier {
         self.status = IdentifyStatus::Stopping(reason);
         self.stage_since = self.k;
         self.within_since = None;
-        self.ramp.v_mm_s = vel_mm_s;
-        self.ramp.go(0.0, self.a_plan, self.a_brake);
+        if reason == AbortReason::WouldLeaveWindow {
+            self.ramp = Ramp::at_rest();
+        } else {
+            self.ramp.v_mm_s = vel_mm_s;
+            self.ramp.go(0.0, self.a_plan, self.a_brake);
+        }
         self.win = Window::open(RowKind::Discard, vel_mm_s, 0.0);
     }
 
@@ -599,6 +617,14 @@ impl Identifier {
         }
         let ff = self.j_loop * self.ramp.a_mm_s2 + self.friction_ff(self.ramp.v_mm_s);
         let u = self.vloop.step(self.ramp.v_mm_s, m.vel_mm_s, ff);
+        if u.abs() >= c.torque_cap_mnm {
+            let since = *self.saturated_since.get_or_insert(self.k);
+            if self.elapsed_since(since) >= SATURATION_LIMIT_S {
+                return self.abort(AbortReason::Saturated);
+            }
+        } else {
+            self.saturated_since = None;
+        }
         self.output(u)
     }
 
@@ -827,8 +853,14 @@ impl Identifier {
                 }
             }
             PassSub::Steady => {
-                if self.elapsed_since(self.steady_since) >= self.s.c.steady_s
-                    && self.next_pass_fits(pass, dir, m.pos_mm)
+                let t = self.elapsed_since(self.steady_since);
+                // waiting for room is bounded by the time the pass needs to cross the
+                // window (an axis that does not follow never gets there)
+                let usable = self.s.turn_max_mm - self.s.turn_min_mm;
+                let wait_max = usable.div_or(self.ramp.v_mm_s.abs(), 0.0);
+                if t >= self.s.c.steady_s
+                    && (self.next_pass_fits(pass, dir, m.pos_mm)
+                        || t >= self.s.c.steady_s + wait_max)
                 {
                     self.end_pass(pass, dir, sub, m);
                 }
@@ -1231,5 +1263,103 @@ impl Identifier {
         }
         self.progress = 1.0;
         self.stage = Stage::Finished;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sysid::config::IDENTIFY_DEFAULTS;
+
+    fn id() -> Identifier {
+        Identifier::new(&IDENTIFY_DEFAULTS, 0.0).unwrap()
+    }
+
+    #[test]
+    fn fit_reports_too_few_and_degenerate_rows() {
+        let id = id();
+        let mut ne = NormalEquations::<4>::new();
+        assert_eq!(
+            id.fit(&ne, FitStage::FrictionPasses).unwrap_err(),
+            AbortReason::FitFailed {
+                stage: FitStage::FrictionPasses,
+                error: LsError::TooFewRows
+            }
+        );
+        // passes in one direction only: f- has no data
+        for v in [20.0, 55.0, 90.0, 125.0] {
+            ne.add_row(&[0.0, v, 1.0, 0.0], 40.0 + 0.25 * v, 1.0);
+        }
+        ne.add_row(&[2000.0, 60.0, 1.0, 0.0], 183.0, 1.0);
+        assert_eq!(
+            id.fit(&ne, FitStage::Final).unwrap_err(),
+            AbortReason::FitFailed {
+                stage: FitStage::Final,
+                error: LsError::Unexcited { index: 3 }
+            }
+        );
+    }
+
+    #[test]
+    fn fit_rejects_an_implausible_model_and_clamps_negative_viscous() {
+        let id = id();
+        let rows = |j: f32, b: f32| {
+            let mut ne = NormalEquations::<4>::new();
+            for (x, w) in [
+                ([0.0, 20.0, 1.0, 0.0], 1.0),
+                ([0.0, 120.0, 1.0, 0.0], 1.0),
+                ([0.0, -20.0, 0.0, 1.0], 1.0),
+                ([0.0, -120.0, 0.0, 1.0], 1.0),
+                ([2000.0, 70.0, 1.0, 0.0], 1.0),
+                ([-2000.0, 70.0, 1.0, 0.0], 1.0),
+            ] {
+                let y = j * x[0] + b * x[1] + 40.0 * x[2] - 30.0 * x[3];
+                ne.add_row(&x, y, w);
+            }
+            ne
+        };
+        assert_eq!(
+            id.fit(&rows(-0.1, 0.25), FitStage::Final).unwrap_err(),
+            AbortReason::ImplausibleModel {
+                stage: FitStage::Final
+            }
+        );
+        let (m, sol) = id.fit(&rows(0.1, -0.01), FitStage::Final).unwrap();
+        assert_eq!(m.viscous, 0.0);
+        assert!((sol.theta[1] + 0.01).abs() < 1e-4, "{:?}", sol.theta);
+        assert!((m.inertia - 0.1).abs() < 1e-5);
+    }
+
+    #[test]
+    fn window_rows_are_the_integrated_equation() {
+        // 1000 samples at 1e-4 s: v 10 -> 30 mm/s, 2 mm travelled, all forward, u = 50
+        let mut w = Window::open(RowKind::Steady, 10.0, 1.0);
+        for _ in 0..1000 {
+            w.add(50.0, 20.0);
+        }
+        let r = w.row(30.0, 3.0, 1e-4).unwrap();
+        assert!((r.x[0] - 200.0).abs() < 1e-3, "{r:?}"); // Δv/T = 20/0.1
+        assert!((r.x[1] - 20.0).abs() < 1e-4); // Δx/T
+        assert_eq!((r.x[2], r.x[3], r.n), (1.0, 0.0, 1000));
+        assert!((r.y - 50.0).abs() < 1e-4);
+        assert!((r.w - 1.0).abs() < 1e-6);
+        assert_eq!(
+            Window::open(RowKind::Discard, 0.0, 0.0).row(0.0, 0.0, 1e-4),
+            None
+        );
+    }
+
+    #[test]
+    fn validation_figures() {
+        let mut v = ValidationStats::default();
+        assert_eq!(v.figures(), (0.0, 0.0));
+        for (y, p) in [(0.0, 1.0), (10.0, 9.0), (20.0, 21.0), (30.0, 29.0)] {
+            v.add(y, p);
+        }
+        v.add(f32::NAN, 0.0); // ignored
+        let (nrmse, r2) = v.figures();
+        // residuals ±1: RMSE 1 over the range 30; SS_tot = 500
+        assert!((nrmse - 1.0 / 30.0).abs() < 1e-6, "{nrmse}");
+        assert!((r2 - (1.0 - 4.0 / 500.0)).abs() < 1e-6, "{r2}");
     }
 }

@@ -106,6 +106,8 @@ pub struct SimAxis {
     dither: Rng,
     /// Extra torque on the axis (tests of the safety checks), mN·m.
     pub external_mnm: f64,
+    /// Torque per unit of command (1; tests of a failing amplifier lower it).
+    pub torque_scale: f64,
 }
 
 impl SimAxis {
@@ -138,6 +140,7 @@ impl SimAxis {
             pending_mnm: 0.0,
             dither: Rng::new(seed ^ 0xD1CE),
             external_mnm: 0.0,
+            torque_scale: 1.0,
         }
     }
 
@@ -157,7 +160,9 @@ impl SimAxis {
     /// Advance one period: the command of the previous period reaches the amplifier now
     /// (one period of delay), quantised; `command` waits for the next period.
     pub fn advance(&mut self, command_mnm: f32) {
-        let applied = (self.pending_mnm as f64 / self.torque_step).round() * self.torque_step;
+        let applied = (self.pending_mnm as f64 / self.torque_step).round()
+            * self.torque_step
+            * self.torque_scale;
         self.pending_mnm = command_mnm;
         let h = FIRMWARE_PERIOD_S as f64 / RK4_SUBSTEPS as f64;
         let axes = [self.axis];
