@@ -138,7 +138,7 @@ fn axis_that_does_not_follow_aborts_saturated() {
     assert_eq!(r.status, IdentifyStatus::Aborted(AbortReason::Saturated));
     let t_abort = (log.last().unwrap().0 - INJECT_AT) as f32 * 1e-4;
     assert!(
-        t_abort >= SATURATION_LIMIT_S && t_abort <= SATURATION_LIMIT_S + 0.5,
+        (SATURATION_LIMIT_S..=SATURATION_LIMIT_S + 0.5).contains(&t_abort),
         "{t_abort}"
     );
 }
