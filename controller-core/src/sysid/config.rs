@@ -2,6 +2,7 @@
 //! [`Settings`] by [`super::Identifier::new`].
 
 use crate::params::{non_negative, positive, ConfigError};
+use crate::Real;
 
 /// Largest number of friction-pass speeds (each is run in both directions).
 pub const MAX_PASS_SPEEDS: usize = 8;
@@ -172,6 +173,8 @@ pub struct Settings {
     pub(crate) turn_max_mm: f32,
     pub(crate) speeds_mm_s: [f32; MAX_PASS_SPEEDS],
     pub(crate) n_speeds: usize,
+    /// `(sin, cos)` of the validation move's phase step `2π f Ts`.
+    pub(crate) validation_step: (f32, f32),
 }
 
 fn ordered(
@@ -275,12 +278,18 @@ impl Settings {
         for (i, s) in speeds.iter_mut().take(n).enumerate() {
             *s = vmin + (vmax - vmin) * i as f32 / (n - 1) as f32;
         }
+        // the crate's f32 sin/cos (libm's works in f64, soft float on the M4; named
+        // explicitly so a std build does not pick std's and differ from the board); the step is
+        // at most 0.063 rad (validation_freq_hz * period_s <= 0.01)
+        let phase_step = 2.0 * core::f32::consts::PI * f_val * period;
+        let (step_sin, step_cos) = <f32 as Real>::sin_cos(phase_step);
         Ok(Self {
             c: *c,
             turn_min_mm: turn_min,
             turn_max_mm: turn_max,
             speeds_mm_s: speeds,
             n_speeds: n,
+            validation_step: (step_sin, step_cos),
         })
     }
 }

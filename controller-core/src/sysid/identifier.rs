@@ -330,9 +330,12 @@ enum Stage {
         up: bool,
     },
     ValidationStop,
+    /// The validation move `dir · amp · sin(ωt)`; `(sin, cos)` of the current phase.
     Validation {
         dir: f32,
         amp_mm_s: f32,
+        sin: f32,
+        cos: f32,
     },
     FinalStop,
     Braking(AbortReason),
@@ -420,6 +423,9 @@ pub struct Identifier {
     /// Planned deceleration (slowing down, helped by friction once a model exists); the
     /// stopping distance uses it.
     a_brake: f32,
+    /// Fastest pass speed that fits the window at `a_plan`/`a_brake`
+    /// ([`Self::fitting_speed`], cached: it takes a square root).
+    v_fit: f32,
     /// Period at which the current hold (settle/plateau) started.
     hold_since: Option<u32>,
     steady_since: u32,
@@ -443,7 +449,7 @@ pub struct Identifier {
     a_inertia: f32,
     model_ff: Option<AxisModel>,
     passes_model: Option<AxisModel>,
-    final_fit: Option<(AxisModel, LsSolution<4>)>,
+    final_model: Option<AxisModel>,
     val: ValidationStats,
     result: Option<IdentifyResult>,
 }
@@ -476,6 +482,7 @@ impl Identifier {
             a_plan: (0.5 * c.torque_fraction * c.torque_cap_mnm / c.inertia_guess)
                 .min(c.accel_max_mm_s2),
             a_brake: 0.0,
+            v_fit: 0.0,
             hold_since: None,
             steady_since: 0,
             stage_since: 0,
@@ -492,11 +499,12 @@ impl Identifier {
             a_inertia: 0.0,
             model_ff: None,
             passes_model: None,
-            final_fit: None,
+            final_model: None,
             val: ValidationStats::default(),
             result: None,
         };
         id.a_brake = id.a_plan;
+        id.v_fit = id.fitting_speed();
         id.start_pass(0, 1.0, start_pos_mm);
         Ok(id)
     }
@@ -695,11 +703,16 @@ impl Identifier {
             Stage::Approach { dir, leg } => self.advance_approach(dir, leg, m),
             Stage::Cycle { dir, leg, up } => self.advance_cycle(dir, leg, up, m),
             Stage::ValidationStop => self.advance_validation_stop(m),
-            Stage::Validation { dir, amp_mm_s } => self.advance_validation(dir, amp_mm_s, m),
+            Stage::Validation {
+                dir,
+                amp_mm_s,
+                sin,
+                cos,
+            } => self.advance_validation(dir, amp_mm_s, (sin, cos), m),
             Stage::FinalStop => {
                 self.ramp.step(self.dt());
                 if self.is_stopped(m) {
-                    self.finish(m);
+                    self.finish();
                 }
             }
             Stage::Braking(reason) => {
@@ -767,7 +780,7 @@ impl Identifier {
             .get(pass / 2)
             .copied()
             .unwrap_or(self.s.c.pass_speed_min_mm_s);
-        v.min(self.fitting_speed())
+        v.min(self.v_fit)
     }
 
     /// Largest `v` with `pass_distance(v) <= usable length` (positive root of the
@@ -905,7 +918,8 @@ impl Identifier {
         // a rough inertia from the last reversal, with the friction during the reversal
         // taken as the steady effort of each direction (it ignores the viscous part's
         // change, up to ~40 % low on a heavily damped axis: enough for the loop's gain).
-        let interim = if pass >= 3 {
+        // (not after the last pass: the passes' fit follows in the same period)
+        let interim = if pass >= 3 && pass + 1 < 2 * self.s.n_speeds {
             self.fit(&self.ne_passes, FitStage::FrictionPasses).ok()
         } else {
             None
@@ -913,7 +927,7 @@ impl Identifier {
         let guess = self.s.c.inertia_guess;
         let plausible = |j: f32| j > guess / ROUGH_J_RANGE && j < guess * ROUGH_J_RANGE;
         match interim {
-            Some((model, _)) if plausible(model.inertia) => {
+            Some(model) if plausible(model.inertia) => {
                 self.model_ff = Some(model);
                 self.j_loop = model.inertia;
                 self.vloop.retune(model.inertia);
@@ -959,6 +973,7 @@ impl Identifier {
         // faster still gives valid (integrated-form) rows
         self.a_plan = a.max(0.05 * c.accel_max_mm_s2).min(c.accel_max_mm_s2);
         self.a_brake = self.braking_accel();
+        self.v_fit = self.fitting_speed();
     }
 
     /// Deceleration towards rest: the planned torque plus the smaller Coulomb level that
@@ -976,15 +991,12 @@ impl Identifier {
             .min(c.accel_max_mm_s2)
     }
 
-    fn fit(
-        &self,
-        ne: &NormalEquations<4>,
-        stage: FitStage,
-    ) -> Result<(AxisModel, LsSolution<4>), AbortReason> {
-        let sol = ne
-            .solve()
+    /// Fit a model to `ne` (parameters only: the quality figures of the final fit are
+    /// computed at the end, in a period of their own, to keep each period's work small).
+    fn fit(&self, ne: &NormalEquations<4>, stage: FitStage) -> Result<AxisModel, AbortReason> {
+        let ([j, b, fp, fneg], _) = ne
+            .solve_params()
             .map_err(|error| AbortReason::FitFailed { stage, error })?;
-        let [j, b, fp, fneg] = sol.theta;
         let model = AxisModel {
             inertia: j,
             // a (physically impossible) negative viscous term is noise around a small
@@ -996,7 +1008,7 @@ impl Identifier {
         if model.validate().is_err() {
             return Err(AbortReason::ImplausibleModel { stage });
         }
-        Ok((model, sol))
+        Ok(model)
     }
 
     fn finish_passes(&mut self, m: &AxisSample) {
@@ -1007,7 +1019,7 @@ impl Identifier {
         self.win.kind = RowKind::Discard;
         let vel = self.ramp.v_mm_s;
         let model = match self.fit(&self.ne_passes, FitStage::FrictionPasses) {
-            Ok((model, _)) => model,
+            Ok(model) => model,
             Err(reason) => return self.brake(reason, vel),
         };
         self.passes_model = Some(model);
@@ -1154,8 +1166,8 @@ impl Identifier {
     fn finish_inertia(&mut self, m: &AxisSample) {
         self.win = Window::open(RowKind::Discard, m.vel_mm_s, m.pos_mm);
         match self.fit(&self.ne_final, FitStage::Final) {
-            Ok((model, sol)) => {
-                self.final_fit = Some((model, sol));
+            Ok(model) => {
+                self.final_model = Some(model);
                 self.model_ff = Some(model);
                 self.j_loop = model.inertia;
                 self.vloop.retune(model.inertia);
@@ -1191,18 +1203,23 @@ impl Identifier {
         }
         self.win = Window::open(RowKind::Validation, m.vel_mm_s, m.pos_mm);
         self.stage_since = self.k;
-        self.stage = Stage::Validation { dir, amp_mm_s: amp };
+        self.stage = Stage::Validation {
+            dir,
+            amp_mm_s: amp,
+            sin: 0.0,
+            cos: 1.0,
+        };
     }
 
-    fn advance_validation(&mut self, dir: f32, amp: f32, m: &AxisSample) {
+    fn advance_validation(&mut self, dir: f32, amp: f32, (sn, cs): (f32, f32), m: &AxisSample) {
         let c = self.s.c;
         let t = self.elapsed_since(self.stage_since);
         let duration = c.validation_cycles as f32 / c.validation_freq_hz;
         let w = 2.0 * core::f32::consts::PI * c.validation_freq_hz;
         if self.win.n as f32 * self.dt() >= c.validation_window_s - 0.5 * self.dt() {
-            if let (Some(r), Some((model, _))) = (
+            if let (Some(r), Some(model)) = (
                 self.win.row(m.vel_mm_s, m.pos_mm, self.dt()),
-                self.final_fit,
+                self.final_model,
             ) {
                 let predicted = model.inertia * r.x[0]
                     + model.viscous * r.x[1]
@@ -1220,20 +1237,33 @@ impl Identifier {
             self.progress = 0.98;
             return;
         }
-        // phase from the period count (no accumulated rounding)
-        let (s, co) = libm::sincosf(w * t);
-        self.ramp.v_mm_s = dir * amp * s;
+        // setpoint at this period's phase, then rotate the phase by ω·Ts: two products
+        // instead of a sin/cos per period (libm's sincosf costs ~2000 instructions on the
+        // M4); the first-order renormalisation keeps sin² + cos² = 1 to rounding.
+        self.ramp.v_mm_s = dir * amp * sn;
         self.ramp.target_mm_s = self.ramp.v_mm_s;
-        self.ramp.a_mm_s2 = dir * amp * w * co;
+        self.ramp.a_mm_s2 = dir * amp * w * cs;
+        let (ds, dc) = self.s.validation_step;
+        let (s1, c1) = (sn * dc + cs * ds, cs * dc - sn * ds);
+        let k = 1.5 - 0.5 * (s1 * s1 + c1 * c1);
+        self.stage = Stage::Validation {
+            dir,
+            amp_mm_s: amp,
+            sin: (s1 * k).finite_or_zero(),
+            cos: (c1 * k).finite_or_zero(),
+        };
         self.progress = 0.8 + 0.18 * t / duration;
     }
 
-    fn finish(&mut self, _m: &AxisSample) {
+    /// Done: the final fit's quality figures (the same factorisation as the fit, plus
+    /// residual and standard errors) and the result.
+    fn finish(&mut self) {
         let (nrmse, r2) = self.val.figures();
-        if let (Some((model, sol)), Some(passes_model)) = (self.final_fit, self.passes_model) {
+        let stats: Option<LsSolution<4>> = self.ne_final.solve().ok();
+        if let (Some(model), Some(passes_model)) = (self.final_model, self.passes_model) {
             let diag = |i: usize| ParamDiagnostic {
-                value: sol.theta[i],
-                std_error: sol.std_error[i],
+                value: stats.map_or(0.0, |s| s.theta[i]),
+                std_error: stats.map_or(0.0, |s| s.std_error[i]),
                 rows: self.counts.rows[i],
                 samples: self.counts.samples[i],
             };
@@ -1247,9 +1277,9 @@ impl Identifier {
                     viscous: diag(1),
                     coulomb_pos: diag(2),
                     coulomb_neg: diag(3),
-                    residual_rms_mnm: sol.residual_rms,
-                    rows: sol.rows,
-                    min_pivot: sol.min_pivot,
+                    residual_rms_mnm: stats.map_or(0.0, |s| s.residual_rms),
+                    rows: self.ne_final.rows(),
+                    min_pivot: stats.map_or(0.0, |s| s.min_pivot),
                 },
                 passes_model,
                 machine_time_s: self.machine_time_s(),
@@ -1324,9 +1354,11 @@ mod tests {
                 stage: FitStage::Final
             }
         );
-        let (m, sol) = id.fit(&rows(0.1, -0.01), FitStage::Final).unwrap();
+        let ne = rows(0.1, -0.01);
+        let m = id.fit(&ne, FitStage::Final).unwrap();
         assert_eq!(m.viscous, 0.0);
-        assert!((sol.theta[1] + 0.01).abs() < 1e-4, "{:?}", sol.theta);
+        let theta = ne.solve().unwrap().theta;
+        assert!((theta[1] + 0.01).abs() < 1e-4, "{theta:?}");
         assert!((m.inertia - 0.1).abs() < 1e-5);
     }
 

@@ -2,28 +2,34 @@
 //! row by row as normal equations (no storage of the rows) and solved once per phase.
 //!
 //! Rows arrive rarely (one per integration window, every few tens of milliseconds). Both
-//! the accumulation and the solve run in `f32`, the Cortex-M4's hardware type: the whole
-//! 4×4 solve with its standard errors is a few hundred floating-point operations (about
-//! 2k cycles), so it fits in one control period beside the servo step. In `f32` (software
-//! floating point on the M4) the same solve costs ~20k cycles, more than a 100 µs period.
-//! f32 is accurate enough because the solve is scale-free (below) and the systems are
-//! small and well conditioned: a pivot above [`MIN_PIVOT`] keeps at least three
-//! significant digits, far below the percent-level accuracy identification aims at.
+//! the accumulation and the solve run in `f32`, the Cortex-M4's hardware type. Measured
+//! on the emulated M4 (`cargo insns` with a temporary kernel): adding a row costs ~160
+//! instructions, the parameters of a 4×4 system ([`NormalEquations::solve_params`]) a
+//! few hundred, the full solve with residual and standard errors about a thousand; in
+//! `f64` (software floating point on the M4) the same solve would cost ~20k cycles, more
+//! than a 100 µs control period. `f32` is accurate enough because the systems are small
+//! and the pivot test below rejects the ill-conditioned ones: a relative pivot above
+//! [`MIN_PIVOT`] keeps at least three significant digits, far below the percent-level
+//! accuracy identification aims at.
 //!
-//! The solve equilibrates the matrix to a unit diagonal (scale-free pivots whatever the
-//! units of the columns), factors it by Cholesky, and rejects it as ill-conditioned when
-//! a pivot falls below [`MIN_PIVOT`]: that is the case when a column is (nearly) a
-//! combination of others, e.g. no acceleration in the data for the inertia, or one
-//! direction never travelled for a Coulomb term.
+//! The solve factors the matrix as `L D Lᵀ` (unit lower `L`, diagonal `D`): no square
+//! roots, which matters on the Cortex-M4, where `libm::sqrtf` is a software routine of
+//! ~150 instructions (libm has no ARM32 hardware path and the crate forbids the `unsafe`
+//! an inline `vsqrt` would need). Each pivot is judged relative to its diagonal entry,
+//! `D_i / A_ii`: the fraction of the column's energy not explained by the previous
+//! columns, independent of the columns' units (it equals the pivot of the Cholesky factor
+//! of the matrix equilibrated to a unit diagonal). Below [`MIN_PIVOT`] the system is
+//! rejected as ill-conditioned: a column is (nearly) a combination of others, e.g. no
+//! acceleration in the data for the inertia, or one direction never travelled for a
+//! Coulomb term.
 
 // Index loops over the fixed dimension N read like the textbook algorithm; every index
 // is bounded by N, so none can fail.
 #![allow(clippy::needless_range_loop)]
 
-/// Smallest accepted Cholesky pivot of the equilibrated matrix (unit diagonal). A pivot
-/// is the fraction of its column's energy not explained by the previous columns; below
-/// 1e-4 the f32 solution loses four of its seven digits to cancellation and the
-/// parameter is not determined by the data.
+/// Smallest accepted relative pivot `D_i / A_ii`: the fraction of a column's energy not
+/// explained by the previous columns. Below 1e-4 the f32 solution loses four of its
+/// seven digits to cancellation and the parameter is not determined by the data.
 pub const MIN_PIVOT: f32 = 1e-4;
 
 /// Normal equations `Σ w x xᵀ θ = Σ w x y` of `N` parameters.
@@ -55,10 +61,46 @@ pub struct LsSolution<const N: usize> {
     pub std_error: [f32; N],
     /// Weighted RMS of the row residuals (units of y).
     pub residual_rms: f32,
-    /// Smallest pivot of the equilibrated Cholesky factorisation, in (0, 1]: 1 for
-    /// orthogonal columns, [`MIN_PIVOT`] at the rejection limit.
+    /// Smallest relative pivot `D_i / A_ii`, in (0, 1]: 1 for orthogonal columns,
+    /// [`MIN_PIVOT`] at the rejection limit.
     pub min_pivot: f32,
     pub rows: u32,
+}
+
+/// `A = L D Lᵀ` factorisation.
+struct Factor<const N: usize> {
+    /// Unit lower triangle (the diagonal is not stored).
+    l: [[f32; N]; N],
+    d: [f32; N],
+    /// Smallest `D_i / A_ii`.
+    min_pivot: f32,
+}
+
+impl<const N: usize> Factor<N> {
+    /// `A u = rhs`: `L z = rhs`, `D w = z`, `Lᵀ u = w`.
+    fn solve(&self, rhs: &[f32; N]) -> [f32; N] {
+        let l = &self.l;
+        let mut z = [0.0; N];
+        for i in 0..N {
+            let mut s = rhs[i];
+            for k in 0..i {
+                s -= l[i][k] * z[k];
+            }
+            z[i] = s;
+        }
+        for i in 0..N {
+            z[i] /= self.d[i];
+        }
+        let mut u = [0.0; N];
+        for i in (0..N).rev() {
+            let mut s = z[i];
+            for k in i + 1..N {
+                s -= l[k][i] * u[k];
+            }
+            u[i] = s;
+        }
+        u
+    }
 }
 
 /// Why a solve failed.
@@ -107,72 +149,62 @@ impl<const N: usize> NormalEquations<N> {
         self.rows
     }
 
-    /// Solve by equilibrated Cholesky (module docs).
-    pub fn solve(&self) -> Result<LsSolution<N>, LsError> {
+    /// `L D Lᵀ` with the relative pivot test (module docs).
+    fn factor(&self) -> Result<Factor<N>, LsError> {
         if (self.rows as usize) < N {
             return Err(LsError::TooFewRows);
         }
-        // equilibration d_i = 1/sqrt(A_ii): A' = D A D has a unit diagonal
-        let mut d = [0.0; N];
-        for (i, di) in d.iter_mut().enumerate() {
-            let a = self.xtx[i][i];
-            if !a.is_finite() {
+        let a = &self.xtx;
+        for (i, row) in a.iter().enumerate() {
+            if !row[i].is_finite() {
                 return Err(LsError::NotFinite);
             }
-            if !(a > 0.0) {
+            if !(row[i] > 0.0) {
                 return Err(LsError::Unexcited { index: i });
             }
-            *di = 1.0 / libm::sqrtf(a);
         }
-        // Cholesky A' = L Lᵀ (lower triangle of `l`)
         let mut l = [[0.0; N]; N];
+        let mut d = [0.0; N];
         let mut min_pivot = 1.0_f32;
         for i in 0..N {
-            for j in 0..=i {
-                let mut s = self.xtx[i][j] * d[i] * d[j];
+            for j in 0..i {
+                let mut s = a[i][j];
                 for k in 0..j {
-                    s -= l[i][k] * l[j][k];
+                    s -= l[i][k] * d[k] * l[j][k];
                 }
-                if i == j {
-                    if !(s > MIN_PIVOT) {
-                        return Err(LsError::IllConditioned { index: i });
-                    }
-                    min_pivot = min_pivot.min(s);
-                    l[i][i] = libm::sqrtf(s);
-                } else {
-                    l[i][j] = s / l[j][j];
-                }
+                l[i][j] = s / d[j];
             }
-        }
-        let solve_l = |rhs: &[f32; N]| -> [f32; N] {
-            // L z = rhs, then Lᵀ u = z
-            let mut z = [0.0; N];
-            for i in 0..N {
-                let mut s = rhs[i];
-                for k in 0..i {
-                    s -= l[i][k] * z[k];
-                }
-                z[i] = s / l[i][i];
+            let mut s = a[i][i];
+            for k in 0..i {
+                s -= l[i][k] * l[i][k] * d[k];
             }
-            let mut u = [0.0; N];
-            for i in (0..N).rev() {
-                let mut s = z[i];
-                for k in i + 1..N {
-                    s -= l[k][i] * u[k];
-                }
-                u[i] = s / l[i][i];
+            let pivot = s / a[i][i];
+            if !(pivot > MIN_PIVOT) {
+                return Err(LsError::IllConditioned { index: i });
             }
-            u
-        };
-        let mut rhs = [0.0; N];
-        for i in 0..N {
-            rhs[i] = self.xty[i] * d[i];
+            min_pivot = min_pivot.min(pivot);
+            d[i] = s;
         }
-        let u = solve_l(&rhs);
-        let mut theta = [0.0; N];
-        for i in 0..N {
-            theta[i] = u[i] * d[i];
+        Ok(Factor { l, d, min_pivot })
+    }
+
+    /// The parameters and the smallest relative pivot, without residual and standard
+    /// errors (which need square roots): for fits whose quality figures are not
+    /// reported.
+    pub fn solve_params(&self) -> Result<([f32; N], f32), LsError> {
+        let f = self.factor()?;
+        let theta = f.solve(&self.xty);
+        if theta.iter().any(|v| !v.is_finite()) {
+            return Err(LsError::NotFinite);
         }
+        Ok((theta, f.min_pivot))
+    }
+
+    /// Solve (module docs), with the quality figures.
+    pub fn solve(&self) -> Result<LsSolution<N>, LsError> {
+        let f = self.factor()?;
+        let min_pivot = f.min_pivot;
+        let theta = f.solve(&self.xty);
         // weighted residual sum: yᵀy - 2 θᵀ Xᵀy + θᵀ XᵀX θ (clamped: rounding can make it
         // slightly negative for a perfect fit)
         let mut quad = 0.0;
@@ -191,15 +223,15 @@ impl<const N: usize> NormalEquations<N> {
         };
         // residual variance per unit weight, with N degrees of freedom removed; the
         // weights are durations normalised so a typical row has weight ~1
-        let dof = self.rows as usize - N;
+        let dof = (self.rows as usize).saturating_sub(N);
         let sigma2 = if dof > 0 { ssr / dof as f32 } else { 0.0 };
         let mut std_error = [0.0; N];
         for i in 0..N {
             let mut e = [0.0; N];
             e[i] = 1.0;
-            // (A')⁻¹_ii d_i² = (A⁻¹)_ii
-            let col = solve_l(&e);
-            std_error[i] = libm::sqrtf((col[i] * sigma2).max(0.0)) * d[i];
+            // (A⁻¹)_ii
+            let col = f.solve(&e);
+            std_error[i] = libm::sqrtf((col[i] * sigma2).max(0.0));
         }
         if theta.iter().chain(&std_error).any(|v| !v.is_finite()) || !residual_rms.is_finite() {
             return Err(LsError::NotFinite);
