@@ -236,3 +236,40 @@ fn kalman_estimator_works_too() {
         .collect();
     report("Kalman estimator", &rows);
 }
+
+/// A larger sweep for the documentation's figures (docs/identification.md):
+/// `cargo test -p controller-core --release --test sysid_accuracy -- --ignored --nocapture`.
+#[test]
+#[ignore = "200 machines: run in release for the documentation's table"]
+fn sweep_200_random_machines() {
+    let mut rng = Rng::new(0xABCD_0001);
+    let rows: Vec<Row> = (0..200)
+        .map(|i| {
+            let axis = random_machine(&mut rng, i);
+            let sim = SimAxis::new(&axis, 0.0, i as u64);
+            check(&format!("s{i}"), &axis, &identify_config(&axis), sim)
+        })
+        .collect();
+    let col = |f: &dyn Fn(&Row) -> f64| spread(&rows.iter().map(f).collect::<Vec<_>>());
+    println!("\n200 random machines:");
+    for (name, v, scale) in [
+        ("inertia %", col(&|r| r.err.inertia.abs()), 100.0),
+        ("viscous %", col(&|r| r.err.viscous.abs()), 100.0),
+        ("coulomb+ %", col(&|r| r.err.coulomb_pos.abs()), 100.0),
+        ("coulomb- %", col(&|r| r.err.coulomb_neg.abs()), 100.0),
+        ("time s", col(&|r| r.time_s), 1.0),
+        ("R2", col(&|r| r.r2 as f64), 1.0),
+        ("NRMSE", col(&|r| r.nrmse as f64), 1.0),
+    ] {
+        println!(
+            "{name:<12} min {:>7.3} median {:>7.3} max {:>7.3}",
+            scale * v.0,
+            scale * v.1,
+            scale * v.2
+        );
+    }
+    println!(
+        "signed inertia error % median {:.3}",
+        100.0 * col(&|r| r.err.inertia).1
+    );
+}

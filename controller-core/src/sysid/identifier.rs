@@ -428,11 +428,14 @@ pub struct Identifier {
     v_fit: f32,
     /// Period at which the current hold (settle/plateau) started.
     hold_since: Option<u32>,
+    /// Period at which the current pass' steady window started.
     steady_since: u32,
     /// Period at which braking or the validation move started.
     stage_since: u32,
     /// Period since which the effort has been at the cap.
     saturated_since: Option<u32>,
+    /// Period since which the velocity has stayed within the settle tolerance (passes)
+    /// or below [`STOPPED_MM_S`] (stops).
     within_since: Option<u32>,
     win: Window,
     /// Phase 1, all rows.
