@@ -166,7 +166,7 @@ pub const MAX_PERIOD_S: f32 = 0.01;
 
 /// Validated configuration with derived quantities.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Settings {
+pub(crate) struct Settings {
     pub(crate) c: IdentifyConfig,
     /// Turn points: the planned motion stays within `[turn_min, turn_max]`.
     pub(crate) turn_min_mm: f32,
