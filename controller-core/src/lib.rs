@@ -20,6 +20,8 @@
 //! - [`sim`]: plant models and the simulated world the servo step runs against;
 //! - [`link`]: the host-link protocol (framing, handshake, command / telemetry /
 //!   real-time channels, watchdog), shared by the firmware and the host tools;
+//! - [`sysid`]: identification of an axis' model on the machine, and the tuning rules
+//!   from a model to every law's gains;
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering;
 //! - [`presets`]: named parameter sets with their sources.
 #![no_std]
@@ -42,6 +44,7 @@ pub mod num;
 pub mod presets;
 pub mod servo;
 pub mod sim;
+pub mod sysid;
 
 pub use num::real::{Exponent, LibmF32, Real};
 pub use num::vec3::Vec3;

@@ -13,12 +13,16 @@ use crate::estimator::CounterWidth;
 use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
-use crate::law::smc::{ReachingConfig, SmcConfig, SurfaceConfig};
-use crate::model::PlantParams;
+use crate::law::smc::SmcConfig;
 use crate::servo::io::{AmplifierConfig, EncoderConfig};
 use crate::servo::monitor::AxisSafetyConfig;
 use crate::sim::physical::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
-use crate::Exponent;
+use crate::sysid::model::AxisModel;
+use crate::sysid::tuning::{self, TuningConfig};
+
+// The rules' constants moved to the tuning module with the rules; kept here under their
+// old paths.
+pub use crate::sysid::tuning::{ADAPTIVE_DEAD_ZONE_MM_S, ADAPT_GAIN_B, ADAPT_GAIN_F, ADAPT_GAIN_J};
 
 /// Control period of the firmware: 10 kHz (firmware/src/board.rs default).
 pub const FIRMWARE_PERIOD_S: f32 = 1e-4;
@@ -162,157 +166,67 @@ pub const CUTTING_LOAD_MNM: f32 = 150.0;
 /// J ω² · 0.625 µm, a few mN·m, below the friction level (no count-level limit cycling).
 pub const LOOP_OMEGA: f32 = 157.0;
 
-/// PID from the pole placement `(s + ω)³` on `J s²`: `kp = 3Jω²`, `kd = 3Jω`,
-/// `ki = Jω³`; output limited to the peak torque and the integral to what the integral
-/// term can use.
+/// Tuning of the seed laws for a preset axis: bandwidth [`LOOP_OMEGA`], the axis' peak
+/// torque, one encoder count [`COUNT_MM`].
+pub const fn tuning_for(axis: &PhysicalAxisConfig) -> TuningConfig {
+    TuningConfig {
+        bandwidth_rad_s: LOOP_OMEGA,
+        torque_max_mnm: axis.torque_max_mnm,
+        count_mm: COUNT_MM,
+    }
+}
+
+/// PID of [`tuning::pid`] for a preset axis (pole placement `(s + ω)³` on `J s²`).
 pub const fn pid_for(axis: &PhysicalAxisConfig) -> PidConfig {
-    let j = axis.inertia;
-    let w = LOOP_OMEGA;
-    let ki = j * w * w * w;
-    PidConfig {
-        kp: 3.0 * j * w * w,
-        ki,
-        kd: 3.0 * j * w,
-        kv_ff: 0.0,
-        ka_ff: 0.0,
-        integral_limit: axis.torque_max_mnm / ki,
-        u_max: axis.torque_max_mnm,
-    }
+    tuning::pid(&AxisModel::from_physical(axis), &tuning_for(axis))
 }
 
-/// The paper's DSMC (spec 2.3) rescaled for a physical axis in mm: the equivalent control
-/// cancels the known `B/J` (plant a = B/J, b = 0, k = 1/J); friction and load are left to
-/// the reaching law and the integral. Surface α = ω (same bandwidth as the PID),
-/// β = 10 mm^(4/9)/s so the terminal term matters below ~0.1 mm, singular floor one
-/// encoder count (errors below it are not measurable). Reaching: the paper's k1 = k2 = 20,
-/// k3 = 200 (Table 2) are kept. Tried on this axis at 10 kHz with the 100 Hz velocity
-/// observer: k1 = 200 or k3 = 2000 drive the control into full-scale chattering (the
-/// effective gain k3 |e|^(1/3) on `s` exceeds the observer's bandwidth), and k2 = 300
-/// lowers the loaded contour error by only ~15 % for 3× the chattering. Friction and
-/// load are therefore rejected by the integral, k4 = ω³ (the PID's `ki/J`).
+/// DSMC of [`tuning::dsmc`] for a preset axis (the paper's DSMC rescaled to mm; the
+/// reasoning for each gain is there).
 pub const fn dsmc_for(axis: &PhysicalAxisConfig) -> SmcConfig {
-    let j = axis.inertia;
-    SmcConfig {
-        plant: PlantParams {
-            a: axis.viscous / j,
-            b: 0.0,
-            k: 1.0 / j,
-        },
-        surface: SurfaceConfig::Terminal {
-            alpha: LOOP_OMEGA,
-            beta: 10.0,
-            p: 9,
-            q: 5,
-            singular_floor: COUNT_MM,
-        },
-        reaching: ReachingConfig::DoublePower {
-            k1: 20.0,
-            k2: 20.0,
-            k3: 200.0,
-            beta2: Exponent { num: 1, den: 3 },
-            beta3: Exponent { num: 1, den: 3 },
-        },
-        k4: LOOP_OMEGA * LOOP_OMEGA * LOOP_OMEGA,
-        integral_limit: axis.torque_max_mnm / j / (LOOP_OMEGA * LOOP_OMEGA * LOOP_OMEGA),
-        u_max: axis.torque_max_mnm,
-    }
+    tuning::dsmc(&AxisModel::from_physical(axis), &tuning_for(axis))
 }
 
-/// DOB-SMC (spec 2.4): model a = B/J, b = 1/J (nominal = identified values). Surface
-/// c = ω. Reaching k = 100 1/s, η = 200 mm/s² with boundary layer φ = 5 mm/s (η/φ = 40
-/// 1/s more inside the layer); η covers the observer's residual on a friction reversal,
-/// about 20 % of the 1100 mm/s² jump on X. Tried at 10 kHz with the 100 Hz velocity
-/// observer: k = 2ω, φ = 2 mm/s chatter at full scale once cross-coupling is added;
-/// k = 0 (the patent's pure η term) doubles the loaded contour error. Observer ω_o = 2π·40 Hz = 250 rad/s, critically
-/// damped (k1 = 2ω_o, k2 = ω_o²): below the velocity observer's 100 Hz so its noise
-/// is filtered, above the loop's 25 Hz so the estimate leads the loop. `|d̂|` limited to
-/// the peak acceleration.
+/// DOB-SMC of [`tuning::dob_smc`] for a preset axis (nominal model = the preset).
 pub const fn dob_smc_for(axis: &PhysicalAxisConfig) -> DobSmcConfig {
-    let j = axis.inertia;
-    let wo = 250.0;
-    DobSmcConfig {
-        a: axis.viscous / j,
-        b: 1.0 / j,
-        c: LOOP_OMEGA,
-        k: 100.0,
-        eta: 200.0,
-        boundary_layer: 5.0,
-        k1: 2.0 * wo,
-        k2: wo * wo,
-        d_hat_limit: axis.torque_max_mnm / j,
-        u_max: axis.torque_max_mnm,
-    }
+    tuning::dob_smc(&AxisModel::from_physical(axis), &tuning_for(axis))
 }
 
 pub const DOB_SMC_X: DobSmcConfig = dob_smc_for(&GANTRY_X);
 
-/// Adaptive SMC (spec 2.5). λ = ω; k_d = 2Jω so the s-loop is twice as fast as the
-/// surface; k = 10 mN·m covers the unmodelled Stribeck excess (0.3 · 40 mN·m at the
-/// lowest speeds) with T_load = 0 in the friction scenario. Switching boundary layer
-/// Φ = 0.3 mm/s, adaptation dead zone δ = [`ADAPTIVE_DEAD_ZONE_MM_S`].
-/// Initial estimates are a deliberately poor guess (J 25 % low, B and friction unknown =
-/// 0); bounds span 0.3×..3× the truth. Adaptation gains are per unit of the axis'
-/// inertia, `γ = J g`: the parameter errors decay at a rate ∝ γ φ²/J (the s-loop's
-/// inertia divides the torque error), so scaling γ with J gives every axis the same
-/// convergence time on the same motion. The per-unit gains g were raised until each
-/// estimate settles within ~2 s on the 5 mm / 2 Hz sine of the friction scenario
-/// (regressor sizes there: x_d'' ~ 800 mm/s², x' ~ 60 mm/s, μ ~ 1; g scales as
-/// 1/regressor²), and kept below the point where the adaptation couples with the
-/// 2 ms s-loop.
+/// Adaptive SMC of [`tuning::adaptive_smc`] for the friction-identification scenario: the
+/// gains of the model-based rule, but the initial estimates are a deliberately poor
+/// guess (J 25 % low, B and friction unknown = 0) with bounds spanning 0.3×..3× the truth,
+/// so the scenario shows the adaptation converging.
 pub const fn adaptive_for(axis: &PhysicalAxisConfig) -> AdaptiveSmcConfig {
     let j = axis.inertia;
-    AdaptiveSmcConfig {
-        lambda: LOOP_OMEGA,
-        boundary_layer: 0.3,
-        dead_zone: ADAPTIVE_DEAD_ZONE_MM_S,
-        kd: 2.0 * j * LOOP_OMEGA,
-        k: 10.0,
-        inertia: EstimateConfig {
-            initial: 0.75 * j,
-            min: 0.3 * j,
-            max: 3.0 * j,
-            gamma: j * ADAPT_GAIN_J,
-        },
-        viscous: EstimateConfig {
-            initial: 0.0,
-            min: 0.0,
-            max: 3.0 * axis.viscous,
-            gamma: j * ADAPT_GAIN_B,
-        },
-        coulomb_pos: EstimateConfig {
-            initial: 0.0,
-            min: 0.0,
-            max: 3.0 * axis.coulomb_pos_mnm,
-            gamma: j * ADAPT_GAIN_F,
-        },
-        coulomb_neg: EstimateConfig {
-            initial: 0.0,
-            min: 3.0 * axis.coulomb_neg_mnm,
-            max: 0.0,
-            gamma: j * ADAPT_GAIN_F,
-        },
-        u_max: axis.torque_max_mnm,
-    }
+    let mut c = tuning::adaptive_smc(&AxisModel::from_physical(axis), &tuning_for(axis));
+    c.inertia = EstimateConfig {
+        initial: 0.75 * j,
+        min: 0.3 * j,
+        max: 3.0 * j,
+        gamma: j * ADAPT_GAIN_J,
+    };
+    c.viscous = EstimateConfig {
+        initial: 0.0,
+        min: 0.0,
+        max: 3.0 * axis.viscous,
+        gamma: j * ADAPT_GAIN_B,
+    };
+    c.coulomb_pos = EstimateConfig {
+        initial: 0.0,
+        min: 0.0,
+        max: 3.0 * axis.coulomb_pos_mnm,
+        gamma: j * ADAPT_GAIN_F,
+    };
+    c.coulomb_neg = EstimateConfig {
+        initial: 0.0,
+        min: 3.0 * axis.coulomb_neg_mnm,
+        max: 0.0,
+        gamma: j * ADAPT_GAIN_F,
+    };
+    c
 }
-
-/// Adaptation dead zone δ = 0.05 mm/s. The estimates stop once the feedback absorbs the
-/// remaining parameter error inside `|s| < δ`, i.e. a torque error of about
-/// `δ (k_d + k/Φ)` = 0.05 · (20 + 33) ≈ 2.7 mN·m on X (5 mN·m on Y): below 10 % of each
-/// term on the friction scenario (viscous 16 mN·m at 63 mm/s, Coulomb 32..60 mN·m,
-/// inertial 50 mN·m). The former δ = Φ = 0.3 mm/s left ~16 mN·m unidentified (B̂ ended
-/// 20 % off even with the exact velocity). δ is not meant to be above the velocity
-/// noise: zero-mean estimator noise is averaged by the adaptation integrators; δ only
-/// stops biased unmodelled torques below that 2.7 mN·m from drifting the estimates.
-/// Measured with the exact velocity on the 5 mm / 2 Hz sine: δ = 0.3 / 0.1 / 0.03 mm/s
-/// gives B̂ −20 / +3 / +1 % on X.
-pub const ADAPTIVE_DEAD_ZONE_MM_S: f32 = 0.05;
-
-/// Per-unit adaptation gain of Ĵ (γ_J = J · g): 6e-4 on the X axis (J = 0.064).
-pub const ADAPT_GAIN_J: f32 = 6e-4 / 0.064;
-/// Per-unit adaptation gain of B̂: 0.06 on the X axis.
-pub const ADAPT_GAIN_B: f32 = 0.06 / 0.064;
-/// Per-unit adaptation gain of f̂±: 600 on the X axis.
-pub const ADAPT_GAIN_F: f32 = 600.0 / 0.064;
 
 pub const ADAPTIVE_SMC_X: AdaptiveSmcConfig = adaptive_for(&GANTRY_X);
 
