@@ -34,6 +34,7 @@ pub const FILES: &[(&str, &str)] = &[
         "estimators_physical.toml",
         include_str!("../scenarios/estimators_physical.toml"),
     ),
+    ("faults.toml", include_str!("../scenarios/faults.toml")),
     (
         "../machines/paper_axis.toml",
         include_str!("../machines/paper_axis.toml"),

@@ -90,6 +90,17 @@ enum Command {
         #[arg(long)]
         no_plots: bool,
     },
+    /// The fault matrix: every fault class injected into the simulated gantry through the
+    /// real servo step (host-sim/scenarios/faults.toml); exits non-zero if a case misses
+    /// its bounds.
+    Faults {
+        /// Study file (default: the built-in faults.toml).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Also write the matrix as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Compare a QEMU scenario's figures from the firmware's log with host-sim's (used by
     /// firmware/qemu/run-all); prints `qemu <name> passed` or `qemu <name> FAILED: <why>`.
     QemuVerdict {
@@ -122,6 +133,9 @@ fn main() -> ExitCode {
             json,
             no_plots,
         }) => run_seeds(&out, json.as_deref(), no_plots),
+        Some(Command::Faults { scenario, json }) => {
+            run_faults(scenario.as_deref(), json.as_deref())
+        }
         Some(Command::QemuVerdict { file, log }) => return run_verdict(&file, &log),
     };
     match result {
@@ -239,6 +253,21 @@ fn run_estimators(
         println!("JSON: {}", j.display());
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn run_faults(scenario: Option<&Path>, json: Option<&Path>) -> Result<()> {
+    let started = Instant::now();
+    let m = host_sim::studies::faults::run_matrix(scenario)?;
+    print!("{}", host_sim::studies::faults::table(&m));
+    if let Some(j) = json {
+        write_json(j, &m)?;
+        println!("JSON: {}", j.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    if !m.passed {
+        bail!("the fault matrix has failing cases");
+    }
     Ok(())
 }
 

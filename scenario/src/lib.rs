@@ -17,6 +17,9 @@
 //! - [`schema`]: the file's types;
 //! - [`resolve`]: turning one run into the core's configurations (servo, world, figures).
 
+// `!(x <= cap)` is deliberate: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod file;
 pub mod resolve;
 pub mod schema;

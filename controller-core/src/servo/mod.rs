@@ -227,7 +227,12 @@ impl<R: Real> Servo<R> {
             full_scale,
             estimators: EstimatorBank::new(&cfg.estimator, &timing, count_len, start_counts)?,
             controller: Controller3::new(&cfg.controller)?,
-            monitor: Monitor::new(s, counts_per_mm, period_s)?,
+            monitor: Monitor::new(
+                s,
+                counts_per_mm,
+                full_scale.to_array().map(Real::to_f32),
+                period_s,
+            )?,
             faults: FaultLog::new(),
             state: ServoState::Disabled,
             stop_then: ServoState::Fault,
@@ -628,8 +633,9 @@ impl<R: Real> Servo<R> {
             self.state = ServoState::Fault;
             return u;
         }
-        // ramp to the check effort over the first half, then hold it
-        let ramp = (2 * c.k).min(self.check_periods) as f32 / self.check_periods.max(1) as f32;
+        // ramp from 0 to the check effort over the check: breakaway is reached late, so a
+        // still-stuck encoder lets the axis move little
+        let ramp = c.k.min(self.check_periods) as f32 / self.check_periods.max(1) as f32;
         let effort = ramp * self.check_effort[c.axis] * sign as f32;
         u[c.axis] = R::from_f32(effort).clamp_sym(self.full_scale[c.axis]);
         c.k += 1;

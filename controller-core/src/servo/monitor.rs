@@ -17,9 +17,13 @@
 //!   sets how soon (docs/safety.md). A reading frozen while the effort stays where it was
 //!   carries no information at all; it is caught as soon as the effort has to change (a
 //!   commanded move, an integral winding up, a chattering law switching).
-//! - **runaway** (reversed encoder or motor): `|u| >= stuck_effort_change`, `u` and `v`
-//!   of opposite sign, `|v|` above 2 % of the maximum speed and larger than when this
-//!   began, for `runaway_time_s`.
+//! - **runaway** (reversed encoder or motor): the effort near its limit (`|u| >= 0.9` of
+//!   the amplifier's full scale, and at least `stuck_effort_change`), `u` and `v` of
+//!   opposite sign, `|v|` above 2 % of the maximum speed and larger than when this began,
+//!   for `runaway_time_s`. A reversed encoder drives the effort to the limit while the
+//!   measured speed keeps growing the wrong way; a healthy axis pushed by an outside force
+//!   weaker than the motor decelerates once the effort is that strong (a stronger force
+//!   dragging the axis is reported as the runaway it is).
 //! - **following error** (LinuxCNC's rule): `|e| > min_ferror + (ferror - min_ferror) ×
 //!   min(1, |v_ref| / vel_max)`, in the period it happens.
 //! - **overspeed**: `|v| > overspeed_ratio × vel_max`.
@@ -118,9 +122,10 @@ pub mod defaults {
     pub const STOP_SETTLE_S: f32 = 0.02;
     /// 0.5 s at most beyond the stop reference reaching rest.
     pub const STOP_TIMEOUT_S: f32 = 0.5;
-    /// 40 ms per direction: enough for the check effort to move any gantry axis by 16
-    /// counts, short enough that a still-stuck encoder lets the axis drift < 1 mm.
-    pub const ENCODER_CHECK_TIME_S: f32 = 0.04;
+    /// 30 ms per direction, the effort ramping from 0 to `stuck_effort_change` over it: a
+    /// healthy gantry axis moves its 16 counts within ~10 ms of breaking away, and a
+    /// still-stuck encoder lets the axis move well under 0.5 mm (docs/safety.md).
+    pub const ENCODER_CHECK_TIME_S: f32 = 0.03;
     /// 16 counts (10 µm at 1600 counts/mm).
     pub const ENCODER_CHECK_COUNTS: u32 = 16;
 }
@@ -213,6 +218,8 @@ struct AxisLimits {
     ferror_slope: f32,
     ferror_max: f32,
     stuck_effort: f32,
+    /// Effort above which a speed growing against it is a runaway.
+    runaway_effort: f32,
     /// Largest physical second difference of the counts, counts/period².
     jump_counts: f32,
     runaway_speed: f32,
@@ -244,13 +251,24 @@ pub struct Monitor {
     runaway_periods: u32,
     overrun_max: u16,
     overrun_window: u32,
-    overruns: u16,
-    window_start: u32,
+    /// Periods of the most recent overruns (a ring of [`MAX_OVERRUNS`]).
+    overruns: [u32; MAX_OVERRUNS],
+    overrun_count: u32,
 }
 
-/// Periods in `s` at `period_s`, at least 1.
+/// Largest `overrun_max` the window tracks.
+pub const MAX_OVERRUNS: usize = 16;
+
+/// Periods in `s` at `period_s` (rounded up, but a duration within 0.1 % of a whole
+/// number of periods, as `f32` seconds usually are, is that number), at least 1.
 pub(crate) fn periods(s: f32, period_s: f64) -> u32 {
-    let p = libm::ceil(f64::from(s) / period_s);
+    let x = f64::from(s) / period_s;
+    let near = libm::round(x);
+    let p = if (x - near).abs() <= 1e-3 * near.max(1.0) {
+        near
+    } else {
+        libm::ceil(x)
+    };
     if p.is_finite() {
         p.clamp(1.0, f64::from(u32::MAX)) as u32
     } else {
@@ -259,10 +277,11 @@ pub(crate) fn periods(s: f32, period_s: f64) -> u32 {
 }
 
 impl Monitor {
-    /// `counts_per_mm` per axis, the control period.
+    /// `counts_per_mm` and the amplifiers' `full_scale` per axis, the control period.
     pub fn new(
         cfg: &SafetyConfig,
         counts_per_mm: [f32; AXES],
+        full_scale: [f32; AXES],
         period_s: f64,
     ) -> Result<Self, ConfigError> {
         let mut lim = [AxisLimits {
@@ -272,6 +291,7 @@ impl Monitor {
             ferror_slope: 0.0,
             ferror_max: 0.0,
             stuck_effort: 0.0,
+            runaway_effort: 0.0,
             jump_counts: 0.0,
             runaway_speed: 0.0,
         }; AXES];
@@ -280,7 +300,12 @@ impl Monitor {
             return Err(ConfigError::OutOfRange("safety.overspeed_ratio (>= 1)"));
         }
         let t2 = (period_s * period_s) as f32;
-        for ((l, a), counts) in lim.iter_mut().zip(&cfg.axes).zip(counts_per_mm) {
+        for (((l, a), counts), fs) in lim
+            .iter_mut()
+            .zip(&cfg.axes)
+            .zip(counts_per_mm)
+            .zip(full_scale)
+        {
             let vel_max = limit(a.vel_max_mm_s, "safety.vel_max_mm_s")?;
             let accel = limit(a.accel_max_mm_s2, "safety.accel_max_mm_s2")?;
             let min_fe = limit(a.min_ferror_mm, "safety.min_ferror_mm")?;
@@ -302,6 +327,11 @@ impl Monitor {
                 },
                 ferror_max: fe,
                 stuck_effort: limit(a.stuck_effort_change, "safety.stuck_effort_change")?,
+                runaway_effort: if fs.is_finite() {
+                    (0.9 * fs).max(a.stuck_effort_change)
+                } else {
+                    a.stuck_effort_change
+                },
                 jump_counts: accel * t2 * counts + JUMP_QUANTISATION_COUNTS,
                 runaway_speed: 0.02 * vel_max,
             };
@@ -318,16 +348,17 @@ impl Monitor {
                 positive(cfg.runaway_time_s, "safety.runaway_time_s")?,
                 period_s,
             ),
-            overrun_max: cfg.overrun_max.max(1),
+            overrun_max: cfg.overrun_max.clamp(1, MAX_OVERRUNS as u16),
             overrun_window: window,
-            overruns: 0,
-            window_start: 0,
+            overruns: [0; MAX_OVERRUNS],
+            overrun_count: 0,
         })
     }
 
     /// Forget the history (when the outputs get enabled).
     pub fn reset(&mut self) {
         self.watch = [AxisWatch::default(); AXES];
+        self.overrun_count = 0;
     }
 
     /// The speed-scaled following-error limit of `axis` at reference speed `v_ref`, mm.
@@ -380,7 +411,7 @@ impl Monitor {
                 }
                 // velocity growing against the effort
                 let v = vel[i];
-                let against = effort[i].abs() >= l.stuck_effort
+                let against = effort[i].abs() >= l.runaway_effort
                     && effort[i] * v < 0.0
                     && v.abs() >= l.runaway_speed;
                 if against {
@@ -424,20 +455,21 @@ impl Monitor {
         None
     }
 
-    /// Count a deadline overrun reported at `period`; the fault when too many fall in the
-    /// window.
+    /// Count a deadline overrun reported at `period`; the fault when `overrun_max` of them
+    /// fall within the last `overrun_window` periods (a sliding window).
     pub fn check_overrun(&mut self, overran: bool, period: u32) -> Option<(Fault, f32)> {
-        if period.wrapping_sub(self.window_start) >= self.overrun_window {
-            self.window_start = period;
-            self.overruns = 0;
+        if !overran {
+            return None;
         }
-        if overran {
-            self.overruns = self.overruns.saturating_add(1);
-            if self.overruns >= self.overrun_max {
-                return Some((
-                    Fault::system(FaultKind::DeadlineOverrun),
-                    f32::from(self.overruns),
-                ));
+        let n = MAX_OVERRUNS as u32;
+        self.overruns[(self.overrun_count % n) as usize] = period;
+        self.overrun_count = self.overrun_count.saturating_add(1);
+        let max = u32::from(self.overrun_max);
+        if self.overrun_count >= max {
+            // the overrun `max - 1` before this one
+            let oldest = self.overruns[((self.overrun_count - max) % n) as usize];
+            if period.wrapping_sub(oldest) < self.overrun_window {
+                return Some((Fault::system(FaultKind::DeadlineOverrun), max as f32));
             }
         }
         None

@@ -166,6 +166,11 @@ impl<R: Real> PhysicalAxis<R> {
     pub fn torque_max(&self) -> R {
         self.torque_max
     }
+
+    /// `1 / J`.
+    pub fn inv_inertia(&self) -> R {
+        self.inv_j
+    }
 }
 
 impl<R: Real> AxisDynamics<R> for PhysicalAxis<R> {

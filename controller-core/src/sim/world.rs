@@ -148,6 +148,10 @@ struct WorldFaults {
     reversed: [Option<i64>; AXES],
     /// External acceleration on the plant (a collision, a falling load), units/s².
     ext_accel: [f64; AXES],
+    /// ... until this time, s.
+    ext_until_s: [f64; AXES],
+    /// Extra Coulomb friction, as an acceleration magnitude, units/s².
+    drag: [f64; AXES],
 }
 
 /// A fault the simulated machine can be given.
@@ -174,37 +178,37 @@ pub enum Injection {
     },
     /// The encoder counts backwards from here on (swapped A/B).
     EncoderReversed { axis: crate::axes::Axis },
-    /// An external acceleration acts on the axis from here on (units/s²): an obstruction,
-    /// a falling load.
+    /// An external acceleration acts on the axis (units/s²) for `for_s` seconds (`inf`:
+    /// from here on): an obstruction, an impact, a falling load.
     ExternalAccel {
         axis: crate::axes::Axis,
         accel_mm_s2: f32,
+        for_s: f32,
     },
+    /// Extra Coulomb friction on the axis from here on (mN·m on a physical axis, units/s²
+    /// on the paper's): something dragging, or blocking, the axis.
+    ExtraFriction { axis: crate::axes::Axis, mnm: f32 },
     /// Every control period overruns its deadline from here on.
     Overrun,
     /// The controller's state on the axis is corrupted (the servo's injection hook).
     CorruptState { axis: crate::axes::Axis },
 }
 
-/// A plant with an external acceleration.
+/// A plant with an external acceleration and an extra drag (Coulomb friction, as an
+/// acceleration, regularised like the plant's own at [`DRAG_V_REG`]).
 struct Pushed<'a> {
-    plants: &'a [Plant; AXES],
-    ext: [f64; AXES],
+    plant: &'a Plant,
+    ext: f64,
+    drag: f64,
 }
 
-impl AxisDynamics<f64> for (&Plant, f64) {
+/// Regularisation velocity of the injected drag's sign, units/s.
+const DRAG_V_REG: f64 = 0.5;
+
+impl AxisDynamics<f64> for Pushed<'_> {
     fn accel(&self, s: AxisState<f64>, u: f64, t: f64) -> f64 {
-        self.0.accel(s, u, t) + self.1
-    }
-}
-
-impl Pushed<'_> {
-    fn axes(&self) -> [(&Plant, f64); AXES] {
-        [
-            (&self.plants[0], self.ext[0]),
-            (&self.plants[1], self.ext[1]),
-            (&self.plants[2], self.ext[2]),
-        ]
+        let sgn = s.vel / libm::sqrt(s.vel * s.vel + DRAG_V_REG * DRAG_V_REG);
+        self.plant.accel(s, u, t) + self.ext - self.drag * sgn
     }
 }
 
@@ -340,8 +344,20 @@ impl World {
             Injection::EncoderReversed { axis } => {
                 self.faults.reversed[axis.index()] = Some(counts[axis.index()])
             }
-            Injection::ExternalAccel { axis, accel_mm_s2 } => {
-                self.faults.ext_accel[axis.index()] = f64::from(accel_mm_s2)
+            Injection::ExternalAccel {
+                axis,
+                accel_mm_s2,
+                for_s,
+            } => {
+                self.faults.ext_accel[axis.index()] = f64::from(accel_mm_s2);
+                self.faults.ext_until_s[axis.index()] = self.time_s() + f64::from(for_s);
+            }
+            Injection::ExtraFriction { axis, mnm } => {
+                let i = axis.index();
+                self.faults.drag[i] = match &self.plants[i] {
+                    Plant::Physical(p) => f64::from(mnm) * p.inv_inertia(),
+                    Plant::Paper(_) => f64::from(mnm),
+                };
             }
             Injection::Overrun => self.inputs.overrun = true,
             Injection::CorruptState { .. } => {}
@@ -359,7 +375,18 @@ impl World {
             }
         }
         let h = self.period_s / f64::from(self.substeps);
-        if self.faults.ext_accel == [0.0; AXES] {
+        for (a, until) in self
+            .faults
+            .ext_accel
+            .iter_mut()
+            .zip(self.faults.ext_until_s)
+        {
+            if !(t < until) {
+                *a = 0.0;
+            }
+        }
+        let f = &self.faults;
+        if f.ext_accel == [0.0; AXES] && f.drag == [0.0; AXES] {
             for j in 0..self.substeps {
                 rk4_step(
                     &self.plants,
@@ -370,11 +397,11 @@ impl World {
                 );
             }
         } else {
-            let pushed = Pushed {
-                plants: &self.plants,
-                ext: self.faults.ext_accel,
-            };
-            let axes = pushed.axes();
+            let axes = [0, 1, 2].map(|i| Pushed {
+                plant: &self.plants[i],
+                ext: f.ext_accel[i],
+                drag: f.drag[i],
+            });
             for j in 0..self.substeps {
                 rk4_step(&axes, &mut self.state, t + f64::from(j) * h, h, |_, _| u);
             }

@@ -3,10 +3,12 @@
 //! - [`paper`]: the reference paper's Tables 1 and 3 (the main job);
 //! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry;
 //! - [`estimators`]: velocity sources × laws;
+//! - [`faults`]: the fault matrix (every fault class injected, detection and overrun);
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
 
 pub mod estimators;
+pub mod faults;
 pub mod generic;
 pub mod paper;
 pub mod qemu_verdict;

@@ -30,8 +30,11 @@ fn named(r: &crate::engine::RunResult) -> NamedFigures {
     ]
 }
 
+/// The parsed `key=<hex>,...` fields of a figures line.
+pub type Fields = Vec<(String, Vec<f64>)>;
+
 /// Parse `key=<hex>,<hex>` fields of the figures line for run `name` in `log`.
-pub fn parse_line(log: &str, name: &str) -> Result<(u64, Vec<(String, Vec<f64>)>)> {
+pub fn parse_line(log: &str, name: &str) -> Result<(u64, Fields)> {
     let line = log
         .lines()
         .find(|l| {

@@ -27,7 +27,7 @@ use controller_core::presets::board::{servo_config, BOARD_PATH, BOARD_RATE_HZ};
 use controller_core::presets::gantry::{adaptive_for, dob_smc_for, GANTRY_X, GANTRY_Y, GANTRY_Z};
 use controller_core::presets::paper::{PAPER_DSMC, PAPER_LAMBDA, PAPER_PID, PAPER_PLANT};
 use controller_core::servo::io::{Inputs, ServoIo};
-use controller_core::servo::safety::SafetyState;
+use controller_core::servo::ServoState;
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::servo::{Command, Servo};
 use controller_core::{LibmF32, Real, Vec3};
@@ -325,8 +325,8 @@ impl ServoPeriod {
             servo.period(&mut io, &[]);
         }
         let s = servo.snapshot();
-        let following = s.path_t_s > 0.0 && s.tracking.iter().all(|e| *e != 0.0);
-        (servo.state() == SafetyState::Enabled && following).then_some(Self { servo, io })
+        let following = s.motion_t_s > 0.0 && s.tracking.iter().all(|e| *e != 0.0);
+        (servo.state() == ServoState::Run && following).then_some(Self { servo, io })
     }
 
     /// One control period with no new command.
