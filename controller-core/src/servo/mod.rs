@@ -284,8 +284,7 @@ impl<R: Real> Servo<R> {
     /// configuration rejected at boot): always immediate, outputs off from the next period
     /// on (the caller switches them off now).
     pub fn latch_board_fault(&mut self, kind: FaultKind) {
-        let here = motion::sample(&self.motion, self.path.as_ref(), self.period_s).0;
-        self.trip(Fault::system(kind), 0.0, &here);
+        self.trip(Fault::system(kind), 0.0, None);
         if self.state.drives() {
             self.state = ServoState::Fault;
         }
@@ -311,8 +310,8 @@ impl<R: Real> Servo<R> {
     }
 
     /// Latch `f`; immediate faults switch the outputs off now, controlled ones start a stop
-    /// from the current reference.
-    fn trip(&mut self, f: Fault, value: f32, reference: &RefSample<R>) {
+    /// from the current reference (`None` only for faults of the immediate category).
+    fn trip(&mut self, f: Fault, value: f32, reference: Option<&RefSample<R>>) {
         self.faults.record(FaultRecord {
             fault: f,
             period: self.snapshot.period,
@@ -321,7 +320,15 @@ impl<R: Real> Servo<R> {
         match (f.kind.stop(), self.state) {
             (_, ServoState::Fault) => {}
             (StopCategory::Controlled, ServoState::Idle | ServoState::Run) => {
-                self.motion = Motion::stop_from(reference, &self.stop_decel);
+                let here;
+                let from = match reference {
+                    Some(r) => r,
+                    None => {
+                        here = motion::sample(&self.motion, self.path.as_ref(), self.period_s).0;
+                        &here
+                    }
+                };
+                self.motion = Motion::stop_from(from, &self.stop_decel);
                 self.rest_periods = 0;
                 self.stop_then = ServoState::Fault;
                 self.state = ServoState::Stopping;
@@ -431,13 +438,12 @@ impl<R: Real> Servo<R> {
 
         // 1. Safety first: hard inputs and commands decide before anything is computed.
         let inputs = io.read_inputs();
-        let held = motion::sample(&self.motion, self.path.as_ref(), self.period_s).0;
         if inputs.estop {
-            self.trip(Fault::system(FaultKind::EStop), 0.0, &held);
+            self.trip(Fault::system(FaultKind::EStop), 0.0, None);
         }
         for a in Axis::ALL {
             if inputs.amp_fault[a.index()] {
-                self.trip(Fault::on(FaultKind::AmplifierFault, a), 0.0, &held);
+                self.trip(Fault::on(FaultKind::AmplifierFault, a), 0.0, None);
             }
         }
         if self.state.drives() {
@@ -447,7 +453,7 @@ impl<R: Real> Servo<R> {
                 } else {
                     FaultKind::LimitMin
                 };
-                self.trip(Fault::on(kind, Axis::ALL[i]), 0.0, &held);
+                self.trip(Fault::on(kind, Axis::ALL[i]), 0.0, None);
             }
         }
         if !self.state.drives() {
@@ -484,13 +490,13 @@ impl<R: Real> Servo<R> {
             ServoState::Idle | ServoState::Run | ServoState::Stopping => {
                 let prev = self.applied.to_array().map(Real::to_f32);
                 if let Some((f, v)) = self.monitor.check_encoders(&counts, &vel, &prev) {
-                    self.trip(f, v, &reference);
+                    self.trip(f, v, Some(&reference));
                 }
                 if let Some((f, v)) = self
                     .monitor
                     .check_overrun(inputs.overrun, self.snapshot.period)
                 {
-                    self.trip(f, v, &reference);
+                    self.trip(f, v, Some(&reference));
                 }
                 let o = self.controller.evaluate(&reference, &meas);
                 let bad = (0..AXES)
@@ -500,7 +506,7 @@ impl<R: Real> Servo<R> {
                     self.trip(
                         Fault::on(FaultKind::NonFinite, Axis::ALL[i]),
                         0.0,
-                        &reference,
+                        Some(&reference),
                     );
                 }
                 let mut u = o.u;
@@ -524,7 +530,7 @@ impl<R: Real> Servo<R> {
                             });
                             self.state = ServoState::Fault;
                         } else {
-                            self.trip(f, v, &reference);
+                            self.trip(f, v, Some(&reference));
                         }
                     }
                 }
