@@ -245,9 +245,9 @@ fn run_estimators(
     );
     print!("{}", estimators::table(&p));
     if let Some(j) = json {
-        let mut v = serde_json::to_value(&c)?;
+        let mut v = estimators::to_json(&c);
         if let Some(m) = v.as_object_mut() {
-            m.insert("physical".into(), serde_json::to_value(&p)?);
+            m.insert("physical".into(), estimators::to_json(&p));
         }
         write_json(j, &v)?;
         println!("JSON: {}", j.display());

@@ -68,6 +68,32 @@ pub fn compare(file: &ScenarioFile) -> Result<Comparison> {
     Ok(out)
 }
 
+/// The one spelling of a law in every JSON output (`PID`, `SMC`, `DSMC`, `DOB-SMC`,
+/// `ASMC`, as the paper and seeds reports spell them) for this study's legacy lowercase
+/// key (`pid`, `smc`, `dsmc`, `dob_smc`).
+pub fn canonical_law_key(key: &str) -> String {
+    match key {
+        "pid" => "PID".into(),
+        "smc" => "SMC".into(),
+        "dsmc" => "DSMC".into(),
+        "dob_smc" => "DOB-SMC".into(),
+        "adaptive_smc" => "ASMC".into(),
+        other => other.to_uppercase().replace('_', "-"),
+    }
+}
+
+/// The comparison as JSON: every law under its canonical key and, for scripts written
+/// against the first release, under its lowercase key too.
+pub fn to_json(c: &Comparison) -> serde_json::Value {
+    let mut m = serde_json::Map::new();
+    for (law, by_src) in c {
+        let v = serde_json::to_value(by_src).unwrap_or_default();
+        m.insert(canonical_law_key(law), v.clone());
+        m.insert(law.clone(), v);
+    }
+    serde_json::Value::Object(m)
+}
+
 /// A terminal table of a comparison, sources in [`SOURCES`] order.
 pub fn table(c: &Comparison) -> String {
     use std::fmt::Write;
