@@ -76,10 +76,33 @@ def load(path):
         ]
         symtab = elf.get_section_by_name(".symtab")
         syms = {}
+        global FUNCS
+        FUNCS = []
         for s in symtab.iter_symbols():
             if s.name and s["st_info"]["type"] == "STT_FUNC":
                 syms[s.name] = s["st_value"] & ~1
+                FUNCS.append((s["st_value"] & ~1, s["st_size"], s.name))
+        FUNCS.sort()
     return segs, syms
+
+
+FUNCS = []
+
+
+def demangle_short(name):
+    """A readable short form of a mangled Rust symbol (no external tools needed)."""
+    if not name.startswith("_ZN"):
+        return name
+    parts, i = [], 3
+    while i < len(name) and name[i].isdigit():
+        j = i
+        while name[j].isdigit():
+            j += 1
+        n = int(name[i:j])
+        parts.append(name[j:j + n])
+        i = j + n
+    parts = [p for p in parts if not (p.startswith("h") and len(p) == 17)]
+    return "::".join(parts[-3:])
 
 
 def make_emu(segs):
@@ -109,6 +132,7 @@ class Counter:
         self.prev = None  # (address, size, mnemonic, is_branch_like)
         self.it_pending = []
         self.active = False
+        self.profile = None
 
     def decode(self, addr, size):
         d = self.cache.get(addr)
@@ -168,6 +192,8 @@ class Counter:
     def hook(self, uc, addr, size, _):
         if not self.active:
             return
+        if self.profile is not None:
+            self.profile[addr] = self.profile.get(addr, 0) + 1
         m, ops, _ = self.decode(addr, size)
         # IT bookkeeping: instructions of the block that were not reported were skipped.
         if self.it_pending:
@@ -245,6 +271,34 @@ def cmd_count(elf_path):
     return 1 if failed else 0
 
 
+def cmd_profile(elf_path, name, top=25):
+    """Exclusive instructions per function symbol for one step of kernel `name`."""
+    import bisect
+    uc, counter, syms = boot(elf_path)
+    if call(uc, counter, syms["insns_setup_" + name]) != 1:
+        raise SystemExit("%s setup failed" % name)
+    counter.reset()
+    counter.profile = {}
+    prof = counter.profile
+    counter.active = True
+    uc.reg_write(A.UC_ARM_REG_SP, STACK_TOP)
+    uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
+    uc.emu_start(syms["insns_kernel_" + name] | 1, RET_ADDR, count=MAX_INSNS)
+    starts = [f[0] for f in FUNCS]
+    per = {}
+    for addr, n in prof.items():
+        k = bisect.bisect_right(starts, addr) - 1
+        fn = "?"
+        if k >= 0 and addr < FUNCS[k][0] + max(FUNCS[k][1], 1):
+            fn = demangle_short(FUNCS[k][2])
+        per[fn] = per.get(fn, 0) + n
+    total = sum(per.values())
+    print("%s: %d instructions (exclusive per function, inlined code counts in its caller)" % (name, total))
+    for fn, n in sorted(per.items(), key=lambda x: -x[1])[:top]:
+        print("%7d %5.1f%%  %s" % (n, 100.0 * n / total, fn))
+    return 0
+
+
 def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
     uc, counter, syms = boot(elf_path)
     data = open(in_path, "rb").read()
@@ -265,6 +319,8 @@ def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
 def main(argv):
     if len(argv) >= 3 and argv[2] == "count":
         return cmd_count(argv[1])
+    if len(argv) == 4 and argv[2] == "profile":
+        return cmd_profile(argv[1], argv[3])
     if len(argv) == 7 and argv[2] == "replay":
         return cmd_replay(argv[1], argv[3], argv[4], int(argv[5]), argv[6])
     sys.stderr.write(__doc__)

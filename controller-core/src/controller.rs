@@ -12,7 +12,7 @@
 use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::coupling::contour::{cross_couple, Coupled, DirectionSource};
-use crate::coupling::variable_gain::{VariableGainOutput, VariableGainState};
+use crate::coupling::variable_gain::VariableGainState;
 use crate::coupling::{Coupling, CouplingConfig};
 use crate::law::{AxisSignals, Law, LawConfig, LawEval, LawState};
 use crate::motion::trajectory::RefSample;
@@ -49,7 +49,8 @@ pub struct Measured<R> {
     pub vel: Vec3<R>,
 }
 
-/// One evaluation of the controller.
+/// One evaluation of the controller. Kept small and filled in place
+/// ([`Controller3::evaluate_into`]): the control interrupt copies nothing it does not need.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ControlOutput<R> {
     /// Per-axis outputs: the laws' saturated outputs plus the coupling correction (the
@@ -57,15 +58,18 @@ pub struct ControlOutput<R> {
     pub u: Vec3<R>,
     /// Sliding variables (0 for PID axes).
     pub s: Vec3<R>,
-    /// Tracking errors, the contour-error estimate, and the errors the laws saw.
-    pub errors: Coupled<R>,
+    /// Tracking errors `q_d - q`.
+    pub tracking: Vec3<R>,
+    /// The contour-error estimate (0 without coupling).
+    pub contour: Vec3<R>,
     /// Variable-gain coupling correction before saturation (0 otherwise).
     pub correction: Vec3<R>,
     /// Per-axis evaluations, for [`Controller3::commit`].
     pub evals: [LawEval<R>; AXES],
     /// Axes whose law produced a non-finite raw output this period (replaced by 0).
     pub nonfinite: [bool; AXES],
-    vg: VariableGainOutput<R>,
+    /// Rate of the variable-gain coupling's integral.
+    vg_rate: Vec3<R>,
 }
 
 impl<R: Real> ControlOutput<R> {
@@ -121,13 +125,25 @@ impl<R: Real> Controller3<R> {
     /// Evaluate for the current state (pure): the direction of the contour model is the
     /// configured one (analytic tangent, or the chord from the previous reference point).
     pub fn evaluate(&self, reference: &RefSample<R>, meas: &Measured<R>) -> ControlOutput<R> {
+        let mut out = ControlOutput::default();
+        self.evaluate_into(reference, meas, &mut out);
+        out
+    }
+
+    /// [`Self::evaluate`] into `out` (every field of `out` is written).
+    pub fn evaluate_into(
+        &self,
+        reference: &RefSample<R>,
+        meas: &Measured<R>,
+        out: &mut ControlOutput<R>,
+    ) {
         let dir = match (&self.coupling, self.prev_ref) {
             (Coupling::Contour(c), Some(prev)) if c.direction == DirectionSource::Chord => {
                 reference.pos - prev
             }
             _ => reference.vel,
         };
-        self.evaluate_with(&self.states, &self.vg_state, reference, meas, dir)
+        self.evaluate_with_into(&self.states, &self.vg_state, reference, meas, dir, out)
     }
 
     /// Evaluate for explicit law states and contour direction `dir` (the simulator's
@@ -140,6 +156,21 @@ impl<R: Real> Controller3<R> {
         meas: &Measured<R>,
         dir: Vec3<R>,
     ) -> ControlOutput<R> {
+        let mut out = ControlOutput::default();
+        self.evaluate_with_into(states, vg_state, reference, meas, dir, &mut out);
+        out
+    }
+
+    /// [`Self::evaluate_with`] into `out` (every field of `out` is written).
+    pub fn evaluate_with_into(
+        &self,
+        states: &[LawState<R>; AXES],
+        vg_state: &VariableGainState<R>,
+        reference: &RefSample<R>,
+        meas: &Measured<R>,
+        dir: Vec3<R>,
+        out: &mut ControlOutput<R>,
+    ) {
         let tracking = reference.pos - meas.pos;
         let tracking_rate = reference.vel - meas.vel;
         let errors = match &self.coupling {
@@ -158,10 +189,10 @@ impl<R: Real> Controller3<R> {
                 c_dot: tracking_rate,
             },
         };
-        let mut out = ControlOutput {
-            errors,
-            ..Default::default()
-        };
+        out.tracking = tracking;
+        out.contour = errors.contour;
+        out.correction = Vec3::zero();
+        out.vg_rate = Vec3::zero();
         for (i, (law, st)) in self.laws.iter().zip(states).enumerate() {
             let sig = AxisSignals {
                 e: errors.c[i],
@@ -178,16 +209,16 @@ impl<R: Real> Controller3<R> {
             out.evals[i] = ev;
         }
         if let Coupling::VariableGain(vg) = &self.coupling {
-            out.vg = vg.evaluate(vg_state, tracking, tracking_rate, reference.vel);
-            out.correction = out.vg.correction;
-            out.errors.contour = out.vg.contour;
+            let v = vg.evaluate(vg_state, tracking, tracking_rate, reference.vel);
+            out.correction = v.correction;
+            out.contour = v.contour;
+            out.vg_rate = v.integral_rate;
             for i in 0..AXES {
                 let u = out.u[i] + out.correction[i];
                 out.nonfinite[i] |= !u.is_finite();
                 out.u[i] = u.finite_or_zero();
             }
         }
-        out
     }
 
     /// Advance every state over one period `dt` after `out`, with the outputs `applied`
@@ -203,7 +234,7 @@ impl<R: Real> Controller3<R> {
     ) {
         self.prev_ref = Some(reference.pos);
         if let Coupling::VariableGain(vg) = &self.coupling {
-            vg.integrate(&mut self.vg_state, &out.vg, dt);
+            vg.integrate_rate(&mut self.vg_state, out.vg_rate, dt);
         }
         for i in 0..AXES {
             self.laws[i].commit(
@@ -223,9 +254,21 @@ impl<R: Real> Controller3<R> {
         meas: &Measured<R>,
         dt: R,
     ) -> ControlOutput<R> {
-        let out = self.evaluate(reference, meas);
-        self.commit(&out, reference, meas, out.u, dt);
+        let mut out = ControlOutput::default();
+        self.step_into(reference, meas, dt, &mut out);
         out
+    }
+
+    /// [`Self::step`] into `out`.
+    pub fn step_into(
+        &mut self,
+        reference: &RefSample<R>,
+        meas: &Measured<R>,
+        dt: R,
+        out: &mut ControlOutput<R>,
+    ) {
+        self.evaluate_into(reference, meas, out);
+        self.commit(out, reference, meas, out.u, dt);
     }
 
     /// The first axis whose state is not finite or has saturated the number type
@@ -353,6 +396,6 @@ mod tests {
         })
         .unwrap();
         assert_eq!(a.step(&r, &m, 1e-4).u, b.step(&r, &m, 1e-4).u);
-        assert!(a.evaluate(&r, &m).errors.contour.norm() > 0.0);
+        assert!(a.evaluate(&r, &m).contour.norm() > 0.0);
     }
 }

@@ -39,7 +39,13 @@ fn main() -> Result<()> {
     match args.first().map(String::as_str) {
         None | Some("count") => count(&elf),
         Some("bitexact") => bitexact(&elf),
-        Some(other) => bail!("unknown command `{other}` (expected `count` or `bitexact`)"),
+        Some("profile") => match args.get(1) {
+            Some(kernel) => profile(&elf, kernel),
+            None => bail!("usage: cargo insns profile <kernel>"),
+        },
+        Some(other) => {
+            bail!("unknown command `{other}` (expected `count`, `bitexact` or `profile <kernel>`)")
+        }
     }
 }
 
@@ -104,6 +110,21 @@ fn count(elf: &Path) -> Result<()> {
         .context("running insns/count.py (python3 with unicorn, capstone, pyelftools)")?;
     if !status.success() {
         bail!("insns/count.py failed ({status})");
+    }
+    Ok(())
+}
+
+/// Exclusive instructions per function of one kernel step (inlined code counts in its
+/// caller): where a kernel spends its instructions.
+fn profile(elf: &Path, kernel: &str) -> Result<()> {
+    let status = python()
+        .arg(elf)
+        .arg("profile")
+        .arg(kernel)
+        .status()
+        .context("running insns/count.py")?;
+    if !status.success() {
+        bail!("insns/count.py profile failed ({status})");
     }
     Ok(())
 }

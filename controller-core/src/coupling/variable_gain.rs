@@ -142,8 +142,13 @@ impl<R: Real> VariableGain<R> {
 
     /// Integrate the PID state over `dt`, clamped.
     pub fn integrate(&self, st: &mut VariableGainState<R>, out: &VariableGainOutput<R>, dt: R) {
+        self.integrate_rate(st, out.integral_rate, dt);
+    }
+
+    /// Integrate the PID state at `rate` over `dt`, clamped.
+    pub fn integrate_rate(&self, st: &mut VariableGainState<R>, rate: Vec3<R>, dt: R) {
         let lim = self.integral_limit;
-        st.integral = (st.integral + out.integral_rate * dt).map(|v| v.clamp_sym(lim));
+        st.integral = (st.integral + rate * dt).map(|v| v.clamp_sym(lim));
     }
 }
 

@@ -133,6 +133,12 @@ pub(crate) fn count_to_real<R: Real>(n: i64) -> R {
     R::from_f32(hi as f32) * R::from_f32(65_536.0) + R::from_f32(lo as f32)
 }
 
+/// The position of wide count `n` with counts of length `len`: the servo step's (and the
+/// estimator bank's) one formula, in `R` without `f64`.
+pub fn counts_to_position<R: Real>(n: i64, len: R) -> R {
+    count_to_real::<R>(n) * len
+}
+
 /// `(count + frac) * units_per_count`.
 pub(crate) fn to_units<R: Real>(count: i64, frac: R, s: &Scales<R>) -> R {
     (count_to_real::<R>(count) + frac) * s.pos

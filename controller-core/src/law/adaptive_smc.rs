@@ -134,14 +134,21 @@ pub struct AdaptiveSmc<R> {
     u_max: R,
 }
 
-/// One evaluation: the output and the regressors the adaptation needs.
+/// What the adaptation needs from an evaluation: the distance to the dead zone and the
+/// regressors of `Ĵ`, `B̂` and `f̂±`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct AdaptiveOutput<R> {
-    pub law: LawOutput<R>,
+pub struct AdaptiveRegressors<R> {
     s_delta: R,
     acc_ref: R,
     vel: R,
     mu: R,
+}
+
+/// One evaluation: the output and the regressors the adaptation needs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AdaptiveOutput<R> {
+    pub law: LawOutput<R>,
+    pub reg: AdaptiveRegressors<R>,
 }
 
 impl<R: Real> AdaptiveSmc<R> {
@@ -204,15 +211,17 @@ impl<R: Real> AdaptiveSmc<R> {
                 s: s.finite_or_zero(),
                 finite: u.is_finite(),
             },
-            s_delta: s_delta.finite_or_zero(),
-            acc_ref: acc_ref.finite_or_zero(),
-            vel: sig.q_dot.finite_or_zero(),
-            mu,
+            reg: AdaptiveRegressors {
+                s_delta: s_delta.finite_or_zero(),
+                acc_ref: acc_ref.finite_or_zero(),
+                vel: sig.q_dot.finite_or_zero(),
+                mu,
+            },
         }
     }
 
     /// Advance the estimates over one period `dt` (forward Euler, then projection).
-    pub fn adapt(&self, st: &mut AdaptiveState<R>, out: &AdaptiveOutput<R>, dt: R) {
+    pub fn adapt(&self, st: &mut AdaptiveState<R>, out: &AdaptiveRegressors<R>, dt: R) {
         let sd = out.s_delta;
         st.j = self.j.update(st.j, sd, out.acc_ref, dt);
         st.b = self.b.update(st.b, sd, out.vel, dt);
@@ -223,7 +232,7 @@ impl<R: Real> AdaptiveSmc<R> {
     /// Evaluate, then adapt.
     pub fn step(&self, st: &mut AdaptiveState<R>, sig: &AxisSignals<R>, dt: R) -> LawOutput<R> {
         let out = self.evaluate(st, sig);
-        self.adapt(st, &out, dt);
+        self.adapt(st, &out.reg, dt);
         out.law
     }
 }

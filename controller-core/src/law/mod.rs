@@ -28,7 +28,7 @@ pub mod smc;
 
 use crate::config::ConfigError;
 use crate::Real;
-use adaptive_smc::{AdaptiveOutput, AdaptiveSmc, AdaptiveSmcConfig, AdaptiveState};
+use adaptive_smc::{AdaptiveRegressors, AdaptiveSmc, AdaptiveSmcConfig, AdaptiveState};
 use dob_smc::{DobSmc, DobSmcConfig, DobState};
 use pid::{Pid, PidConfig};
 use smc::{Smc, SmcConfig};
@@ -146,7 +146,7 @@ pub struct LawEval<R> {
     /// Rate of [`LawState::integral`] (PID and sliding mode; 0 otherwise).
     pub integral_rate: R,
     /// Regressors of the adaptive law's update (default otherwise).
-    pub adapt: AdaptiveOutput<R>,
+    pub adapt: AdaptiveRegressors<R>,
     /// False when the raw output was not finite (see [`LawOutput::finite`]).
     pub finite: bool,
 }
@@ -184,7 +184,7 @@ impl<R: Real> Law<R> {
             u: o.u,
             s: o.s,
             integral_rate: o.integral_rate,
-            adapt: AdaptiveOutput::default(),
+            adapt: AdaptiveRegressors::default(),
             finite: o.finite,
         };
         match self {
@@ -197,7 +197,7 @@ impl<R: Real> Law<R> {
                     u: o.law.u,
                     s: o.law.s,
                     integral_rate: R::ZERO,
-                    adapt: o,
+                    adapt: o.reg,
                     finite: o.law.finite,
                 }
             }

@@ -169,6 +169,30 @@ pub fn inv_root9_f32(x: f32) -> f32 {
     y * scale
 }
 
+/// `|x|^(1/den)`, the shared root of the sliding-mode powers: cube and ninth roots by
+/// their bit-trick seeds and Newton-type steps directly (no exponent dispatch), any other
+/// denominator through [`pow_abs_f32`]. Same accuracy as [`pow_abs_f32`].
+#[inline]
+pub fn root_abs_f32(x: f32, den: i16) -> f32 {
+    let a = if x < 0.0 { -x } else { x };
+    if a == 0.0 || !(a <= f32::MAX) {
+        return pow_abs_f32(a, Exponent { num: 1, den }, 0.0);
+    }
+    match den {
+        3 => {
+            let y = inv_cbrt_f32(a);
+            a * y * y
+        }
+        9 => {
+            let y = inv_root9_f32(a);
+            let y2 = y * y;
+            let y4 = y2 * y2;
+            a * (y4 * y4)
+        }
+        _ => pow_abs_f32(a, Exponent { num: 1, den }, 0.0),
+    }
+}
+
 /// `|x|^e` with the [`crate::Real::pow_abs`] contract: for `e < 0` the base is floored at
 /// `floor`; `0^e = 0` for `e > 0`, `x^0 = 1`; a non-finite result becomes `f32::MAX`.
 /// Denominators 1, 3 and 9 take the fast path, any other falls back to `libm::powf`.

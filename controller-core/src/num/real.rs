@@ -95,6 +95,12 @@ pub trait Real:
 
     fn is_finite(self) -> bool;
 
+    /// `|self|^(1/den)` for a positive odd `den` (the shared roots of the sliding-mode
+    /// laws); the default is [`Self::pow_abs`], types with a faster root override it.
+    fn root_abs(self, den: i16) -> Self {
+        self.pow_abs(Exponent { num: 1, den }, Self::ZERO)
+    }
+
     fn abs(self) -> Self {
         if self < Self::ZERO {
             -self
@@ -151,7 +157,7 @@ pub trait Real:
 }
 
 macro_rules! impl_float_real {
-    ($t:ty, $cbrt:path, $sqrt:path, $pow_abs:path, $sin_cos:path) => {
+    ($t:ty, $cbrt:path, $sqrt:path, $pow_abs:path, $sin_cos:path $(, $root_abs:path)?) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
@@ -195,6 +201,11 @@ macro_rules! impl_float_real {
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
             }
+            $(
+                fn root_abs(self, den: i16) -> Self {
+                    $root_abs(self, den)
+                }
+            )?
         }
     };
 }
@@ -207,7 +218,8 @@ impl_float_real!(
     crate::num::powers::cbrt_f32,
     libm::sqrtf,
     crate::num::powers::pow_abs_f32,
-    crate::num::powers::sin_cos_f32
+    crate::num::powers::sin_cos_f32,
+    crate::num::powers::root_abs_f32
 );
 impl_float_real!(
     f64,

@@ -27,6 +27,7 @@ enum Plan {
 pub struct PowerSet<const N: usize> {
     root: Exponent,
     plans: [Plan; N],
+    needs_root: bool,
 }
 
 impl<const N: usize> PowerSet<N> {
@@ -43,6 +44,7 @@ impl<const N: usize> PowerSet<N> {
         });
         Self {
             root: Exponent { num: 1, den: d },
+            needs_root: plans.iter().any(|p| matches!(p, Plan::Root(_))),
             plans,
         }
     }
@@ -50,9 +52,8 @@ impl<const N: usize> PowerSet<N> {
     /// `[|x|^e_0, …, |x|^e_{N-1}]`.
     pub fn eval<R: Real>(&self, x: R) -> [R; N] {
         let a = x.abs();
-        let needs_root = self.plans.iter().any(|p| matches!(p, Plan::Root(_)));
-        let r = if needs_root {
-            a.pow_abs(self.root, R::ZERO)
+        let r = if self.needs_root {
+            a.root_abs(self.root.den)
         } else {
             R::ZERO
         };
@@ -63,8 +64,20 @@ impl<const N: usize> PowerSet<N> {
     }
 }
 
-/// `r^k`, `1 <= k <= 15`, by square-and-multiply.
+/// `r^k`, `1 <= k <= 15`: the laws' small powers unrolled, larger ones by
+/// square-and-multiply.
+#[inline]
 fn ipow<R: Real>(r: R, k: u8) -> R {
+    match k {
+        1 => return r,
+        2 => return r * r,
+        3 => return r * r * r,
+        5 => {
+            let r2 = r * r;
+            return r2 * r2 * r;
+        }
+        _ => {}
+    }
     let mut acc = R::ONE;
     let mut base = r;
     let mut k = k;

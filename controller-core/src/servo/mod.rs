@@ -37,7 +37,7 @@ pub mod snapshot;
 
 use crate::axes::{Axis, AXES};
 use crate::config::ConfigError;
-use crate::controller::{Controller3, ControllerConfig, Measured};
+use crate::controller::{ControlOutput, Controller3, ControllerConfig, Measured};
 use crate::estimator::{EstimatorBank, EstimatorBankConfig, EstimatorTiming, WideCounter};
 use crate::motion::path::{PathConfig, PathStart};
 use crate::motion::trajectory::{RefSample, Trajectory};
@@ -45,7 +45,7 @@ use crate::{Real, Vec3};
 use faults::{Fault, FaultKind, FaultLog, FaultRecord, StopCategory};
 use io::{AmplifierConfig, EncoderConfig, Inputs, ServoIo};
 use monitor::{Monitor, SafetyConfig};
-use motion::Motion;
+use motion::{Clock, Motion};
 use snapshot::Snapshot;
 
 /// Highest control rate the servo accepts, Hz.
@@ -147,9 +147,10 @@ struct Check {
 /// The servo step's state, owned by the control interrupt.
 pub struct Servo<R> {
     period_s: f64,
+    clock: Clock<R>,
     dt: R,
     counters: [WideCounter; AXES],
-    count_len: [f64; AXES],
+    count_len: [R; AXES],
     full_scale: Vec3<R>,
     estimators: EstimatorBank<R>,
     controller: Controller3<R>,
@@ -172,6 +173,8 @@ pub struct Servo<R> {
     check_counts: i64,
     check_effort: [f32; AXES],
     applied: Vec3<R>,
+    /// The controller's evaluation of the current period (filled in place).
+    out: ControlOutput<R>,
     snapshot: Snapshot,
 }
 
@@ -221,9 +224,10 @@ impl<R: Real> Servo<R> {
             [0, 1, 2].map(|i| WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i]));
         Ok(Self {
             period_s,
+            clock: Clock::new(cfg.rate_hz),
             dt: R::from_f64(period_s),
             counters,
-            count_len,
+            count_len: count_len.map(R::from_f64),
             full_scale,
             estimators: EstimatorBank::new(&cfg.estimator, &timing, count_len, start_counts)?,
             controller: Controller3::new(&cfg.controller)?,
@@ -257,6 +261,7 @@ impl<R: Real> Servo<R> {
             check_counts: i64::from(s.encoder_check_counts.max(1)),
             check_effort: s.axes.map(|a| a.stuck_effort_change),
             applied: Vec3::zero(),
+            out: ControlOutput::default(),
             snapshot: Snapshot::boot(),
         })
     }
@@ -301,10 +306,12 @@ impl<R: Real> Servo<R> {
         self.period_s
     }
 
+    /// The measured position of `counts` (the estimators' formula: what the controller
+    /// sees).
     fn position_of(&self, counts: &[i64; AXES]) -> Vec3<R> {
         let mut p = Vec3::zero();
         for i in 0..AXES {
-            p[i] = R::from_f64(counts[i] as f64 * self.count_len[i]);
+            p[i] = crate::estimator::counts_to_position(counts[i], self.count_len[i]);
         }
         p
     }
@@ -324,7 +331,7 @@ impl<R: Real> Servo<R> {
                 let from = match reference {
                     Some(r) => r,
                     None => {
-                        here = motion::sample(&self.motion, self.path.as_ref(), self.period_s).0;
+                        here = motion::sample(&self.motion, self.path.as_ref(), &self.clock).0;
                         &here
                     }
                 };
@@ -389,7 +396,7 @@ impl<R: Real> Servo<R> {
             }
             (Command::Disarm, ServoState::Idle) => self.state = ServoState::Disabled,
             (Command::Disarm, ServoState::Run) => {
-                let (r, _, _) = motion::sample(&self.motion, self.path.as_ref(), self.period_s);
+                let (r, _, _) = motion::sample(&self.motion, self.path.as_ref(), &self.clock);
                 self.motion = Motion::stop_from(&r, &self.stop_decel);
                 self.rest_periods = 0;
                 self.stop_then = ServoState::Disabled;
@@ -475,7 +482,7 @@ impl<R: Real> Servo<R> {
 
         // 3. Reference.
         let (reference, motion_t, at_rest) =
-            motion::sample(&self.motion, self.path.as_ref(), self.period_s);
+            motion::sample(&self.motion, self.path.as_ref(), &self.clock);
 
         // 4. Positions and velocities.
         let meas: Measured<R> = self
@@ -485,7 +492,7 @@ impl<R: Real> Servo<R> {
 
         // 5. Control.
         let mut applied = Vec3::zero();
-        let mut out = None;
+        let mut evaluated = false;
         match self.state {
             ServoState::Idle | ServoState::Run | ServoState::Stopping => {
                 let prev = self.applied.to_array().map(Real::to_f32);
@@ -498,9 +505,10 @@ impl<R: Real> Servo<R> {
                 {
                     self.trip(f, v, Some(&reference));
                 }
-                let o = self.controller.evaluate(&reference, &meas);
+                self.controller
+                    .evaluate_into(&reference, &meas, &mut self.out);
                 let bad = (0..AXES)
-                    .find(|&i| o.nonfinite[i])
+                    .find(|&i| self.out.nonfinite[i])
                     .or_else(|| self.controller.unhealthy_axis());
                 if let Some(i) = bad {
                     self.trip(
@@ -509,12 +517,12 @@ impl<R: Real> Servo<R> {
                         Some(&reference),
                     );
                 }
-                let mut u = o.u;
+                let mut u = self.out.u;
                 for i in 0..AXES {
                     u[i] = u[i].finite_or_zero().clamp_sym(self.full_scale[i]);
                 }
                 if self.state.drives() {
-                    let tracking = o.errors.tracking.to_array().map(Real::to_f32);
+                    let tracking = self.out.tracking.to_array().map(Real::to_f32);
                     let v_ref = reference.vel.to_array().map(Real::to_f32);
                     let stopping = self.state == ServoState::Stopping;
                     let scale = if stopping { STOPPING_FERROR_SCALE } else { 1.0 };
@@ -552,9 +560,9 @@ impl<R: Real> Servo<R> {
                     io.disable_outputs();
                 }
                 self.controller
-                    .commit(&o, &reference, &meas, applied, self.dt);
+                    .commit(&self.out, &reference, &meas, applied, self.dt);
                 self.motion.advance();
-                out = Some(o);
+                evaluated = true;
             }
             ServoState::EncoderCheck => {
                 applied = self.encoder_check(&counts);
@@ -572,7 +580,7 @@ impl<R: Real> Servo<R> {
 
         // 6. Telemetry (plain copies).
         let s = &mut self.snapshot;
-        s.motion_t_s = motion_t as f32;
+        s.motion_t_s = motion_t.to_f32();
         s.state = self.state;
         s.fault = self.faults.first();
         s.fault_bits = self.faults.bits();
@@ -581,18 +589,16 @@ impl<R: Real> Servo<R> {
         s.counts = counts;
         s.effort = applied.to_array().map(Real::to_f32);
         s.outputs_on = self.state.drives();
-        match out {
-            Some(o) => {
-                s.reference = reference.pos.to_array().map(Real::to_f32);
-                s.tracking = o.errors.tracking.to_array().map(Real::to_f32);
-                s.contour = o.errors.contour.to_array().map(Real::to_f32);
-                s.s = o.s.to_array().map(Real::to_f32);
-            }
-            None => {
-                s.tracking = [0.0; AXES];
-                s.contour = [0.0; AXES];
-                s.s = [0.0; AXES];
-            }
+        if evaluated {
+            let o = &self.out;
+            s.reference = reference.pos.to_array().map(Real::to_f32);
+            s.tracking = o.tracking.to_array().map(Real::to_f32);
+            s.contour = o.contour.to_array().map(Real::to_f32);
+            s.s = o.s.to_array().map(Real::to_f32);
+        } else {
+            s.tracking = [0.0; AXES];
+            s.contour = [0.0; AXES];
+            s.s = [0.0; AXES];
         }
         &self.snapshot
     }

@@ -89,19 +89,48 @@ impl<R: Real> Motion<R> {
     }
 }
 
-/// The reference of `motion` this period; `path` is the configured path.
+/// Time from an integer period count, without `f64` (soft float on the board): whole
+/// seconds `k / rate` plus the remaining periods times the period, each exact before the
+/// one rounding of the sum, so the time is within one unit in the last place of `R` for
+/// any `k` (after 24 h at 10 kHz, `k = 8.64·10⁸` still fits a `u32`). Paths that run for
+/// hours lose precision with `f32` time itself (its ulp at 3600 s is 0.24 ms); the
+/// planner's references use segment-local times and do not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clock<R> {
+    rate_hz: u32,
+    dt: R,
+}
+
+impl<R: Real> Clock<R> {
+    pub fn new(rate_hz: u32) -> Self {
+        Self {
+            rate_hz: rate_hz.max(1),
+            dt: R::from_f64(1.0 / f64::from(rate_hz.max(1))),
+        }
+    }
+
+    /// `k` periods, in seconds.
+    pub fn time(&self, k: u32) -> R {
+        let whole = k / self.rate_hz;
+        let rest = k % self.rate_hz;
+        R::from_f32(whole as f32) + R::from_f32(rest as f32) * self.dt
+    }
+}
+
+/// The reference of `motion` this period; `path` is the configured path. Returns the
+/// reference, the time since the motion began, and whether the reference is at rest.
 pub fn sample<R: Real>(
     motion: &Motion<R>,
     path: Option<&(Trajectory<R>, Option<u32>)>,
-    period_s: f64,
-) -> (RefSample<R>, f64, bool) {
+    clock: &Clock<R>,
+) -> (RefSample<R>, R, bool) {
     let hold = |pos| {
         let r = RefSample {
             pos,
             vel: Vec3::zero(),
             acc: Vec3::zero(),
         };
-        (r, 0.0, true)
+        (r, R::ZERO, true)
     };
     match *motion {
         Motion::Hold(p) => hold(p),
@@ -113,8 +142,8 @@ pub fn sample<R: Real>(
             t_stop,
             k,
         } => {
-            let t = f64::from(k) * period_s;
-            let (r, rest) = Motion::stop_sample(p0, v0, dir, decel, t_stop, R::from_f64(t));
+            let t = clock.time(k);
+            let (r, rest) = Motion::stop_sample(p0, v0, dir, decel, t_stop, t);
             (r, t, rest)
         }
         Motion::Path { k, origin } => {
@@ -123,8 +152,7 @@ pub fn sample<R: Real>(
             };
             // after the path's duration its point at that time is held
             let held_at = end.filter(|e| k > *e);
-            let t = f64::from(held_at.unwrap_or(k)) * period_s;
-            let mut r = traj.sample(R::from_f64(t));
+            let mut r = traj.sample(clock.time(held_at.unwrap_or(k)));
             if held_at.is_some() {
                 r.vel = Vec3::zero();
                 r.acc = Vec3::zero();
@@ -132,7 +160,7 @@ pub fn sample<R: Real>(
             if let Some(o) = origin {
                 r.pos = r.pos + o;
             }
-            (r, f64::from(k) * period_s, held_at.is_some())
+            (r, clock.time(k), held_at.is_some())
         }
     }
 }

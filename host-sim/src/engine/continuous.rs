@@ -87,7 +87,7 @@ pub fn run<R: Real>(r: &Resolved, dt_s: f64) -> Result<RunResult> {
             trace.s.push(out.s.cast::<f64>().to_array());
             trace
                 .contour_model
-                .push(out.errors.contour.cast::<f64>().to_array());
+                .push(out.contour.cast::<f64>().to_array());
         }
         x = rk4(&x, t, dt_s, |tt, s| {
             let o = eval(&ctl, tt, s);

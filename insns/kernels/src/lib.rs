@@ -28,7 +28,6 @@ use controller_core::presets::gantry::{adaptive_for, dob_smc_for, GANTRY_X, GANT
 use controller_core::presets::paper::{PAPER_DSMC, PAPER_LAMBDA, PAPER_PID, PAPER_PLANT};
 use controller_core::servo::io::{Inputs, ServoIo};
 use controller_core::servo::ServoState;
-use controller_core::servo::snapshot::Snapshot;
 use controller_core::servo::{Command, Servo};
 use controller_core::{LibmF32, Real, Vec3};
 
@@ -71,6 +70,7 @@ pub struct Dsmc3<R> {
     t: R,
     dt: R,
     meas: Measured<R>,
+    out: ControlOutput<R>,
 }
 
 impl<R: Real> Dsmc3<R> {
@@ -88,16 +88,20 @@ impl<R: Real> Dsmc3<R> {
             t,
             dt: R::from_f32(KERNEL_PERIOD_S),
             meas,
+            out: ControlOutput::default(),
         };
         k.step();
         Some(k)
     }
 
-    /// One 3-axis control step: trajectory sample + `Controller3::step`.
+    /// One 3-axis control step: trajectory sample + `Controller3::step` (evaluated in
+    /// place, as the servo step does); returns the outputs.
     #[inline(never)]
-    pub fn step(&mut self) -> ControlOutput<R> {
+    pub fn step(&mut self) -> Vec3<R> {
         let r = self.traj.sample(self.t);
-        self.controller.step(&r, &self.meas, self.dt)
+        self.controller
+            .step_into(&r, &self.meas, self.dt, &mut self.out);
+        self.out.u
     }
 }
 
@@ -150,6 +154,7 @@ pub struct Law3<R> {
     reference: RefSample<R>,
     meas: Measured<R>,
     dt: R,
+    out: ControlOutput<R>,
 }
 
 impl<R: Real> Law3<R> {
@@ -165,16 +170,20 @@ impl<R: Real> Law3<R> {
             meas: measured_off(&reference),
             reference,
             dt: R::from_f32(KERNEL_PERIOD_S),
+            out: ControlOutput::default(),
         };
         k.step();
         k.step();
         Some(k)
     }
 
-    /// One step: `Controller3::step` (evaluate every law, commit every state).
+    /// One step: `Controller3::step` (evaluate every law in place, commit every state);
+    /// returns the outputs.
     #[inline(never)]
-    pub fn step(&mut self) -> ControlOutput<R> {
-        self.controller.step(&self.reference, &self.meas, self.dt)
+    pub fn step(&mut self) -> Vec3<R> {
+        self.controller
+            .step_into(&self.reference, &self.meas, self.dt, &mut self.out);
+        self.out.u
     }
 }
 
@@ -329,10 +338,11 @@ impl ServoPeriod {
         (servo.state() == ServoState::Run && following).then_some(Self { servo, io })
     }
 
-    /// One control period with no new command.
+    /// One control period with no new command; returns the X effort (the snapshot stays
+    /// in the servo, as on the board).
     #[inline(never)]
-    pub fn step(&mut self) -> Snapshot {
-        *self.servo.period(&mut self.io, &[])
+    pub fn step(&mut self) -> f32 {
+        self.servo.period(&mut self.io, &[]).effort[0]
     }
 }
 
@@ -399,9 +409,9 @@ pub fn replay<R: RawBits>(inputs: &[f32], outputs: &mut [u64]) -> usize {
             o.s.x,
             o.s.y,
             o.s.z,
-            o.errors.contour.x,
-            o.errors.contour.y,
-            o.errors.contour.z,
+            o.contour.x,
+            o.contour.y,
+            o.contour.z,
         ];
         for (slot, v) in out.iter_mut().zip(vals) {
             *slot = v.raw_bits();
