@@ -122,6 +122,14 @@ impl<R: Real> Controller3<R> {
         self.prev_ref = None;
     }
 
+    /// The reference's coordinates moved by `delta` (an axis was re-based by homing): the
+    /// chord direction's previous point moves with them.
+    pub fn shift_reference(&mut self, delta: Vec3<R>) {
+        if let Some(p) = &mut self.prev_ref {
+            *p = *p + delta;
+        }
+    }
+
     /// Evaluate for the current state (pure): the direction of the contour model is the
     /// configured one (analytic tangent, or the chord from the previous reference point).
     pub fn evaluate(&self, reference: &RefSample<R>, meas: &Measured<R>) -> ControlOutput<R> {

@@ -10,7 +10,9 @@ use controller_core::presets::gantry::GANTRY_AXES;
 use controller_core::servo::ServoState;
 use controller_core::sim::run::{RunConfig, SimRun};
 use controller_core::sim::truth::TruthSpec;
-use controller_core::sim::world::{InitialState, PlantConfig, WorldConfig};
+use controller_core::sim::world::{
+    ImperfectionConfig, InitialState, PlantConfig, SwitchConfig, WorldConfig,
+};
 
 #[test]
 fn default_configuration_follows_the_demo_path_without_saturating() {
@@ -23,6 +25,8 @@ fn default_configuration_follows_the_demo_path_without_saturating() {
             plants: GANTRY_AXES.map(PlantConfig::Physical),
             plant_substeps: 4,
             initial: [InitialState::default(); 3],
+            switches: [SwitchConfig::NONE; 3],
+            imperfections: ImperfectionConfig::default(),
         },
         truth: TruthSpec::default(),
         periods,

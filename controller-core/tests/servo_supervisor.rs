@@ -9,7 +9,9 @@ use controller_core::servo::faults::FaultKind;
 use controller_core::servo::{Command, ServoState};
 use controller_core::sim::run::{RunConfig, SimRun, TimedInjection};
 use controller_core::sim::truth::TruthSpec;
-use controller_core::sim::world::{InitialState, Injection, PlantConfig, WorldConfig};
+use controller_core::sim::world::{
+    ImperfectionConfig, InitialState, Injection, PlantConfig, SwitchConfig, WorldConfig,
+};
 
 fn run(inject: Option<TimedInjection>) -> SimRun<f32> {
     let cfg = RunConfig {
@@ -18,6 +20,8 @@ fn run(inject: Option<TimedInjection>) -> SimRun<f32> {
             plants: GANTRY_AXES.map(PlantConfig::Physical),
             plant_substeps: 4,
             initial: [InitialState::default(); 3],
+            switches: [SwitchConfig::NONE; 3],
+            imperfections: ImperfectionConfig::default(),
         },
         truth: TruthSpec::default(),
         periods: 1_000_000,

@@ -14,14 +14,19 @@ use controller_core::servo::{Command, ServoState};
 /// - a latched fault is reset (to `Disabled`, once its cause is gone; the next press arms);
 /// - `Disabled`: arm, which holds the position (arming never starts motion);
 /// - `Idle`: with the `demo-helix` build feature, start the demo path; otherwise disarm;
-/// - `Run`: disarm (a controlled stop, then outputs off);
+/// - `Run`, `Jog`, `Homing`, `Identify`: disarm (a controlled stop, then outputs off;
+///   identification stops at once);
 /// - while stopping or checking an encoder: nothing.
 pub fn press_commands(state: ServoState, demo: bool) -> &'static [Command] {
     match state {
         ServoState::Fault => &[Command::Reset],
         ServoState::Disabled => &[Command::Arm],
         ServoState::Idle if demo => &[Command::StartPath],
-        ServoState::Idle | ServoState::Run => &[Command::Disarm],
+        ServoState::Idle
+        | ServoState::Run
+        | ServoState::Jog
+        | ServoState::Homing
+        | ServoState::Identify => &[Command::Disarm],
         ServoState::Stopping | ServoState::EncoderCheck => &[],
     }
 }

@@ -12,6 +12,9 @@ use controller_core::law::LawConfig;
 use controller_core::model::PlantParams;
 use controller_core::motion::trajectory::Trajectory;
 use controller_core::presets::gantry::{adaptive_for, dob_smc_for, dsmc_for, pid_for};
+use controller_core::servo::homing::HomingConfig;
+use controller_core::servo::jog::JogConfig;
+use controller_core::servo::travel::TravelConfig;
 use controller_core::servo::{PathPlan, ServoConfig};
 use controller_core::sim::run::{RunConfig, SimRun};
 use controller_core::sim::world::{InitialState, PlantConfig, WorldConfig};
@@ -142,11 +145,26 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
             start: sc.path_start,
             duration_s: None,
         }),
+        travel: TravelConfig {
+            axes: m.axes.each_ref().map(|a| a.travel),
+            ..TravelConfig::UNLIMITED
+        },
+        homing: HomingConfig {
+            axes: m.axes.each_ref().map(|a| a.homing),
+        },
+        jog: JogConfig {
+            axes: m.axes.each_ref().map(|a| a.jog),
+            timeout_s: m.jog_timeout_s,
+        },
+        identify: m.identify,
+        model_known: m.axes.each_ref().map(|a| a.model_known),
     };
     let world = WorldConfig {
         plants: m.axes.each_ref().map(|a| a.plant),
         plant_substeps: m.plant_substeps,
         initial,
+        switches: m.axes.each_ref().map(|a| a.switches),
+        imperfections: m.imperfections,
     };
     let steps = match sc.mode {
         Mode::Discrete => sc.horizon_s * f64::from(m.rate_hz) * f64::from(m.plant_substeps),
@@ -159,7 +177,7 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
             sc.horizon_s / dt_s
         }
     };
-    if !(steps <= MAX_SIM_STEPS) {
+    if steps.is_nan() || steps > MAX_SIM_STEPS {
         return Err(format!(
             "{steps:.3e} plant steps (horizon × rate × substeps, or horizon / dt) exceed the \
              cap of {MAX_SIM_STEPS:.0e}; shorten the horizon or lower the rate"

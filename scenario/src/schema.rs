@@ -11,11 +11,15 @@ use controller_core::law::dob_smc::DobSmcConfig;
 use controller_core::law::pid::PidConfig;
 use controller_core::law::smc::SmcConfig;
 use controller_core::motion::path::{PathConfig, PathStart};
+use controller_core::servo::homing::{AxisHomingConfig, HomingConfig};
 use controller_core::servo::io::{AmplifierConfig, EncoderConfig};
+use controller_core::servo::jog::{AxisJogConfig, JogConfig};
 use controller_core::servo::monitor::{AxisSafetyConfig, SafetyConfig};
+use controller_core::servo::travel::AxisTravel;
 use controller_core::sim::run::TimedInjection;
 use controller_core::sim::truth::TruthSpec;
-use controller_core::sim::world::{InitialState, PlantConfig};
+use controller_core::sim::world::{ImperfectionConfig, InitialState, PlantConfig, SwitchConfig};
+use controller_core::sysid::{IdentifyConfig, IDENTIFY_DEFAULTS};
 use serde::{Deserialize, Serialize};
 
 /// Number type the controller runs in.
@@ -113,6 +117,23 @@ pub struct MachineSpec {
     pub fault_checks: bool,
     #[serde(with = "controller_core::axes::per_axis")]
     pub axes: [AxisSpec; 3],
+    /// Without a new jog command for this long a jog stops, s.
+    #[serde(default = "jog_timeout")]
+    pub jog_timeout_s: f32,
+    /// Identification's template (window and cap are set per run).
+    #[serde(default = "identify_defaults")]
+    pub identify: IdentifyConfig,
+    /// Sensor noise and command delay of the simulated machine.
+    #[serde(default)]
+    pub imperfections: ImperfectionConfig,
+}
+
+fn jog_timeout() -> f32 {
+    JogConfig::GANTRY.timeout_s
+}
+
+fn identify_defaults() -> IdentifyConfig {
+    IDENTIFY_DEFAULTS
 }
 
 fn four() -> u32 {
@@ -136,6 +157,33 @@ pub struct AxisSpec {
     pub safety: AxisSafetyConfig,
     #[serde(default)]
     pub initial: InitialState,
+    /// Soft limits, machine coordinates (default: unlimited).
+    #[serde(default = "unlimited")]
+    pub travel: AxisTravel,
+    /// Homing on the axis' switch (default: the axis does not home).
+    #[serde(default = "no_homing")]
+    pub homing: AxisHomingConfig,
+    #[serde(default = "gantry_jog")]
+    pub jog: AxisJogConfig,
+    /// The simulated machine's limit switches and index (default: none).
+    #[serde(default)]
+    pub switches: SwitchConfig,
+    /// The axis' model is known (identified or entered); a model-based law on an axis
+    /// whose model is not known refuses to arm.
+    #[serde(default = "yes")]
+    pub model_known: bool,
+}
+
+fn unlimited() -> AxisTravel {
+    AxisTravel::UNLIMITED
+}
+
+fn no_homing() -> AxisHomingConfig {
+    HomingConfig::NONE.axes[0]
+}
+
+fn gantry_jog() -> AxisJogConfig {
+    JogConfig::GANTRY.axes[0]
 }
 
 fn safety_off() -> AxisSafetyConfig {

@@ -59,6 +59,13 @@ impl WideCounter {
     }
 
     /// The wide count after the last reading.
+    /// The wide count a register value `raw` read just after the last update stands for
+    /// (an index pulse's captured count), without changing the counter.
+    pub fn extend(&self, raw: u32) -> i64 {
+        let mut probe = *self;
+        probe.update(raw)
+    }
+
     pub fn count(&self) -> i64 {
         self.total
     }

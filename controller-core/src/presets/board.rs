@@ -20,10 +20,13 @@ use crate::estimator::{EstimatorBankConfig, EstimatorConfig, PllConfig};
 use crate::law::LawConfig;
 use crate::motion::path::{PathConfig, PathStart};
 use crate::presets::gantry::{
-    dsmc_for, GANTRY_AMPLIFIERS, GANTRY_ENCODERS, GANTRY_SAFETY, GANTRY_X, GANTRY_Y, GANTRY_Z,
+    dsmc_for, GANTRY_AMPLIFIERS, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL,
+    GANTRY_X, GANTRY_Y, GANTRY_Z,
 };
+use crate::servo::jog::JogConfig;
 use crate::servo::monitor::SafetyConfig;
 use crate::servo::{PathPlan, ServoConfig};
+use crate::sysid::IDENTIFY_DEFAULTS;
 
 /// Default control rate of the board, Hz (`GANTRY_CONTROL_HZ` overrides it at build time).
 pub const BOARD_RATE_HZ: u32 = 10_000;
@@ -53,8 +56,10 @@ pub const BOARD_PATH: PathPlan = PathPlan {
     duration_s: Some(15.0),
 };
 
-/// The board's servo configuration at `rate_hz` (validated by `Servo::new`, which
-/// rejects rates outside 100 Hz..50 kHz and estimator tunings unstable at that rate).
+/// The servo configuration of the gantry as designed at `rate_hz` (validated by
+/// `Servo::new`, which rejects rates outside 100 Hz..50 kHz and estimator tunings
+/// unstable at that rate): the simulated gantry, the QEMU rig and the instruction counts
+/// run it. Its axis models are the presets', marked known.
 pub const fn servo_config(rate_hz: u32) -> ServoConfig {
     ServoConfig {
         rate_hz,
@@ -71,7 +76,22 @@ pub const fn servo_config(rate_hz: u32) -> ServoConfig {
         estimator: EstimatorBankConfig::uniform(EstimatorConfig::Pll(BOARD_PLL)),
         safety: SafetyConfig::with_axes(GANTRY_SAFETY),
         path: Some(BOARD_PATH),
+        travel: GANTRY_TRAVEL,
+        homing: GANTRY_HOMING,
+        jog: JogConfig::GANTRY,
+        identify: IDENTIFY_DEFAULTS,
+        model_known: [true; AXES],
     }
+}
+
+/// What a board runs before anything was stored in its settings: [`servo_config`] with
+/// every axis model unknown, so the model-based laws refuse to arm until the axes are
+/// identified (or their models entered) — the presets describe the gantry we designed,
+/// not the machine the board was flashed onto.
+pub const fn factory_config(rate_hz: u32) -> ServoConfig {
+    let mut c = servo_config(rate_hz);
+    c.model_known = [false; AXES];
+    c
 }
 
 const _: () = assert!(AXES == 3);

@@ -14,8 +14,10 @@ use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
 use crate::law::smc::SmcConfig;
+use crate::servo::homing::{AxisHomingConfig, HomeDirection, HomingConfig};
 use crate::servo::io::{AmplifierConfig, EncoderConfig};
 use crate::servo::monitor::AxisSafetyConfig;
+use crate::servo::travel::{AxisTravel, TravelConfig};
 use crate::sim::physical::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
 use crate::sysid::model::AxisModel;
 use crate::sysid::tuning::{self, TuningConfig};
@@ -244,4 +246,60 @@ pub const VARIABLE_GAIN_XY: VariableGainConfig = VariableGainConfig {
     integral_limit: 1.0,
     u_max: 1000.0,
     min_direction_norm_sq: 1e-6,
+};
+
+/// The gantry's travel around the work origin: ±150 mm on X and Y, ±50 mm on Z (the
+/// 600/800 mm screws leave room for the carriages and the switches beyond).
+pub const GANTRY_TRAVEL: TravelConfig = TravelConfig {
+    axes: [
+        AxisTravel {
+            min_mm: -150.0,
+            max_mm: 150.0,
+        },
+        AxisTravel {
+            min_mm: -150.0,
+            max_mm: 150.0,
+        },
+        AxisTravel {
+            min_mm: -50.0,
+            max_mm: 50.0,
+        },
+    ],
+    tolerance_mm: TravelConfig::DEFAULT_TOLERANCE_MM,
+};
+
+/// One axis' homing on the gantry: seek at 20 mm/s (stops within 0.4 mm at the 500 mm/s²
+/// homing acceleration, inside the 2 mm between switch and hard stop), locate at 1 mm/s
+/// (a 1 ms switch response is 1 µm), 2 mm back-off, 2 mm pull-off. The switch triggers
+/// 1 mm beyond the soft limit.
+const fn gantry_homing_axis(
+    order: u8,
+    direction: HomeDirection,
+    switch_pos_mm: f32,
+) -> AxisHomingConfig {
+    AxisHomingConfig {
+        enabled: true,
+        order,
+        direction,
+        seek_mm_s: 20.0,
+        locate_mm_s: 1.0,
+        accel_mm_s2: 500.0,
+        backoff_mm: 2.0,
+        pulloff_mm: 2.0,
+        switch_pos_mm,
+        // the whole 300 mm travel plus the 2 mm beyond each end
+        max_seek_mm: 320.0,
+        use_index: false,
+        index_search_mm: AxisHomingConfig::INDEX_SEARCH_MM,
+    }
+}
+
+/// Homing of the gantry: Z up first (clears the work), then X and Y to their minimum
+/// ends.
+pub const GANTRY_HOMING: HomingConfig = HomingConfig {
+    axes: [
+        gantry_homing_axis(1, HomeDirection::Min, -151.0),
+        gantry_homing_axis(1, HomeDirection::Min, -151.0),
+        gantry_homing_axis(0, HomeDirection::Max, 51.0),
+    ],
 };

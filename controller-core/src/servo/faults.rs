@@ -5,8 +5,8 @@
 //!
 //! | category | kinds | what happens |
 //! | --- | --- | --- |
-//! | immediate | e-stop, hard limit, amplifier fault, encoder stuck / jump / runaway, non-finite controller state, invalid configuration, clock fault | every output off in the period of detection |
-//! | controlled | following error, overspeed, deadline overrun, link lost | the reference decelerates to rest along its direction at the axes' stop deceleration, the controller keeps tracking it, then every output goes off |
+//! | immediate | e-stop, hard limit, amplifier fault, encoder stuck / jump / runaway, non-finite controller state, invalid configuration, clock fault, corrupt settings store (at boot, outputs already off) | every output off in the period of detection |
+//! | controlled | following error, overspeed, deadline overrun, link lost, soft limit, homing failed | the reference decelerates to rest along its direction at the axes' stop deceleration, the controller keeps tracking it, then every output goes off |
 //!
 //! A controlled stop is used only where the position is still trustworthy (the encoders
 //! are healthy); anything that makes the measurement or the controller suspect stops at
@@ -52,6 +52,12 @@ pub enum FaultKind {
     /// The board's crystal failed (at start-up or later, by the clock security system)
     /// and the controller runs on its internal oscillator: its timing is not trustworthy.
     ClockFault = 13,
+    /// A reference left the axis' travel (the planner or a jog failed to keep it in).
+    SoftLimit = 14,
+    /// Homing did not find (or could not leave) the home switch or the index.
+    HomingFailed = 15,
+    /// The settings store was unreadable at boot: factory defaults are in use.
+    SettingsCorrupt = 16,
 }
 
 /// How the machine stops on a fault.
@@ -68,7 +74,7 @@ pub enum StopCategory {
 
 impl FaultKind {
     /// Every kind, in code order.
-    pub const ALL: [FaultKind; 14] = [
+    pub const ALL: [FaultKind; 17] = [
         Self::EStop,
         Self::LimitMin,
         Self::LimitMax,
@@ -83,13 +89,19 @@ impl FaultKind {
         Self::LinkLost,
         Self::ConfigInvalid,
         Self::ClockFault,
+        Self::SoftLimit,
+        Self::HomingFailed,
+        Self::SettingsCorrupt,
     ];
 
     pub const fn stop(self) -> StopCategory {
         match self {
-            Self::FollowingError | Self::Overspeed | Self::DeadlineOverrun | Self::LinkLost => {
-                StopCategory::Controlled
-            }
+            Self::FollowingError
+            | Self::Overspeed
+            | Self::DeadlineOverrun
+            | Self::LinkLost
+            | Self::SoftLimit
+            | Self::HomingFailed => StopCategory::Controlled,
             _ => StopCategory::Immediate,
         }
     }
@@ -120,10 +132,13 @@ impl FaultKind {
             Self::LinkLost => "link_lost",
             Self::ConfigInvalid => "config_invalid",
             Self::ClockFault => "clock_fault",
+            Self::SoftLimit => "soft_limit",
+            Self::HomingFailed => "homing_failed",
+            Self::SettingsCorrupt => "settings_corrupt",
         }
     }
 
-    const fn bit(self) -> u16 {
+    const fn bit(self) -> u32 {
         1 << (self as u8)
     }
 }
@@ -170,8 +185,8 @@ pub const FAULT_HISTORY: usize = 8;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FaultLog {
     first: Option<FaultRecord>,
-    system: u16,
-    axes: [u16; AXES],
+    system: u32,
+    axes: [u32; AXES],
     history: [Option<FaultRecord>; FAULT_HISTORY],
     next: usize,
 }
@@ -213,7 +228,7 @@ impl FaultLog {
         self.next = (self.next + 1) % FAULT_HISTORY;
     }
 
-    fn latched_bits(&self, axis: Option<Axis>) -> u16 {
+    fn latched_bits(&self, axis: Option<Axis>) -> u32 {
         match axis {
             Some(a) => self.axes[a.index()],
             None => self.system,
@@ -236,7 +251,7 @@ impl FaultLog {
     }
 
     /// Latched kinds as bit sets: (system, per axis).
-    pub fn bits(&self) -> (u16, [u16; AXES]) {
+    pub fn bits(&self) -> (u32, [u32; AXES]) {
         (self.system, self.axes)
     }
 

@@ -23,6 +23,9 @@ pub struct Inputs {
     /// The previous control period missed its deadline (the board's timer had already
     /// fired again when it ended).
     pub overrun: bool,
+    /// Per axis: the counter register captured at the encoder's index pulse, when one
+    /// came since the last period (homing with `use_index`).
+    pub index: [Option<u32>; AXES],
 }
 
 impl Inputs {

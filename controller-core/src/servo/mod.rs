@@ -20,20 +20,33 @@
 //! 6. publish the telemetry [`Snapshot`] (plain copies).
 //!
 //! States ([`ServoState`]): `Disabled` (boot; outputs off) → arm → `Idle` (holding the
-//! position it armed at: arming never starts motion) → start path → `Run`. A fault of the
-//! immediate category goes straight to `Fault` (outputs off in that period); a controlled
-//! one goes through `Stopping`. `Fault` → reset → `Disabled` only once every cause is
-//! gone; an encoder fault first runs the encoder check (`EncoderCheck`): the axis must
-//! follow a small effort in both directions, or the reset is refused.
+//! position it armed at: arming never starts motion) → `Run` (a path or the planner's
+//! program), `Jog`, `Homing` or `Identify`, each back to `Idle` (a stop command ends the
+//! motion with a controlled stop). A fault of the immediate category goes straight to
+//! `Fault` (outputs off in that period); a controlled one goes through `Stopping`.
+//! `Fault` → reset → `Disabled` only once every cause is gone; an encoder fault first runs
+//! the encoder check (`EncoderCheck`): the axis must follow a small effort in both
+//! directions, or the reset is refused. Which command is valid when: [`commands::check`].
+//!
+//! Coordinates: the servo works in machine coordinates, the wide encoder counts minus a
+//! per-axis origin that homing sets ([`homing`]); the encoder checks see the raw wide
+//! counts, so re-basing never looks like a jump. Soft limits ([`travel`]) apply to axes
+//! that are homed (or take no part in homing).
 //!
 //! Nothing here allocates, blocks, formats or panics; every number that reaches an output
 //! is finite and within the amplifier's range.
 
+pub mod commands;
 pub mod faults;
+pub mod homing;
+pub mod identify;
 pub mod io;
+pub mod jog;
 pub mod monitor;
 pub mod motion;
+pub mod ramp;
 pub mod snapshot;
+pub mod travel;
 
 use crate::axes::{Axis, AXES};
 use crate::config::ConfigError;
@@ -41,12 +54,20 @@ use crate::controller::{ControlOutput, Controller3, ControllerConfig, Measured};
 use crate::estimator::{EstimatorBank, EstimatorBankConfig, EstimatorTiming, WideCounter};
 use crate::motion::path::{PathConfig, PathStart};
 use crate::motion::trajectory::{RefSample, Trajectory};
+#[cfg(feature = "serde")]
+use crate::sysid::IDENTIFY_DEFAULTS;
+use crate::sysid::{AxisSample, IdentifyConfig};
 use crate::{Real, Vec3};
+pub use commands::{Command, Refusal};
 use faults::{Fault, FaultKind, FaultLog, FaultRecord, StopCategory};
+use homing::{Homing, HomingConfig, HomingEvent, HomingInputs};
+use identify::{IdentifyOutcome, IdentifyRun};
 use io::{AmplifierConfig, EncoderConfig, Inputs, ServoIo};
+use jog::{Jog, JogConfig};
 use monitor::{Monitor, SafetyConfig};
 use motion::{Clock, Motion};
 use snapshot::Snapshot;
+use travel::TravelConfig;
 
 /// Highest control rate the servo accepts, Hz.
 pub const MAX_RATE_HZ: u32 = 50_000;
@@ -87,21 +108,35 @@ pub struct ServoConfig {
     /// The path [`Command::StartPath`] starts, if any.
     #[cfg_attr(feature = "serde", serde(default))]
     pub path: Option<PathPlan>,
+    /// Soft limits (default: unlimited).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub travel: TravelConfig,
+    /// Homing (default: no axis homes).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub homing: HomingConfig,
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub jog: JogConfig,
+    /// Identification's template: window and cap are set per run ([`identify`]).
+    #[cfg_attr(feature = "serde", serde(default = "default_identify"))]
+    pub identify: IdentifyConfig,
+    /// Per axis: is the plant model of the axis' law known (identified or entered)? A
+    /// model-based law on an axis without one cannot be armed (default: known, as in
+    /// every simulation whose plant is configured).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default = "default_models_known", with = "crate::axes::per_axis")
+    )]
+    pub model_known: [bool; AXES],
 }
 
-/// Operator commands, applied at the start of a period in the order given.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Command {
-    /// Disabled -> Idle (inputs clear, no fault latched), holding the current position.
-    Arm,
-    /// Idle -> Disabled; Run -> controlled stop -> Disabled.
-    Disarm,
-    /// Fault -> Disabled once every cause is gone (an encoder fault runs the encoder
-    /// check first).
-    Reset,
-    /// Follow the configured path (from Idle or Run).
-    StartPath,
+#[cfg(feature = "serde")]
+fn default_identify() -> IdentifyConfig {
+    IDENTIFY_DEFAULTS
+}
+
+#[cfg(feature = "serde")]
+fn default_models_known() -> [bool; AXES] {
+    [true; AXES]
 }
 
 /// State of the servo and its outputs.
@@ -114,8 +149,14 @@ pub enum ServoState {
     Disabled,
     /// Outputs on, holding position.
     Idle,
-    /// Outputs on, following the path.
+    /// Outputs on, following the path or the planner's program.
     Run,
+    /// Outputs on, jogging.
+    Jog,
+    /// Outputs on, running the homing sequence.
+    Homing,
+    /// Identifying an axis (the others hold, or are off when started from Disabled).
+    Identify,
     /// Outputs on, decelerating to rest (after a controlled-stop fault, or a disarm while
     /// moving); then outputs off.
     Stopping,
@@ -126,12 +167,9 @@ pub enum ServoState {
 }
 
 impl ServoState {
-    /// The outputs are driven in this state.
+    /// The outputs are driven in this state (in `Identify` at least the identified axis').
     pub const fn drives(self) -> bool {
-        matches!(
-            self,
-            Self::Idle | Self::Run | Self::Stopping | Self::EncoderCheck
-        )
+        !matches!(self, Self::Disabled | Self::Fault)
     }
 }
 
@@ -150,19 +188,32 @@ pub struct Servo<R> {
     clock: Clock<R>,
     dt: R,
     counters: [WideCounter; AXES],
+    /// Machine counts = wide counts - origin (homing sets it).
+    origin: [i64; AXES],
     count_len: [R; AXES],
+    count_len_f32: [f32; AXES],
+    counts_per_mm: [f32; AXES],
     full_scale: Vec3<R>,
     estimators: EstimatorBank<R>,
     controller: Controller3<R>,
     monitor: Monitor,
     faults: FaultLog,
     state: ServoState,
-    /// The state a controlled stop ends in (Fault, or Disabled after a disarm).
+    /// The state a controlled stop ends in (Fault, Disabled after a disarm, Idle after a
+    /// stop command).
     stop_then: ServoState,
     /// The configured path and the period after which its end point is held.
     path: Option<(Trajectory<R>, Option<u32>)>,
     path_start: PathStart,
     motion: Motion<R>,
+    travel: TravelConfig,
+    homing_cfg: HomingConfig,
+    jog_cfg: JogConfig,
+    jog_timeout_periods: u32,
+    identify_cfg: IdentifyConfig,
+    identify: Option<IdentifyRun>,
+    identify_outcome: Option<IdentifyOutcome>,
+    homed: [bool; AXES],
     /// Periods the stop reference has been at rest.
     rest_periods: u32,
     settle_periods: u32,
@@ -217,17 +268,35 @@ impl<R: Real> Servo<R> {
             }
             None => None,
         };
+        cfg.travel.validate()?;
+        cfg.homing.validate()?;
+        cfg.jog.validate()?;
+        for (i, a) in cfg.homing.axes.iter().enumerate() {
+            if a.enabled && !cfg.travel.axes[i].contains(a.home_mm()) {
+                return Err(ConfigError::OutOfRange(
+                    "homing: switch_pos_mm -/+ pulloff_mm must lie inside the travel",
+                ));
+            }
+        }
         let path_start = cfg.path.map_or(PathStart::Absolute, |p| p.start);
         let s = &cfg.safety;
         let positive = |v: f32, n| crate::config::positive(v, n);
         let counters =
             [0, 1, 2].map(|i| WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i]));
+        let model_missing = commands::axis_mask(
+            [0, 1, 2].map(|i| cfg.controller.laws[i].is_model_based() && !cfg.model_known[i]),
+        );
+        let mut snapshot = Snapshot::boot();
+        snapshot.model_missing = model_missing;
         Ok(Self {
             period_s,
             clock: Clock::new(cfg.rate_hz),
             dt: R::from_f64(period_s),
             counters,
+            origin: [0; AXES],
             count_len: count_len.map(R::from_f64),
+            count_len_f32: count_len.map(|l| l as f32),
+            counts_per_mm,
             full_scale,
             estimators: EstimatorBank::new(&cfg.estimator, &timing, count_len, start_counts)?,
             controller: Controller3::new(&cfg.controller)?,
@@ -243,6 +312,14 @@ impl<R: Real> Servo<R> {
             path,
             path_start,
             motion: Motion::Hold(Vec3::zero()),
+            travel: cfg.travel,
+            homing_cfg: cfg.homing,
+            jog_cfg: cfg.jog,
+            jog_timeout_periods: monitor::periods(cfg.jog.timeout_s, period_s),
+            identify_cfg: cfg.identify,
+            identify: None,
+            identify_outcome: None,
+            homed: [false; AXES],
             rest_periods: 0,
             settle_periods: monitor::periods(
                 positive(s.stop_settle_s, "safety.stop_settle_s")?,
@@ -262,7 +339,7 @@ impl<R: Real> Servo<R> {
             check_effort: s.axes.map(|a| a.stuck_effort_change),
             applied: Vec3::zero(),
             out: ControlOutput::default(),
-            snapshot: Snapshot::boot(),
+            snapshot,
         })
     }
 
@@ -285,14 +362,28 @@ impl<R: Real> Servo<R> {
         &self.controller
     }
 
+    /// How the last identification ended (its result, if it finished).
+    pub fn identify_outcome(&self) -> Option<&IdentifyOutcome> {
+        self.identify_outcome.as_ref()
+    }
+
+    /// Per axis: homed (or taking no part in homing), so that its soft limits apply.
+    pub fn referenced(&self, axis: usize) -> bool {
+        self.homed.get(axis).copied().unwrap_or(false)
+            || !self.homing_cfg.axes.get(axis).is_some_and(|a| a.enabled)
+    }
+
     /// Latch a fault the board found outside the servo step (a failed crystal, a
-    /// configuration rejected at boot): always immediate, outputs off from the next period
-    /// on (the caller switches them off now).
+    /// configuration rejected at boot, a corrupt settings store): always immediate,
+    /// outputs off from the next period on (the caller switches them off now).
     pub fn latch_board_fault(&mut self, kind: FaultKind) {
         self.trip(Fault::system(kind), 0.0, None);
         if self.state.drives() {
             self.state = ServoState::Fault;
+            self.identify = None;
         }
+        self.snapshot.fault = self.faults.first();
+        self.snapshot.fault_bits = self.faults.bits();
     }
 
     /// Fault injection for the fault matrix (simulator and QEMU test builds): corrupt the
@@ -316,6 +407,25 @@ impl<R: Real> Servo<R> {
         p
     }
 
+    /// Soft-limit bounds of each axis for a jog: the travel once referenced, else none.
+    fn jog_bounds(&self) -> [(f32, f32); AXES] {
+        [0, 1, 2].map(|i| {
+            if self.referenced(i) {
+                (self.travel.axes[i].min_mm, self.travel.axes[i].max_mm)
+            } else {
+                (f32::NEG_INFINITY, f32::INFINITY)
+            }
+        })
+    }
+
+    /// Begin a controlled stop from `from`, ending in `then`.
+    fn begin_stop(&mut self, from: &RefSample<R>, then: ServoState) {
+        self.motion = Motion::stop_from(from, &self.stop_decel);
+        self.rest_periods = 0;
+        self.stop_then = then;
+        self.state = ServoState::Stopping;
+    }
+
     /// Latch `f`; immediate faults switch the outputs off now, controlled ones start a stop
     /// from the current reference (`None` only for faults of the immediate category).
     fn trip(&mut self, f: Fault, value: f32, reference: Option<&RefSample<R>>) {
@@ -324,9 +434,19 @@ impl<R: Real> Servo<R> {
             period: self.snapshot.period,
             value,
         });
+        if f.kind.is_encoder() {
+            // the position is no longer known for sure: home again
+            if let Some(h) = f.axis.and_then(|a| self.homed.get_mut(a.index())) {
+                *h = false;
+            }
+        }
+        let moving = matches!(
+            self.state,
+            ServoState::Idle | ServoState::Run | ServoState::Jog | ServoState::Homing
+        );
         match (f.kind.stop(), self.state) {
             (_, ServoState::Fault) => {}
-            (StopCategory::Controlled, ServoState::Idle | ServoState::Run) => {
+            (StopCategory::Controlled, _) if moving => {
                 let here;
                 let from = match reference {
                     Some(r) => r,
@@ -335,10 +455,7 @@ impl<R: Real> Servo<R> {
                         &here
                     }
                 };
-                self.motion = Motion::stop_from(from, &self.stop_decel);
-                self.rest_periods = 0;
-                self.stop_then = ServoState::Fault;
-                self.state = ServoState::Stopping;
+                self.begin_stop(from, ServoState::Fault);
             }
             (StopCategory::Controlled, ServoState::Stopping) => {
                 self.stop_then = ServoState::Fault;
@@ -346,6 +463,7 @@ impl<R: Real> Servo<R> {
             _ => {
                 self.state = ServoState::Fault;
                 self.check = None;
+                self.identify = None;
             }
         }
     }
@@ -383,30 +501,49 @@ impl<R: Real> Servo<R> {
         })
     }
 
-    fn apply_command(&mut self, c: Command, inputs: &Inputs, counts: &[i64; AXES]) {
-        match (c, self.state) {
-            (Command::Arm, ServoState::Disabled)
-                if !self.faults.any() && !inputs.estop && inputs.first_limit().is_none() =>
-            {
+    /// Hold where the axes are now, with fresh estimator, controller and monitor states.
+    fn hold_here(&mut self, counts: &[i64; AXES]) {
+        self.estimators.reset(*counts);
+        self.controller.reset();
+        self.monitor.reset();
+        self.motion = Motion::Hold(self.position_of(counts));
+    }
+
+    fn apply_command(
+        &mut self,
+        c: &Command,
+        inputs: &Inputs,
+        counts: &[i64; AXES],
+    ) -> Result<(), Refusal> {
+        self.snapshot.inputs = *inputs;
+        self.snapshot.state = self.state;
+        self.snapshot.fault_bits = self.faults.bits();
+        self.snapshot.homed = commands::axis_mask([0, 1, 2].map(|i| self.referenced(i)));
+        commands::check(&self.snapshot, c)?;
+        let here = || motion::sample(&self.motion, self.path.as_ref(), &self.clock).0;
+        match (*c, self.state) {
+            (Command::Arm, _) => {
                 self.state = ServoState::Idle;
-                self.estimators.reset(*counts);
-                self.controller.reset();
-                self.monitor.reset();
-                self.motion = Motion::Hold(self.position_of(counts));
+                self.hold_here(counts);
             }
             (Command::Disarm, ServoState::Idle) => self.state = ServoState::Disabled,
-            (Command::Disarm, ServoState::Run) => {
-                let (r, _, _) = motion::sample(&self.motion, self.path.as_ref(), &self.clock);
-                self.motion = Motion::stop_from(&r, &self.stop_decel);
-                self.rest_periods = 0;
-                self.stop_then = ServoState::Disabled;
-                self.state = ServoState::Stopping;
+            (Command::Disarm, ServoState::Identify) => {
+                self.end_identify(true);
+                self.state = ServoState::Disabled;
+            }
+            (Command::Disarm, ServoState::Run | ServoState::Jog | ServoState::Homing) => {
+                let r = here();
+                self.begin_stop(&r, ServoState::Disabled);
             }
             (Command::Disarm, ServoState::EncoderCheck) => {
                 self.check = None;
                 self.state = ServoState::Fault;
             }
-            (Command::Reset, ServoState::Fault) if self.causes_gone(inputs) => {
+            (Command::Disarm, _) => {}
+            (Command::Reset, _) => {
+                if !self.causes_gone(inputs) {
+                    return Err(Refusal::FaultLatched);
+                }
                 match self.next_check(None) {
                     Some(axis) => {
                         self.check = Some(Check {
@@ -423,25 +560,181 @@ impl<R: Real> Servo<R> {
                     }
                 }
             }
-            (Command::StartPath, ServoState::Idle | ServoState::Run) => {
-                if let Some((traj, _)) = &self.path {
-                    let origin = match self.path_start {
-                        PathStart::Absolute => None,
-                        PathStart::FromCurrentPosition => {
-                            Some(self.position_of(counts) - traj.sample(R::ZERO).pos)
+            (Command::StartPath, _) => {
+                let Some((traj, _)) = &self.path else {
+                    return Err(Refusal::NoPath);
+                };
+                let origin = match self.path_start {
+                    PathStart::Absolute => None,
+                    PathStart::FromCurrentPosition => {
+                        Some(self.position_of(counts) - traj.sample(R::ZERO).pos)
+                    }
+                };
+                self.motion = Motion::Path { k: 0, origin };
+                self.state = ServoState::Run;
+            }
+            (Command::Home, _) => {
+                let pos = self.position_of(counts).to_array().map(Real::to_f32);
+                let Some(run) = Homing::start(&self.homing_cfg, &pos) else {
+                    return Err(Refusal::NoHoming);
+                };
+                for (i, h) in self.homed.iter_mut().enumerate() {
+                    if self.homing_cfg.axes[i].enabled {
+                        *h = false;
+                    }
+                }
+                self.motion = Motion::Homing {
+                    hold: here().pos,
+                    run,
+                };
+                self.state = ServoState::Homing;
+            }
+            (Command::Jog { axis, vel_mm_s }, st) => {
+                if st == ServoState::Idle {
+                    let pos = here().pos.to_array().map(Real::to_f32);
+                    self.motion = Motion::Jog(Jog::at(pos));
+                    self.state = ServoState::Jog;
+                }
+                if let Motion::Jog(j) = &mut self.motion {
+                    j.command(
+                        axis.index(),
+                        vel_mm_s,
+                        &self.jog_cfg,
+                        self.jog_timeout_periods,
+                    );
+                }
+            }
+            (Command::Identify { axis, window_mm }, st) => {
+                let i = axis.index();
+                let pos = self.position_of(counts)[i].to_f32();
+                let travel = if self.referenced(i) {
+                    self.travel.axes[i]
+                } else {
+                    travel::AxisTravel::UNLIMITED
+                };
+                let run = IdentifyRun::start(
+                    &self.identify_cfg,
+                    axis,
+                    pos,
+                    &travel,
+                    window_mm,
+                    self.full_scale[i].to_f32(),
+                    self.period_s as f32,
+                    st == ServoState::Idle,
+                )?;
+                if st == ServoState::Disabled {
+                    self.hold_here(counts);
+                }
+                self.identify = Some(run);
+                self.identify_outcome = None;
+                self.state = ServoState::Identify;
+            }
+            (Command::Run, _) => {
+                self.motion = Motion::Planner;
+                self.state = ServoState::Run;
+            }
+            (Command::Stop, ServoState::Identify) => {
+                let hold = self.identify.as_ref().is_some_and(|r| r.hold_others);
+                self.end_identify(true);
+                if hold {
+                    self.hold_here(counts);
+                    self.state = ServoState::Idle;
+                } else {
+                    self.state = ServoState::Disabled;
+                }
+            }
+            (Command::Stop, ServoState::Idle) => {}
+            (Command::Stop, _) => {
+                let r = here();
+                self.begin_stop(&r, ServoState::Idle);
+            }
+        }
+        Ok(())
+    }
+
+    /// End the identification (aborted by the user when `aborted`), keeping its outcome.
+    fn end_identify(&mut self, aborted: bool) {
+        if let Some(mut run) = self.identify.take() {
+            if aborted && !run.finished() {
+                // a fault sample makes the identifier stop at once with zero effort
+                let _ = run.step(&AxisSample {
+                    fault: true,
+                    ..AxisSample::default()
+                });
+            }
+            self.identify_outcome = Some(run.outcome());
+        }
+    }
+
+    /// Advance the jog or homing ramps for this period (before the reference is sampled);
+    /// re-bases an axis when homing latched its switch.
+    fn step_manual(&mut self, inputs: &Inputs, counts: &mut [i64; AXES], wide: &[i64; AXES]) {
+        let dt = self.period_s as f32;
+        let bounds = self.jog_bounds();
+        match &mut self.motion {
+            Motion::Jog(j) => j.advance(&self.jog_cfg, &bounds, dt),
+            Motion::Homing { hold, run } => {
+                let axis = run.axis().min(AXES - 1);
+                let side = self.homing_cfg.axes[axis].direction.switch();
+                let inp = HomingInputs {
+                    switch: inputs.limits[axis][side],
+                    counts: counts[axis],
+                    index_counts: inputs.index[axis]
+                        .map(|raw| self.counters[axis].extend(raw) - self.origin[axis]),
+                };
+                match run.step(&self.homing_cfg, &inp, self.count_len_f32[axis], dt) {
+                    HomingEvent::Moving => {
+                        if run.axis() != axis {
+                            // the next axis: hold the finished one at its home point
+                            hold[axis] = R::from_f32(run.ramp.pos_mm);
+                            let next = run.axis().min(AXES - 1);
+                            run.next_axis_at(hold[next].to_f32());
                         }
-                    };
-                    self.motion = Motion::Path { k: 0, origin };
-                    self.state = ServoState::Run;
+                    }
+                    HomingEvent::Rebase {
+                        axis,
+                        latched_counts,
+                        at_mm,
+                    } => {
+                        let axis = axis.min(AXES - 1);
+                        let target = libm::roundf(at_mm * self.counts_per_mm[axis]) as i64;
+                        let shift = latched_counts - target;
+                        self.origin[axis] += shift;
+                        counts[axis] = wide[axis] - self.origin[axis];
+                        let delta_mm = -(shift as f32) * self.count_len_f32[axis];
+                        run.rebased(run.ramp.pos_mm + delta_mm);
+                        hold[axis] = R::from_f32(run.ramp.pos_mm);
+                        let mut d = Vec3::zero();
+                        d[axis] = R::from_f32(delta_mm);
+                        self.controller.shift_reference(d);
+                        self.estimators.reset(*counts);
+                        self.homed[axis] = true;
+                    }
+                    HomingEvent::Done => {
+                        let i = run.axis().min(AXES - 1);
+                        self.homed[i] = true;
+                        hold[i] = R::from_f32(run.ramp.pos_mm);
+                        let h = *hold;
+                        self.motion = Motion::Hold(h);
+                        self.state = ServoState::Idle;
+                    }
+                    HomingEvent::Failed { axis, .. } => {
+                        let axis = Axis::ALL[axis.min(AXES - 1)];
+                        let r = motion::sample(&self.motion, None, &self.clock).0;
+                        self.trip(Fault::on(FaultKind::HomingFailed, axis), 0.0, Some(&r));
+                    }
                 }
             }
             _ => {}
         }
     }
 
-    /// One control period. See the module documentation for the sequence.
+    /// One control period. See the module documentation for the sequence. Commands that
+    /// are not valid now are refused: the refusal is in the snapshot
+    /// ([`Snapshot::refused`]).
     pub fn period<IO: ServoIo<R>>(&mut self, io: &mut IO, commands: &[Command]) -> &Snapshot {
         self.snapshot.period = self.snapshot.period.wrapping_add(1);
+        self.snapshot.refused = None;
 
         // 1. Safety first: hard inputs and commands decide before anything is computed.
         let inputs = io.read_inputs();
@@ -454,7 +747,17 @@ impl<R: Real> Servo<R> {
             }
         }
         if self.state.drives() {
-            if let Some((i, high)) = inputs.first_limit() {
+            let homing = match &self.motion {
+                Motion::Homing { run, .. } if self.state == ServoState::Homing => Some(*run),
+                _ => None,
+            };
+            let tripped = (0..AXES).find_map(|i| {
+                (0..2).find_map(|side| {
+                    let masked = homing.is_some_and(|h| h.masks_switch(&self.homing_cfg, i, side));
+                    (inputs.limits[i][side] && !masked).then_some((i, side == 1))
+                })
+            });
+            if let Some((i, high)) = tripped {
                 let kind = if high {
                     FaultKind::LimitMax
                 } else {
@@ -467,20 +770,29 @@ impl<R: Real> Servo<R> {
             io.disable_outputs();
         }
 
-        // 2. Wide counts.
+        // 2. Wide and machine counts.
         let raw = io.read_counters();
-        let mut counts = [0i64; AXES];
-        for ((n, c), r) in counts.iter_mut().zip(self.counters.iter_mut()).zip(raw) {
+        let mut wide = [0i64; AXES];
+        for ((n, c), r) in wide.iter_mut().zip(self.counters.iter_mut()).zip(raw) {
             *n = c.update(r);
         }
-        for &c in commands {
-            self.apply_command(c, &inputs, &counts);
+        let mut counts = [0i64; AXES];
+        for i in 0..AXES {
+            counts[i] = wide[i] - self.origin[i];
+        }
+        for c in commands {
+            if let Err(why) = self.apply_command(c, &inputs, &counts) {
+                self.snapshot.refused = Some((*c, why));
+            }
         }
         if !self.state.drives() {
             io.disable_outputs();
         }
 
         // 3. Reference.
+        if self.state.drives() {
+            self.step_manual(&inputs, &mut counts, &wide);
+        }
         let (reference, motion_t, at_rest) =
             motion::sample(&self.motion, self.path.as_ref(), &self.clock);
 
@@ -494,9 +806,14 @@ impl<R: Real> Servo<R> {
         let mut applied = Vec3::zero();
         let mut evaluated = false;
         match self.state {
-            ServoState::Idle | ServoState::Run | ServoState::Stopping => {
+            ServoState::Idle
+            | ServoState::Run
+            | ServoState::Jog
+            | ServoState::Homing
+            | ServoState::Identify
+            | ServoState::Stopping => {
                 let prev = self.applied.to_array().map(Real::to_f32);
-                if let Some((f, v)) = self.monitor.check_encoders(&counts, &vel, &prev) {
+                if let Some((f, v)) = self.monitor.check_encoders(&wide, &vel, &prev) {
                     self.trip(f, v, Some(&reference));
                 }
                 if let Some((f, v)) = self
@@ -504,6 +821,15 @@ impl<R: Real> Servo<R> {
                     .check_overrun(inputs.overrun, self.snapshot.period)
                 {
                     self.trip(f, v, Some(&reference));
+                }
+                let mut reference = reference;
+                let identifying = self.state == ServoState::Identify;
+                if let (true, Some(run)) = (identifying, &self.identify) {
+                    // the identified axis has no reference: its law sees no error
+                    let i = run.axis.min(AXES - 1);
+                    reference.pos[i] = meas.pos[i];
+                    reference.vel[i] = meas.vel[i];
+                    reference.acc[i] = R::ZERO;
                 }
                 self.controller
                     .evaluate_into(&reference, &meas, &mut self.out);
@@ -521,7 +847,27 @@ impl<R: Real> Servo<R> {
                 for i in 0..AXES {
                     u[i] = u[i].finite_or_zero().clamp_sym(self.full_scale[i]);
                 }
-                if self.state.drives() {
+                if identifying && self.state.drives() {
+                    u = self.identify_effort(u, &meas, &vel);
+                }
+                // the axis being homed works beyond its travel, on its switch
+                let homing_axis = match &self.motion {
+                    Motion::Homing { run, .. } => Some(run.axis()),
+                    _ => None,
+                };
+                let referenced = [0, 1, 2].map(|i| self.referenced(i) && homing_axis != Some(i));
+                if self.state.drives() && !identifying {
+                    let r = reference.pos.to_array().map(Real::to_f32);
+                    let checked = [0, 1, 2].map(|i| if referenced[i] { r[i] } else { 0.0 });
+                    if let Some((i, p)) = self.travel.violation(&checked) {
+                        self.trip(
+                            Fault::on(FaultKind::SoftLimit, Axis::ALL[i]),
+                            p,
+                            Some(&reference),
+                        );
+                    }
+                }
+                if self.state.drives() && !identifying {
                     let tracking = self.out.tracking.to_array().map(Real::to_f32);
                     let v_ref = reference.vel.to_array().map(Real::to_f32);
                     let stopping = self.state == ServoState::Stopping;
@@ -542,17 +888,7 @@ impl<R: Real> Servo<R> {
                         }
                     }
                 }
-                if self.state == ServoState::Stopping && at_rest {
-                    self.rest_periods = self.rest_periods.saturating_add(1);
-                    let settled = self.rest_periods >= self.settle_periods
-                        && vel
-                            .iter()
-                            .zip(0..AXES)
-                            .all(|(v, i)| v.abs() <= 0.02 * self.monitor.vel_max(i));
-                    if settled || self.rest_periods >= self.stop_timeout_periods {
-                        self.state = self.stop_then;
-                    }
-                }
+                self.finish_motion(&reference, at_rest, &vel);
                 if self.state.drives() {
                     io.write_outputs(&u.to_array());
                     applied = u;
@@ -579,11 +915,23 @@ impl<R: Real> Servo<R> {
         self.estimators.applied(applied);
 
         // 6. Telemetry (plain copies).
+        let homed = commands::axis_mask([0, 1, 2].map(|i| self.referenced(i)));
+        let progress = match (&self.identify, &self.motion) {
+            (Some(run), _) => run.last().progress,
+            (None, Motion::Homing { run, .. }) => {
+                let total = self.homing_cfg.axes.iter().filter(|a| a.enabled).count();
+                run.axes_done().count_ones() as f32 / total.max(1) as f32
+            }
+            _ => 0.0,
+        };
         let s = &mut self.snapshot;
         s.motion_t_s = motion_t.to_f32();
         s.state = self.state;
         s.fault = self.faults.first();
         s.fault_bits = self.faults.bits();
+        s.inputs = inputs;
+        s.homed = homed;
+        s.progress = progress;
         s.pos = meas.pos.to_array().map(Real::to_f32);
         s.vel = vel;
         s.counts = counts;
@@ -601,6 +949,77 @@ impl<R: Real> Servo<R> {
             s.s = [0.0; AXES];
         }
         &self.snapshot
+    }
+
+    /// The identified axis' effort this period (the others: their laws' when holding,
+    /// else zero); ends the identification when it is finished.
+    fn identify_effort(
+        &mut self,
+        mut u: Vec3<R>,
+        meas: &Measured<R>,
+        vel: &[f32; AXES],
+    ) -> Vec3<R> {
+        let faulted = self.faults.any();
+        let Some(run) = &mut self.identify else {
+            self.state = ServoState::Fault;
+            return Vec3::zero();
+        };
+        let i = run.axis.min(AXES - 1);
+        let sample = AxisSample {
+            pos_mm: meas.pos[i].to_f32(),
+            vel_mm_s: vel[i],
+            effort_applied_mnm: self.applied[i].to_f32(),
+            fault: faulted,
+        };
+        let out = run.step(&sample);
+        if !run.hold_others {
+            u = Vec3::zero();
+        }
+        u[i] = R::from_f32(out.effort_mnm)
+            .finite_or_zero()
+            .clamp_sym(self.full_scale[i]);
+        if run.finished() {
+            let hold = run.hold_others;
+            self.end_identify(false);
+            self.state = if hold {
+                ServoState::Idle
+            } else {
+                ServoState::Disabled
+            };
+            // holding: from here on the identified axis holds where it came to rest
+            self.motion = Motion::Hold(meas.pos);
+            self.controller.reset();
+            if !hold {
+                u = Vec3::zero();
+            }
+        }
+        u
+    }
+
+    /// End a stop once at rest and settled; end a jog once at rest with nothing
+    /// commanded.
+    fn finish_motion(&mut self, reference: &RefSample<R>, at_rest: bool, vel: &[f32; AXES]) {
+        match self.state {
+            ServoState::Stopping if at_rest => {
+                self.rest_periods = self.rest_periods.saturating_add(1);
+                let settled = self.rest_periods >= self.settle_periods
+                    && vel
+                        .iter()
+                        .zip(0..AXES)
+                        .all(|(v, i)| v.abs() <= 0.02 * self.monitor.vel_max(i));
+                if settled || self.rest_periods >= self.stop_timeout_periods {
+                    self.state = self.stop_then;
+                    if self.state == ServoState::Idle {
+                        self.motion = Motion::Hold(reference.pos);
+                    }
+                }
+            }
+            ServoState::Jog if at_rest => {
+                self.state = ServoState::Idle;
+                self.motion = Motion::Hold(reference.pos);
+            }
+            _ => {}
+        }
     }
 
     /// One period of the encoder check: the effort on the checked axis (others zero).

@@ -1,11 +1,15 @@
 //! What produces the servo step's reference each period: holding a point, the
-//! configured path, or a controlled stop.
+//! configured path, a controlled stop, a jog or the homing sequence (the planner's
+//! reference comes from its executor, see [`super::Servo::period`]).
 //!
 //! A controlled stop starts from the reference of the period the fault was found in and
 //! decelerates along that reference's direction of motion at the largest rate every
 //! axis allows (`stop_decel_mm_s2` projected on the direction), so no axis exceeds its
 //! own limit; the reference then holds the point where it came to rest.
 
+use super::homing::Homing;
+use super::jog::Jog;
+use super::ramp::Ramp;
 use crate::axes::AXES;
 use crate::motion::trajectory::{RefSample, Trajectory};
 use crate::{Real, Vec3};
@@ -27,6 +31,12 @@ pub enum Motion<R> {
         t_stop: R,
         k: u32,
     },
+    /// Jogging (the ramps step at the start of each period).
+    Jog(Jog),
+    /// Homing: the axis being homed follows the sequence's ramp, the others hold.
+    Homing { hold: Vec3<R>, run: Homing },
+    /// The planner's reference (sampled by the servo from its executor).
+    Planner,
 }
 
 impl<R: Real> Motion<R> {
@@ -56,7 +66,7 @@ impl<R: Real> Motion<R> {
     /// Advance one period.
     pub fn advance(&mut self) {
         match self {
-            Motion::Hold(_) => {}
+            Motion::Hold(_) | Motion::Jog(_) | Motion::Homing { .. } | Motion::Planner => {}
             Motion::Path { k, .. } | Motion::Stop { k, .. } => *k = k.saturating_add(1),
         }
     }
@@ -134,6 +144,24 @@ pub fn sample<R: Real>(
     };
     match *motion {
         Motion::Hold(p) => hold(p),
+        Motion::Planner => hold(Vec3::zero()),
+        Motion::Jog(ref j) => {
+            let r = ramps_sample(&j.ramps);
+            let rest = j.finished();
+            (r, R::ZERO, rest)
+        }
+        Motion::Homing { hold: h, ref run } => {
+            let mut r = RefSample {
+                pos: h,
+                vel: Vec3::zero(),
+                acc: Vec3::zero(),
+            };
+            let i = run.axis().min(AXES - 1);
+            r.pos[i] = R::from_f32(run.ramp.pos_mm);
+            r.vel[i] = R::from_f32(run.ramp.vel_mm_s);
+            r.acc[i] = R::from_f32(run.ramp.acc_mm_s2);
+            (r, R::ZERO, run.ramp.at_rest())
+        }
         Motion::Stop {
             p0,
             v0,
@@ -163,4 +191,19 @@ pub fn sample<R: Real>(
             (r, clock.time(k), held_at.is_some())
         }
     }
+}
+
+/// The reference of three one-axis ramps.
+pub fn ramps_sample<R: Real>(ramps: &[Ramp; AXES]) -> RefSample<R> {
+    let mut r = RefSample {
+        pos: Vec3::zero(),
+        vel: Vec3::zero(),
+        acc: Vec3::zero(),
+    };
+    for (i, q) in ramps.iter().enumerate() {
+        r.pos[i] = R::from_f32(q.pos_mm);
+        r.vel[i] = R::from_f32(q.vel_mm_s);
+        r.acc[i] = R::from_f32(q.acc_mm_s2);
+    }
+    r
 }

@@ -3,7 +3,9 @@
 //! statistics outside the control interrupt).
 
 use crate::axes::AXES;
+use crate::servo::commands::{Command, Refusal};
 use crate::servo::faults::FaultRecord;
+use crate::servo::io::Inputs;
 use crate::servo::ServoState;
 
 /// Everything a logger or a recorder needs about the last period.
@@ -18,7 +20,17 @@ pub struct Snapshot {
     /// The first latched fault, if any.
     pub fault: Option<FaultRecord>,
     /// Latched fault kinds as bit sets (bit = `FaultKind` code): system, per axis.
-    pub fault_bits: (u16, [u16; AXES]),
+    pub fault_bits: (u32, [u32; AXES]),
+    /// The safety inputs sampled this period.
+    pub inputs: Inputs,
+    /// Axes that are homed or take no part in homing (bit i = axis i).
+    pub homed: u8,
+    /// Axes whose model-based law has no known model (arming is refused).
+    pub model_missing: u8,
+    /// A command refused this period, with the reason.
+    pub refused: Option<(Command, Refusal)>,
+    /// Progress of homing or identification, 0..=1.
+    pub progress: f32,
     /// Measured positions (encoder counts converted to length).
     pub pos: [f32; AXES],
     /// Estimated velocities.
@@ -48,6 +60,17 @@ impl Snapshot {
             state: ServoState::Disabled,
             fault: None,
             fault_bits: (0, [0; AXES]),
+            inputs: Inputs {
+                estop: false,
+                limits: [[false; 2]; AXES],
+                amp_fault: [false; AXES],
+                overrun: false,
+                index: [None; AXES],
+            },
+            homed: 0,
+            model_missing: 0,
+            refused: None,
+            progress: 0.0,
             pos: [0.0; AXES],
             vel: [0.0; AXES],
             reference: [0.0; AXES],

@@ -63,6 +63,49 @@ pub struct InitialState {
     pub vel_mm_s: f64,
 }
 
+/// One axis' limit switches and encoder index as the simulated machine has them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+pub struct SwitchConfig {
+    /// The min switch is closed at or below this true position, mm (`-inf`: none).
+    pub min_mm: f64,
+    /// The max switch is closed at or above this true position, mm (`inf`: none).
+    pub max_mm: f64,
+    /// The encoder gives an index pulse every this many counts (one motor revolution;
+    /// 0: no index), at the counts that are multiples of it.
+    pub index_period_counts: u32,
+}
+
+impl Default for SwitchConfig {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+impl SwitchConfig {
+    pub const NONE: Self = Self {
+        min_mm: f64::NEG_INFINITY,
+        max_mm: f64::INFINITY,
+        index_period_counts: 0,
+    };
+}
+
+/// Imperfections of the simulated sensors and actuators beyond quantisation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+pub struct ImperfectionConfig {
+    /// Each reading is off by a uniformly drawn -n..=n counts (electrical noise at the
+    /// counter's edge; 0: exact).
+    pub noise_counts: u8,
+    /// Seed of the noise (SplitMix64).
+    pub seed: u64,
+    /// The amplifiers apply a command this many periods after it was written (0 or 1: the
+    /// PWM update at the next period boundary).
+    pub command_delay_periods: u8,
+}
+
 /// The simulated machine.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -74,6 +117,11 @@ pub struct WorldConfig {
     pub plant_substeps: u32,
     #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
     pub initial: [InitialState; AXES],
+    /// Limit switches and index pulses (default: none).
+    #[cfg_attr(feature = "serde", serde(default, with = "crate::axes::per_axis"))]
+    pub switches: [SwitchConfig; AXES],
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub imperfections: ImperfectionConfig,
 }
 
 /// A validated plant.
@@ -135,6 +183,15 @@ pub struct World {
     pub inputs: Inputs,
     /// Injected sensor and plant faults.
     faults: WorldFaults,
+    switches: [SwitchConfig; AXES],
+    imperfect: ImperfectionConfig,
+    rng: u64,
+    /// Noise of the current reading, counts.
+    noise: [i64; AXES],
+    /// Command written last period, applied this period (one period of delay).
+    pending: [f64; AXES],
+    /// Counts at the previous reading (index crossings).
+    last_counts: [i64; AXES],
 }
 
 /// Faults injected into the simulated machine (fault matrix, tests).
@@ -239,7 +296,23 @@ impl World {
             periods: 0,
             inputs: Inputs::default(),
             faults: WorldFaults::default(),
+            switches: cfg.switches,
+            imperfect: cfg.imperfections,
+            rng: cfg.imperfections.seed,
+            noise: [0; AXES],
+            pending: [0.0; AXES],
+            last_counts: [0; AXES],
         };
+        if cfg.imperfections.command_delay_periods > 1 {
+            return Err(ConfigError::OutOfRange(
+                "imperfections.command_delay_periods (0 or 1)",
+            ));
+        }
+        for sw in &cfg.switches {
+            if sw.min_mm.is_nan() || sw.max_mm.is_nan() || !(sw.min_mm < sw.max_mm) {
+                return Err(ConfigError::OutOfRange("switches (min_mm < max_mm)"));
+            }
+        }
         for i in 0..AXES {
             let init = &cfg.initial[i];
             if !(init.pos_mm.is_finite() && init.vel_mm_s.is_finite()) {
@@ -260,7 +333,48 @@ impl World {
                 w.effort_step[i] = 2.0 * w.full_scale[i] / (1u64 << amp.resolution_bits) as f64;
             }
         }
+        w.last_counts = w.counts();
         Ok(w)
+    }
+
+    /// SplitMix64 (Steele, Lea, Flood 2014): reproducible noise without a dependency.
+    fn next_random(&mut self) -> u64 {
+        self.rng = self.rng.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.rng;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// The safety inputs now: the injected ones, the switches at the true positions and
+    /// the index pulses passed since the last reading.
+    fn sample_inputs(&mut self) -> Inputs {
+        let mut inp = self.inputs;
+        let counts = self.counts();
+        #[allow(clippy::needless_range_loop)] // five per-axis arrays
+        for i in 0..AXES {
+            let sw = &self.switches[i];
+            let p = self.state[i].pos;
+            inp.limits[i][0] |= p <= sw.min_mm;
+            inp.limits[i][1] |= p >= sw.max_mm;
+            let period = i64::from(sw.index_period_counts);
+            if period > 0 {
+                let (a, b) = (self.last_counts[i], counts[i]);
+                // the multiple of the period crossed (the last one, moving either way)
+                let crossed = if b > a {
+                    let m = b.div_euclid(period) * period;
+                    (m > a).then_some(m)
+                } else if b < a {
+                    let m = (b + period - 1).div_euclid(period) * period;
+                    (m < a).then_some(m)
+                } else {
+                    None
+                };
+                inp.index[i] = crossed.map(|m| (m as u32) & self.counter_mask[i]);
+            }
+        }
+        self.last_counts = counts;
+        inp
     }
 
     /// True plant states.
@@ -306,7 +420,7 @@ impl World {
             if let Some(pivot) = f.reversed[i] {
                 *n = pivot.saturating_mul(2).saturating_sub(*n);
             }
-            *n = n.saturating_add(f.offset[i]);
+            *n = n.saturating_add(f.offset[i]).saturating_add(self.noise[i]);
             if let Some(frozen) = f.frozen[i] {
                 *n = frozen;
             }
@@ -368,7 +482,11 @@ impl World {
     /// the amplifiers' resolution.
     pub fn advance(&mut self) {
         let t = self.time_s();
-        let mut u = self.effort;
+        let mut u = if self.imperfect.command_delay_periods == 1 {
+            core::mem::replace(&mut self.pending, self.effort)
+        } else {
+            self.effort
+        };
         for (u, step) in u.iter_mut().zip(self.effort_step) {
             if step > 0.0 {
                 *u = libm::round(*u / step) * step;
@@ -407,12 +525,19 @@ impl World {
             }
         }
         self.periods += 1;
+        let n = i64::from(self.imperfect.noise_counts);
+        if n > 0 {
+            for i in 0..AXES {
+                let span = (2 * n + 1) as u64;
+                self.noise[i] = (self.next_random() % span) as i64 - n;
+            }
+        }
     }
 }
 
 impl<R: Real> ServoIo<R> for World {
     fn read_inputs(&mut self) -> Inputs {
-        self.inputs
+        self.sample_inputs()
     }
 
     fn read_counters(&mut self) -> [u32; AXES] {
@@ -428,6 +553,8 @@ impl<R: Real> ServoIo<R> for World {
 
     fn disable_outputs(&mut self) {
         self.effort = [0.0; AXES];
+        // the enable line cuts the amplifier at once, whatever it was about to apply
+        self.pending = [0.0; AXES];
         self.outputs_on = false;
     }
 

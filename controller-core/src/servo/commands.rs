@@ -1,0 +1,157 @@
+//! Operator commands and the rule that decides, from what the servo publishes, whether a
+//! command may run now ([`check`]). The servo step applies the same rule to every command
+//! it receives, and the link's command handler calls it before queueing one, so a refusal
+//! reaches the user with its reason and never depends on which side looked first.
+
+use super::snapshot::Snapshot;
+use super::ServoState;
+use crate::axes::{Axis, AXES};
+
+/// Operator commands, applied at the start of a period in the order given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Disabled -> Idle (inputs clear, no fault latched, every model-based law's model
+    /// known), holding the current position.
+    Arm,
+    /// Outputs off: at once from Idle and Identify, after a controlled stop while moving.
+    Disarm,
+    /// Fault -> Disabled once every cause is gone (an encoder fault runs the encoder
+    /// check first).
+    Reset,
+    /// Follow the configured path (from Idle or Run).
+    StartPath,
+    /// Run the homing sequence (from Idle).
+    Home,
+    /// Jog `axis` at `vel_mm_s` (0 stops) until the jog timeout; from Idle or Jog.
+    Jog { axis: Axis, vel_mm_s: f32 },
+    /// Identify `axis` (from Disabled or Idle): inside its travel when homed, else inside
+    /// the user-confirmed window `window_mm` (machine coordinates, mm).
+    Identify {
+        axis: Axis,
+        window_mm: Option<[f32; 2]>,
+    },
+    /// Follow the planner's reference (from Idle): the program queue.
+    Run,
+    /// Stop whatever moves (path, jog, homing, program) with a controlled stop and hold
+    /// there (Idle); ends an identification.
+    Stop,
+}
+
+/// Why a command was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Refusal {
+    /// Not valid in the current state (the state is in the status).
+    WrongState,
+    /// A fault is latched: reset it first.
+    FaultLatched,
+    /// The e-stop is pressed.
+    EStopActive,
+    /// A limit switch is active (jog off it after a reset... or move it by hand).
+    LimitActive,
+    /// The axis runs a model-based law but its model was never identified or entered.
+    ModelMissing { axis: Axis },
+    /// The command needs the axis homed (homing is configured for it).
+    NotHomed { axis: Axis },
+    /// No path is configured.
+    NoPath,
+    /// Homing is not configured for any axis.
+    NoHoming,
+    /// The identification window is not inside the travel, or does not contain the axis.
+    BadWindow { axis: Axis },
+    /// The identification configuration rejected this axis' start.
+    IdentifyRejected { axis: Axis },
+}
+
+impl Refusal {
+    /// One line for the user: what is wrong and how to fix it.
+    pub const fn message(&self) -> &'static str {
+        match self {
+            Self::WrongState => "not allowed in the current state",
+            Self::FaultLatched => "a fault is latched: clear its cause and reset",
+            Self::EStopActive => "the e-stop is pressed",
+            Self::LimitActive => "a limit switch is active",
+            Self::ModelMissing { .. } => {
+                "the axis' law needs a model: identify the axis (gantry identify --axis A --accept) or set axis.A.model"
+            }
+            Self::NotHomed { .. } => "home the machine first (gantry home)",
+            Self::NoPath => "no path is configured",
+            Self::NoHoming => "homing is not configured",
+            Self::BadWindow { .. } => {
+                "the identification window must lie inside the travel and contain the axis"
+            }
+            Self::IdentifyRejected { .. } => {
+                "identification cannot start here (too close to the window's ends, or its settings are invalid)"
+            }
+        }
+    }
+}
+
+/// Whether `c` may run now, judged from the latest snapshot (state, latched faults, inputs,
+/// homed and model masks). Checks that need the configuration (a path exists, the
+/// identification window) are the servo's own, after this one.
+pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
+    use ServoState as S;
+    let faulted = s.fault_bits.0 != 0 || s.fault_bits.1.iter().any(|b| *b != 0);
+    let needs_clear_inputs = || {
+        if faulted {
+            Err(Refusal::FaultLatched)
+        } else if s.inputs.estop {
+            Err(Refusal::EStopActive)
+        } else if s.inputs.first_limit().is_some() {
+            Err(Refusal::LimitActive)
+        } else {
+            Ok(())
+        }
+    };
+    let homed = |a: Axis| {
+        if s.homed & (1 << a.index()) != 0 {
+            Ok(())
+        } else {
+            Err(Refusal::NotHomed { axis: a })
+        }
+    };
+    match (c, s.state) {
+        (Command::Arm, S::Disabled) => {
+            needs_clear_inputs()?;
+            match Axis::ALL
+                .into_iter()
+                .find(|a| s.model_missing & (1 << a.index()) != 0)
+            {
+                Some(axis) => Err(Refusal::ModelMissing { axis }),
+                None => Ok(()),
+            }
+        }
+        (Command::Disarm, st) if st != S::Disabled && st != S::Fault => Ok(()),
+        (Command::Reset, S::Fault) => Ok(()),
+        (Command::StartPath, S::Idle | S::Run) => Ok(()),
+        (Command::Home, S::Idle) => Ok(()),
+        (Command::Jog { .. }, S::Idle | S::Jog) => Ok(()),
+        (Command::Identify { axis, window_mm }, S::Disabled | S::Idle) => {
+            needs_clear_inputs()?;
+            if window_mm.is_none() {
+                homed(*axis)?;
+            }
+            Ok(())
+        }
+        (Command::Run, S::Idle | S::Run) => {
+            Axis::ALL.into_iter().try_for_each(homed)?;
+            Ok(())
+        }
+        (Command::Stop, S::Run | S::Jog | S::Homing | S::Identify | S::Idle) => Ok(()),
+        (Command::Arm | Command::Identify { .. }, S::Fault) => Err(Refusal::FaultLatched),
+        _ => Err(Refusal::WrongState),
+    }
+}
+
+/// Bit set of axes (bit i = axis i) from per-axis flags.
+pub fn axis_mask(flags: [bool; AXES]) -> u8 {
+    flags
+        .iter()
+        .enumerate()
+        .fold(0, |m, (i, f)| if *f { m | 1 << i } else { m })
+}
