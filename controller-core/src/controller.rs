@@ -234,7 +234,7 @@ impl<R: Real> Controller3<R> {
         let big = R::from_f32(f32::MAX);
         (0..AXES).find(|&i| {
             let vg = self.vg_state.integral[i];
-            !self.laws[i].state_healthy(&self.states[i]) || !(vg.is_finite() && vg.abs() < big)
+            !(self.laws[i].state_healthy(&self.states[i]) && vg.is_finite() && vg.abs() < big)
         })
     }
 
