@@ -8,7 +8,9 @@
 //! - [`drive`]: effort to PWM duty and direction;
 //! - [`telemetry`]: what the telemetry task gets besides the core's snapshot (interrupt
 //!   timing);
-//! - [`scenarios`] (feature `qemu`): the QEMU rig's scenario table.
+//! - [`scenarios`] (feature `qemu`): the QEMU rig's scenario table;
+//! - [`watchdog`]: the independent watchdog's timeout for the control rate;
+//! - [`encoder_filter`]: the encoder timers' input filter and the count rate it passes.
 #![cfg_attr(not(test), no_std)]
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which must give no output.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -16,6 +18,8 @@
 pub mod button;
 pub mod config;
 pub mod drive;
+pub mod encoder_filter;
 #[cfg(feature = "qemu")]
 pub mod scenarios;
 pub mod telemetry;
+pub mod watchdog;

@@ -10,7 +10,8 @@
 //!
 //! The control task never logs, allocates or blocks; it publishes the core's snapshot and
 //! its own timing through an RTIC resource (its own lock is free: it has the ceiling
-//! priority). Idle sleeps.
+//! priority), hands the overrun flag to the next period's safety inputs, and feeds the
+//! independent watchdog when its period ran on time. Idle sleeps.
 //!
 //! With the `qemu` feature the same application runs on QEMU's netduinoplus2 with the
 //! rig of `qemu/`: the control task runs a scenario of host-sim's against the core's
@@ -34,8 +35,9 @@ mod period;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 mod qemu;
 
+// The panic handler is the board's own (`board::shutdown`: outputs off first).
 #[cfg(all(target_os = "none", not(feature = "qemu")))]
-use {defmt_rtt as _, panic_probe as _};
+use defmt_rtt as _;
 
 #[cfg(all(target_os = "none", feature = "qemu"))]
 use defmt_semihosting as _;
@@ -67,9 +69,11 @@ mod app {
     use heapless::spsc::Producer;
     #[cfg(not(feature = "qemu"))]
     use {
-        controller_core::servo::Servo,
+        crate::board::clock::ClockStart,
+        controller_core::servo::{faults::FaultKind, Servo},
         firmware::button::{press_commands, Debounce},
         firmware::config::{ARM_BUTTON_HOLD_SAMPLES, BUTTON_POLL_MS, SERVO},
+        firmware::watchdog::iwdg_setting,
     };
 
     /// Telemetry log interval (virtual time in QEMU), milliseconds.
@@ -113,7 +117,7 @@ mod app {
         Mono::start(core.SYST, SYSCLK_HZ);
 
         #[cfg(not(feature = "qemu"))]
-        let (period, arm, commands) = {
+        let (mut period, arm, commands) = {
             let (producer, consumer) = cx.local.mailbox.split();
             let io = board::io::BoardIo::new(
                 board.encoders,
@@ -125,19 +129,38 @@ mod app {
                 Ok(s) => s,
                 Err(e) => config_error(e),
             };
-            (BoardPeriod::new(servo, io, consumer), board.arm, producer)
+            let mut period = BoardPeriod::new(servo, io, consumer, board.watchdog);
+            if board.clock == ClockStart::HsiFallback {
+                defmt::error!(
+                    "crystal did not start within {=u32} ms: running on the HSI, clock fault latched",
+                    board::clock::HSE_STARTUP_TIMEOUT_MS
+                );
+                period.latch_board_fault(FaultKind::ClockFault);
+            }
+            (period, board.arm, producer)
         };
         #[cfg(feature = "qemu")]
         let period = {
             let _ = cx.local.mailbox;
             // The encoder timers and TIM1 are configured (and TIM1's outputs disabled)
             // but not used: the simulated world stands in for them.
-            let _ = (board.encoders, board.servo, board.arm);
+            let _ = (board.encoders, board.servo, board.arm, board.clock);
             Period::boot(board.safety)
         };
 
         let mut tick = board.tick;
         tick.start(board::tick::CONTROL_TICK_PROGRAMMED_HZ);
+        // Last: the watchdog (from here on the control task must run on time).
+        #[cfg(not(feature = "qemu"))]
+        {
+            let setting = iwdg_setting(CONTROL_RATE_HZ);
+            period.start_watchdog(setting);
+            defmt::info!(
+                "watchdog: {=u32} us at the fastest LSI ({=u32} us typical)",
+                setting.timeout_us(firmware::watchdog::LSI_MAX_HZ),
+                setting.timeout_us(firmware::watchdog::LSI_TYP_HZ)
+            );
+        }
         defmt::info!(
             "gantry firmware up: control {=u32} Hz, outputs disabled until armed",
             CONTROL_RATE_HZ
@@ -196,6 +219,9 @@ mod app {
         // Board: nothing. QEMU: the period's figures, then the simulated world advances.
         let end = period.finish();
         let overran = cx.local.tick.overran();
+        // Board: the next period's `Inputs::overrun`, and the watchdog is fed only if this
+        // period ran on time. QEMU: see `Rig::end_of_period`.
+        period.end_of_period(overran);
         let snap = *period.snapshot();
         cx.local
             .leds

@@ -1029,7 +1029,14 @@ impl<R: Real> Servo<R> {
             self.state = ServoState::Fault;
             return u;
         };
-        let moved = counts[c.axis].saturating_sub(c.n0);
+        // (`get`: the axis always comes from `next_check`, but an index the optimiser
+        // cannot bound would leave a panic path in the control interrupt)
+        let Some(&now) = counts.get(c.axis) else {
+            self.check = None;
+            self.state = ServoState::Fault;
+            return u;
+        };
+        let moved = now.saturating_sub(c.n0);
         let sign: i64 = if c.positive { 1 } else { -1 };
         if moved * sign >= self.check_counts {
             // followed: the other direction, or the next axis, or done

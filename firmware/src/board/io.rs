@@ -1,5 +1,6 @@
-//! The core's [`ServoIo`] for the board: encoder timer registers in, e-stop and limit pins
-//! in, TIM1 PWM + direction + drive enables out (through [`DriveCommand`]: full duty is
+//! The core's [`ServoIo`] for the board: encoder timer registers in, e-stop, limit and
+//! amplifier-fault pins and the control timer's overrun flag in, TIM1 PWM + direction +
+//! drive enables out (through [`DriveCommand`]: full duty is
 //! the amplifier's `full_scale` of the servo configuration).
 
 use controller_core::axes::AXES;
@@ -17,6 +18,8 @@ pub struct BoardIo {
     safety: SafetyPins,
     /// Effort that maps to 100 % duty, per axis.
     full_scale: [f32; AXES],
+    /// The previous control period missed its deadline (`Inputs::overrun`).
+    overrun: bool,
 }
 
 impl BoardIo {
@@ -31,7 +34,14 @@ impl BoardIo {
             servo,
             safety,
             full_scale,
+            overrun: false,
         }
+    }
+
+    /// Whether the period that just ended overran (read by the next period's inputs).
+    #[inline]
+    pub fn set_overrun(&mut self, overran: bool) {
+        self.overrun = overran;
     }
 
     /// Encoder registers now (the servo's count origin at boot).
@@ -43,7 +53,10 @@ impl BoardIo {
 impl ServoIo<f32> for BoardIo {
     #[inline]
     fn read_inputs(&mut self) -> Inputs {
-        self.safety.read()
+        Inputs {
+            overrun: self.overrun,
+            ..self.safety.read()
+        }
     }
 
     #[inline]

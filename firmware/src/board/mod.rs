@@ -10,8 +10,9 @@
 //! | X/Y/Z servo PWM | PE9 / PE11 / PE13 | TIM1 CH1/CH2/CH3, AF1 | 20 kHz, ARR 8399 (8400 steps) |
 //! | X/Y/Z direction | PE10 / PE12 / PE14 | GPIO push-pull | high = negative direction |
 //! | X/Y/Z drive enable | PD0 / PD1 / PD2 | GPIO push-pull | high = enabled, low at reset |
-//! | e-stop | PB12 | GPIO input, pull-up | NC contact to GND: high = stop (also on wire break) |
+//! | e-stop | PB12 | TIM1_BKIN (AF1), pull-up | NC contact to GND: high = stop (also on wire break); TIM1's break input, so the PWM goes off in hardware |
 //! | limits X-/X+/Y-/Y+/Z-/Z+ | PC0..PC5 | GPIO input, pull-up | NC contacts to GND: high = active |
+//! | amplifier fault X/Y/Z | PD8 / PD9 / PD10 | GPIO input, pull-up | amplifier "ready" output to GND (open collector, on when healthy): high = fault (also on wire break) |
 //! | arm / fault reset | PD3 | GPIO input, pull-up | NO button to GND: low = pressed, 20 ms debounce |
 //! | LED enabled / fault | PD12 / PD14 | GPIO push-pull | the green / red LED of an STM32F4DISCOVERY |
 //! | control tick | (none) | TIM4 update interrupt | 84 MHz timer clock, 10 kHz default, 20 kHz fits |
@@ -22,14 +23,23 @@
 //!
 //! All three PWM channels are on TIM1, so one register write (clearing BDTR.MOE) turns
 //! every servo output off at once. OSSI/OSSR are set, so with MOE clear the outputs are
-//! driven to their idle level (low) instead of floating. Drive enables are low from reset
-//! (push-pull, initial state low) and the main output stays off until the safety state
-//! machine enables it.
+//! driven to their idle level (low) instead of floating. The main output stays off until
+//! the safety state machine enables it.
+//!
+//! Order of [`init`] (board-level safety, see README-firmware.md "Board-level safety"):
+//! drive enables, direction and PWM pins become push-pull outputs driven low *before*
+//! the clock setup (the pins float from reset until then: the drives need pull-downs on
+//! their enable inputs for that first microsecond); then the crystal with a start-up
+//! timeout and the HSI fallback ([`clock`]); then TIM1 with its break input and locked
+//! idle configuration before the PWM pins are handed to it; encoder input filters on.
 //!
 //! Submodules, one per kind of hardware: [`encoders`], [`pwm`] (servo outputs),
 //! [`inputs`] (safety inputs, arm button), [`leds`], [`tick`] (control timer),
-//! [`cycles`] (execution-time counter), and [`io`], the core's `ServoIo` for the board.
+//! [`cycles`] (execution-time counter), [`io`] (the core's `ServoIo` for the board),
+//! [`clock`] (clock tree, crystal timeout, clock security system), [`shutdown`] (outputs
+//! off from any context; panic and exception handlers) and [`watchdog`] (the IWDG).
 
+pub mod clock;
 pub mod cycles;
 pub mod encoders;
 pub mod inputs;
@@ -37,15 +47,14 @@ pub mod inputs;
 pub mod io;
 pub mod leds;
 pub mod pwm;
+pub mod shutdown;
 pub mod tick;
+#[cfg(not(feature = "qemu"))]
+pub mod watchdog;
 
-use stm32f4xx_hal::{
-    gpio::PinState,
-    pac,
-    prelude::*,
-    rcc::{Config, Rcc},
-};
+use stm32f4xx_hal::{gpio::PinState, pac, prelude::*};
 
+use clock::ClockStart;
 use encoders::Encoders;
 use inputs::{ArmButton, SafetyPins};
 use leds::Leds;
@@ -56,23 +65,6 @@ use tick::ControlTick;
 /// clock tree registers say).
 pub const SYSCLK_HZ: u32 = 168_000_000;
 
-/// Clock tree: HSE 8 MHz -> PLL -> 168 MHz.
-#[cfg(not(feature = "qemu"))]
-fn clock_config() -> Config {
-    Config::hse(8.MHz())
-        .sysclk(SYSCLK_HZ.Hz())
-        .hclk(SYSCLK_HZ.Hz())
-        .pclk1(42.MHz())
-        .pclk2(84.MHz())
-}
-
-/// QEMU does not model the RCC: the HSE/PLL start-up would wait forever for HSERDY.
-/// Stay on the 16 MHz HSI (the emulated core runs at its own speed anyway).
-#[cfg(feature = "qemu")]
-fn clock_config() -> Config {
-    Config::hsi()
-}
-
 /// Everything `init` hands to the RTIC tasks.
 pub struct Board {
     pub encoders: Encoders,
@@ -81,20 +73,25 @@ pub struct Board {
     pub arm: ArmButton,
     pub leds: Leds,
     pub tick: ControlTick,
+    /// The oscillator the clocks run from (`HsiFallback`: a clock fault to latch).
+    pub clock: ClockStart,
+    /// The independent watchdog, not started yet.
+    #[cfg(not(feature = "qemu"))]
+    pub watchdog: watchdog::Watchdog,
 }
 
-/// Clocks, pins and timers. Outputs end up disabled; the control timer is configured but
+/// Safe pins, clocks, timers. Outputs end up disabled; the control timer is configured but
 /// not started.
 pub fn init(dp: pac::Peripherals) -> Board {
-    let mut rcc: Rcc = dp.RCC.freeze(clock_config());
-
+    // Nothing but pin setup before the outputs are in their safe state: GPIO clocks on
+    // (that needs no clock tree), drive enables, direction and PWM pins driven low.
+    let mut rcc = dp.RCC.constrain();
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpioc = dp.GPIOC.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
     let gpioe = dp.GPIOE.split(&mut rcc);
 
-    // Drive enables first, low, so the amplifiers stay off whatever happens next.
     let enable = [
         gpiod
             .pd0
@@ -123,19 +120,44 @@ pub fn init(dp: pac::Peripherals) -> Board {
             .into_push_pull_output_in_state(PinState::Low)
             .erase(),
     ];
+    // PWM pins: GPIO low now, with the pull-down kept for the moment they become TIM1
+    // outputs (before the channel is enabled TIM1 does not drive them).
+    let pwm_pins = (
+        gpioe
+            .pe9
+            .into_push_pull_output_in_state(PinState::Low)
+            .internal_pull_down(true),
+        gpioe
+            .pe11
+            .into_push_pull_output_in_state(PinState::Low)
+            .internal_pull_down(true),
+        gpioe
+            .pe13
+            .into_push_pull_output_in_state(PinState::Low)
+            .internal_pull_down(true),
+    );
 
-    // Servo PWM on TIM1, all channels at 0 duty, main output off.
+    if !shutdown::addresses_match() {
+        defmt::error!("shutdown: TIM1/GPIOD register addresses differ from the PAC's");
+    }
+
+    // Clocks: the crystal with a start-up timeout, else the HSI (a clock fault).
+    let (mut rcc, clock) = clock::setup(rcc);
+
+    // Servo PWM on TIM1: break input and the locked idle configuration first (the HAL's
+    // `pwm_hz` turns automatic output enable on), then the pins, duties 0, main output off.
     let (pwm_timer, (ch1, ch2, ch3, _ch4)) = dp
         .TIM1
         .pwm_hz(firmware::config::PWM_FREQUENCY_HZ.Hz(), &mut rcc);
+    pwm::configure_tim1_break_and_idle();
     let pwm = [
-        ch1.with(gpioe.pe9).erase(),
-        ch2.with(gpioe.pe11).erase(),
-        ch3.with(gpioe.pe13).erase(),
+        ch1.with(pwm_pins.0).erase(),
+        ch2.with(pwm_pins.1).erase(),
+        ch3.with(pwm_pins.2).erase(),
     ];
     let servo = ServoOutputs::new(pwm_timer, pwm, direction, enable);
 
-    let encoders = Encoders {
+    let mut encoders = Encoders {
         // PA15 and PB3 come out of reset as JTAG pins (AF0); SWD only needs PA13/PA14.
         x: dp
             .TIM2
@@ -143,9 +165,11 @@ pub fn init(dp: pac::Peripherals) -> Board {
         y: dp.TIM5.qei((gpioa.pa0, gpioa.pa1), &mut rcc),
         z: dp.TIM3.qei((gpioa.pa6, gpioa.pa7), &mut rcc),
     };
+    encoders.enable_input_filters();
 
     let safety = SafetyPins {
-        estop: gpiob.pb12.into_pull_up_input().erase(),
+        // TIM1_BKIN: the e-stop line is TIM1's break input (active high)
+        estop: gpiob.pb12.into_alternate::<1>().internal_pull_up(true),
         limits: [
             [
                 gpioc.pc0.into_pull_up_input().erase(),
@@ -159,6 +183,11 @@ pub fn init(dp: pac::Peripherals) -> Board {
                 gpioc.pc4.into_pull_up_input().erase(),
                 gpioc.pc5.into_pull_up_input().erase(),
             ],
+        ],
+        amp_fault: [
+            gpiod.pd8.into_pull_up_input().erase(),
+            gpiod.pd9.into_pull_up_input().erase(),
+            gpiod.pd10.into_pull_up_input().erase(),
         ],
     };
     let arm = ArmButton {
@@ -180,5 +209,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
         arm,
         leds,
         tick,
+        clock,
+        #[cfg(not(feature = "qemu"))]
+        watchdog: watchdog::Watchdog::new(dp.IWDG),
     }
 }

@@ -4,6 +4,9 @@
 //!
 //! All three PWM channels are on TIM1, so one register write (clearing BDTR.MOE) turns
 //! every servo output off at once; OSSI/OSSR keep a disabled output at its idle level.
+//! TIM1's break input (the e-stop line, PB12) clears MOE in hardware, even with the CPU
+//! halted; automatic output enable is off and locked, so only this module turns the
+//! outputs on again (BDTR values in [`super::shutdown`]).
 
 use stm32f4xx_hal::{
     gpio::{AnyPin, Output, PinState},
@@ -13,6 +16,8 @@ use stm32f4xx_hal::{
 
 use controller_core::axes::AXES;
 use firmware::drive::DriveCommand;
+
+use super::shutdown::{BDTR_ON, BDTR_SAFE};
 
 /// TIM1's three PWM channels, direction and enable pins.
 #[cfg_attr(feature = "qemu", allow(dead_code))]
@@ -35,7 +40,7 @@ impl ServoOutputs {
         direction: [AnyPin<Output>; AXES],
         enable: [AnyPin<Output>; AXES],
     ) -> Self {
-        tim1_main_output(false);
+        configure_tim1_break_and_idle();
         for ch in pwm.iter_mut() {
             ch.set_duty(0);
             ch.enable();
@@ -88,17 +93,21 @@ impl ServoOutputs {
     }
 }
 
-/// Sets or clears TIM1 BDTR.MOE (with AOE kept clear, so only software re-enables it).
+/// TIM1's break and idle configuration, outputs off: the first write of BDTR after the
+/// HAL's `pwm_hz` (which turns automatic output enable on), and the one that sets the
+/// lock (see [`super::shutdown::BDTR_SAFE`]). Called before the PWM pins are switched to
+/// TIM1, so they go from GPIO low straight to a driven idle low.
+pub fn configure_tim1_break_and_idle() {
+    tim1_main_output(false);
+}
+
+/// Sets or clears TIM1 BDTR.MOE by writing the whole register (the rest of it is the
+/// locked safe configuration, so the write cannot change anything else).
 #[inline]
 fn tim1_main_output(on: bool) {
-    // SAFETY: after `init` the HAL only touches TIM1's CCR/CCER registers (duty, channel
-    // enable); BDTR is owned by this function, and it is only called from the control
-    // interrupt (or from `init` before interrupts run), so there is no concurrent access.
+    // SAFETY: BDTR is written only here and by `shutdown::outputs_off_raw` (fault paths),
+    // always with whole values; this is called from the control interrupt or from `init`.
     let tim1 = unsafe { &*pac::TIM1::ptr() };
-    tim1.bdtr().modify(|_, w| {
-        w.ossi().set_bit();
-        w.ossr().set_bit();
-        w.aoe().clear_bit();
-        w.moe().bit(on)
-    });
+    let bits = if on { BDTR_ON } else { BDTR_SAFE };
+    tim1.bdtr().write(|w| unsafe { w.bits(bits) });
 }

@@ -2,7 +2,19 @@
 //! [`Rig::control`] is the servo step against the simulated world (the part the board's
 //! interrupt runs, and the part that is measured), [`Rig::finish`] records the period's
 //! true-state figures and advances the world (not measured).
+//!
+//! Faults are injected through the simulated run's own hook (`SimRun`'s scripted
+//! `TimedInjection` of the scenario file, into the simulated world's sensors and inputs),
+//! exactly as host-sim injects them, so the firmware's detection is compared with
+//! host-sim's period for period.
+//!
+//! Besides the scenario table, three self-test names make the real binary take its
+//! fault paths at boot: `selftest_panic` (a panic, exit 101), `selftest_hardfault` (an
+//! undefined instruction, exit 102) and `selftest_exception` (an interrupt without a
+//! handler, exit 103).
 
+use controller_core::servo::faults::FaultRecord;
+use controller_core::servo::io::Inputs;
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::sim::run::SimRun;
 use controller_core::sim::truth::TruthFigures;
@@ -20,15 +32,79 @@ pub struct End {
     pub figures: TruthFigures,
     /// Periods run.
     pub periods: u32,
+    /// The scenario injects a fault.
+    pub injects: bool,
+    /// The run's period of the injection, once it happened.
+    pub injected_at: Option<u32>,
+    /// The first latched fault (the servo's fault log).
+    pub fault: Option<FaultRecord>,
 }
 
 /// The control interrupt's state in QEMU.
 pub struct Rig {
     run: SimRun<f32>,
-    /// The board's e-stop and limit pins: QEMU reads them as healthy (all low), and the
-    /// servo step sees them through the simulated world as the board's servo does.
+    /// The board's e-stop, limit and amplifier-fault pins: QEMU reads them as healthy
+    /// (all low), and the servo step sees them through the simulated world as the board's
+    /// servo does.
     safety: SafetyPins,
+    /// The simulated world's own inputs (its injected faults, which persist), without
+    /// the pins: each period the world reads these merged with the pins.
+    world_inputs: Inputs,
+    injects: bool,
     name: &'static str,
+}
+
+/// `a` or `b`, per input.
+fn merged(a: Inputs, b: Inputs) -> Inputs {
+    let mut m = a;
+    m.estop |= b.estop;
+    m.overrun |= b.overrun;
+    for i in 0..a.limits.len() {
+        m.limits[i][0] |= b.limits[i][0];
+        m.limits[i][1] |= b.limits[i][1];
+        m.amp_fault[i] |= b.amp_fault[i];
+    }
+    m
+}
+
+/// `a` without what `pins` holds active.
+fn without(a: Inputs, pins: Inputs) -> Inputs {
+    let mut m = a;
+    m.estop &= !pins.estop;
+    m.overrun &= !pins.overrun;
+    for i in 0..a.limits.len() {
+        m.limits[i][0] &= !pins.limits[i][0];
+        m.limits[i][1] &= !pins.limits[i][1];
+        m.amp_fault[i] &= !pins.amp_fault[i];
+    }
+    m
+}
+
+/// The self-tests: the board's fault handlers on the real binary.
+fn self_test(name: &str) {
+    match name {
+        "selftest_panic" => {
+            defmt::info!("self-test: panic");
+            panic!("self-test panic");
+        }
+        "selftest_hardfault" => {
+            defmt::info!("self-test: HardFault (undefined instruction)");
+            cortex_m::asm::udf();
+        }
+        "selftest_exception" => {
+            defmt::info!("self-test: an interrupt without a handler (EXTI0)");
+            let irq = stm32f4xx_hal::pac::Interrupt::EXTI0;
+            cortex_m::peripheral::NVIC::pend(irq);
+            // SAFETY: EXTI0 has no handler of its own: it is meant to reach the default
+            // handler at once (interrupts are enabled inside init for that alone; the
+            // handler never returns).
+            unsafe {
+                cortex_m::peripheral::NVIC::unmask(irq);
+                cortex_m::interrupt::enable();
+            }
+        }
+        _ => {}
+    }
 }
 
 impl Rig {
@@ -36,6 +112,7 @@ impl Rig {
     /// QEMU with [`EXIT_CONFIG`] if it is unknown or rejected.
     pub fn boot(safety: SafetyPins) -> Self {
         let (name, cfg) = super::cmdline::with_scenario_name(|arg| {
+            self_test(arg);
             let Some(name) = scenarios::names().find(|n| *n == arg) else {
                 defmt::error!("unknown scenario `{=str}`; this build has:", arg);
                 for n in scenarios::names() {
@@ -68,15 +145,33 @@ impl Rig {
             cfg.periods,
             cfg.servo.rate_hz
         );
-        Self { run, safety, name }
+        Self {
+            run,
+            safety,
+            world_inputs: Inputs::default(),
+            injects: cfg.inject.is_some(),
+            name,
+        }
     }
 
-    /// The servo step of this period against the simulated world.
+    /// The servo step of this period against the simulated world (whose inputs are its
+    /// own, injected ones and the board's pins).
     #[inline]
     pub fn control(&mut self) -> &Snapshot {
-        self.run.world_mut().inputs = self.safety.read();
-        self.run.control()
+        let pins = self.safety.read();
+        self.run.world_mut().inputs = merged(self.world_inputs, pins);
+        self.run.control();
+        // an injection in this period added to the world's inputs: keep it
+        self.world_inputs = merged(self.world_inputs, without(self.run.world().inputs, pins));
+        self.run.servo().snapshot()
     }
+
+    /// The end of the control interrupt. QEMU's emulated deadline is not the scenario's
+    /// (see `board::tick`): its overruns are counted in the telemetry but not given to the
+    /// servo, so the run stays the one host-sim computes (the `overrun` injection stands in
+    /// for them); QEMU has no watchdog to feed.
+    #[inline]
+    pub fn end_of_period(&mut self, _overran: bool) {}
 
     /// The last period's snapshot.
     pub fn snapshot(&self) -> &Snapshot {
@@ -92,6 +187,9 @@ impl Rig {
                 name: self.name,
                 figures: self.run.figures(),
                 periods: self.run.periods_run(),
+                injects: self.injects,
+                injected_at: self.run.injected_at(),
+                fault: self.run.servo().faults().first(),
             })
         } else {
             None
