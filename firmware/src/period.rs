@@ -56,13 +56,15 @@ impl BoardPeriod {
 
     /// The end of the control interrupt: `overran` (the period that just ended missed its
     /// deadline) becomes the next period's `Inputs::overrun`, counted by the core's overrun
-    /// monitor; only a period that ran on time feeds the watchdog.
+    /// monitor. Every period that completes feeds the watchdog, late or not: the watchdog
+    /// is for a control interrupt that stopped running (a hang, a lock-up), which it
+    /// answers with a reset (outputs off); lateness is the overrun monitor's, which
+    /// answers with a controlled stop — a reset would cut that stop short and drop an
+    /// axis that must be held (Z against gravity).
     #[inline]
     pub fn end_of_period(&mut self, overran: bool) {
         self.io.set_overrun(overran);
-        if !overran {
-            self.watchdog.feed();
-        }
+        self.watchdog.feed();
     }
 
     /// Latch a clock fault from the clock security system, drain the mailbox, run the

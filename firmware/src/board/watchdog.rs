@@ -2,7 +2,7 @@
 //!
 //! Started at the end of `init` with the timeout of `firmware::watchdog::iwdg_setting`
 //! for the control rate (2.0 ms at the fastest LSI, 3.0 ms typical, 5.6 ms at the slowest
-//! at 10 kHz); fed only by the control interrupt, at the end of a period that ran on time.
+//! at 10 kHz); fed only by the control interrupt, at the end of every period it completes.
 //! Once started the IWDG cannot be stopped; it also runs while a debugger halts the core
 //! (DBGMCU's DBG_IWDG_STOP is left clear), so a breakpoint resets the board within the
 //! timeout: the outputs cannot stay on under a halted core.
