@@ -388,3 +388,55 @@ fn homing_on_the_index_latches_the_pulse_after_the_switch() {
     let offset = s.counts[0] as f64 * COUNT_MM - t;
     assert!((offset + 112.3).abs() <= 2.0 * COUNT_MM, "offset {offset}");
 }
+
+#[test]
+fn reconfigure_only_with_outputs_off_and_keeps_homing_and_counts() {
+    use controller_core::servo::ReconfigureError;
+    let mut r = run([0.0; 3]);
+    home(&mut r);
+    let before = *r.servo().snapshot();
+    let mut cfg = servo_config(RATE_HZ);
+    cfg.safety.axes[0].ferror_mm *= 2.0;
+    assert_eq!(
+        r.servo_mut().reconfigure(&cfg),
+        Err(ReconfigureError::OutputsOn)
+    );
+    step(&mut r, &[Command::Disarm], 10);
+    let mut bad = cfg;
+    bad.rate_hz = 5;
+    assert!(matches!(
+        r.servo_mut().reconfigure(&bad),
+        Err(ReconfigureError::Config(_))
+    ));
+    assert_eq!(r.servo_mut().reconfigure(&cfg), Ok(()));
+    step(&mut r, &[Command::Arm], 100);
+    let s = *r.servo().snapshot();
+    assert_eq!(s.homed, 0b111);
+    for i in 0..3 {
+        assert!(
+            (s.pos[i] - before.pos[i]).abs() < 0.01,
+            "{:?} vs {:?}",
+            s.pos,
+            before.pos
+        );
+    }
+    assert_eq!(r.servo().state(), ServoState::Idle);
+}
+
+#[test]
+fn link_lost_is_a_controlled_stop_and_resets_only_after_the_link_is_back() {
+    let mut r = run([0.0; 3]);
+    step(&mut r, &[Command::Arm, Command::StartPath], 5_000);
+    step(&mut r, &[Command::LinkLost], 1);
+    assert_eq!(r.servo().state(), ServoState::Stopping);
+    until(&mut r, 20_000, |r| r.servo().state() == ServoState::Fault);
+    let f = r.servo().faults().first().unwrap();
+    assert_eq!(f.fault.kind, FaultKind::LinkLost);
+    assert_eq!(
+        step(&mut r, &[Command::Reset], 1),
+        Some(Refusal::FaultLatched)
+    );
+    assert_eq!(r.servo().state(), ServoState::Fault);
+    step(&mut r, &[Command::LinkUp, Command::Reset], 1);
+    assert_eq!(r.servo().state(), ServoState::Disabled);
+}

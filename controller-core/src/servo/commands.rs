@@ -37,6 +37,11 @@ pub enum Command {
     /// Stop whatever moves (path, jog, homing, program) with a controlled stop and hold
     /// there (Idle); ends an identification.
     Stop,
+    /// The host link's heartbeat watchdog expired: `LinkLost` fault, controlled stop.
+    LinkLost,
+    /// A new link session started: the `LinkLost` fault's cause is gone (a reset clears
+    /// it).
+    LinkUp,
 }
 
 /// Why a command was refused.
@@ -143,6 +148,7 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
             Ok(())
         }
         (Command::Stop, S::Run | S::Jog | S::Homing | S::Identify | S::Idle) => Ok(()),
+        (Command::LinkLost | Command::LinkUp, _) => Ok(()),
         (Command::Arm | Command::Identify { .. }, S::Fault) => Err(Refusal::FaultLatched),
         _ => Err(Refusal::WrongState),
     }

@@ -139,6 +139,15 @@ fn default_models_known() -> [bool; AXES] {
     [true; AXES]
 }
 
+/// Why [`Servo::reconfigure`] refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ReconfigureError {
+    /// The outputs are on: disarm first.
+    OutputsOn,
+    /// The configuration is invalid (names the field).
+    Config(ConfigError),
+}
+
 /// State of the servo and its outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -214,6 +223,8 @@ pub struct Servo<R> {
     identify: Option<IdentifyRun>,
     identify_outcome: Option<IdentifyOutcome>,
     homed: [bool; AXES],
+    /// The host link is lost (a `LinkLost` fault's cause).
+    link_down: bool,
     /// Periods the stop reference has been at rest.
     rest_periods: u32,
     settle_periods: u32,
@@ -320,6 +331,7 @@ impl<R: Real> Servo<R> {
             identify: None,
             identify_outcome: None,
             homed: [false; AXES],
+            link_down: false,
             rest_periods: 0,
             settle_periods: monitor::periods(
                 positive(s.stop_settle_s, "safety.stop_settle_s")?,
@@ -341,6 +353,39 @@ impl<R: Real> Servo<R> {
             out: ControlOutput::default(),
             snapshot,
         })
+    }
+
+    /// Swap in a new configuration at this period boundary (settings changed by the
+    /// user): only while the outputs are off, since new gains or a new model could jump
+    /// the output. The encoder counters, the homed axes and their origins, the latched
+    /// faults and the period count carry over; `cfg` is validated whole first and
+    /// nothing changes when it is rejected.
+    pub fn reconfigure(&mut self, cfg: &ServoConfig) -> Result<(), ReconfigureError> {
+        if self.state.drives() {
+            return Err(ReconfigureError::OutputsOn);
+        }
+        let wide = self.counters.map(|c| c.count());
+        let mut next = Self::new(cfg, [0; AXES], wide).map_err(ReconfigureError::Config)?;
+        // the counters' register history, so that the next reading extends them as before
+        next.counters = self.counters;
+        next.origin = self.origin;
+        let mut machine = wide;
+        for (m, o) in machine.iter_mut().zip(self.origin) {
+            *m -= o;
+        }
+        next.estimators.reset(machine);
+        if next.counts_per_mm == self.counts_per_mm && next.homing_cfg == self.homing_cfg {
+            next.homed = self.homed;
+        }
+        next.faults = self.faults;
+        next.link_down = self.link_down;
+        next.state = self.state;
+        next.identify_outcome = self.identify_outcome;
+        let mut snap = self.snapshot;
+        snap.model_missing = next.snapshot.model_missing;
+        next.snapshot = snap;
+        *self = next;
+        Ok(())
     }
 
     /// The latest snapshot.
@@ -488,8 +533,8 @@ impl<R: Real> Servo<R> {
                 return false;
             }
         }
-        // the link's watchdog clears LinkLost when a new session starts (not here)
-        !still(FaultKind::LinkLost, None)
+        // a new link session (Command::LinkUp) removes LinkLost's cause
+        !(self.link_down && still(FaultKind::LinkLost, None))
     }
 
     fn next_check(&self, after: Option<usize>) -> Option<usize> {
@@ -644,6 +689,13 @@ impl<R: Real> Servo<R> {
                 }
             }
             (Command::Stop, ServoState::Idle) => {}
+            (Command::LinkLost, _) => {
+                self.link_down = true;
+                // (identifying: the stop is immediate, as for any fault there)
+                let r = here();
+                self.trip(Fault::system(FaultKind::LinkLost), 0.0, Some(&r));
+            }
+            (Command::LinkUp, _) => self.link_down = false,
             (Command::Stop, _) => {
                 let r = here();
                 self.begin_stop(&r, ServoState::Idle);

@@ -164,6 +164,11 @@ impl<R: Real> SimRun<R> {
         self.truth.figures()
     }
 
+    /// The servo, to reconfigure it between periods (settings changes).
+    pub fn servo_mut(&mut self) -> &mut Servo<R> {
+        &mut self.servo
+    }
+
     pub fn servo(&self) -> &Servo<R> {
         &self.servo
     }
