@@ -35,6 +35,7 @@ pub const FILES: &[(&str, &str)] = &[
         include_str!("../scenarios/estimators_physical.toml"),
     ),
     ("faults.toml", include_str!("../scenarios/faults.toml")),
+    ("identify.toml", include_str!("../scenarios/identify.toml")),
     (
         "../machines/paper_axis.toml",
         include_str!("../machines/paper_axis.toml"),
@@ -61,6 +62,34 @@ pub fn load_with(name: &str, overrides: &str) -> Result<ScenarioFile> {
         text,
         &EmbeddedIncludes(FILES),
         overrides,
+    )?)
+}
+
+/// A built-in study file run on the machine file `machine` instead of the one it names
+/// (its own machine overrides still apply on top).
+pub fn load_on_machine(name: &str, machine: &Path) -> Result<ScenarioFile> {
+    let (_, text) = FILES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .with_context(|| format!("no built-in scenario file {name}"))?;
+    let mut table: toml::Table = text.parse().context("built-in study file")?;
+    let abs = std::fs::canonicalize(machine)
+        .with_context(|| format!("machine file {}", machine.display()))?;
+    match table.get_mut("machine") {
+        Some(toml::Value::Table(m)) => {
+            m.insert(
+                "file".into(),
+                toml::Value::String(abs.display().to_string()),
+            );
+        }
+        _ => anyhow::bail!("built-in {name} has no [machine] table"),
+    }
+    let dir = abs.parent().unwrap_or(Path::new("/")).to_path_buf();
+    Ok(load_str_with(
+        &format!("built-in {name} on {}", machine.display()),
+        &table.to_string(),
+        &gantry_scenario::file::DirIncludes(dir),
+        "",
     )?)
 }
 

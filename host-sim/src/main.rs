@@ -101,6 +101,26 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Identify every axis of a simulated machine through the servo step (it sees counts
+    /// and its own effort only) and compare DSMC's contour with the true and the
+    /// identified model (host-sim/scenarios/identify.toml, docs/identification.md).
+    Identify {
+        /// Machine file (default: the built-in physical gantry).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Draw the machine's axes at random from the documented range with this seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Output folder for the plots.
+        #[arg(long, default_value = "out/identify")]
+        out: PathBuf,
+        /// Skip the plots.
+        #[arg(long)]
+        no_plots: bool,
+    },
     /// Compare a QEMU scenario's figures from the firmware's log with host-sim's (used by
     /// firmware/qemu/run-all); prints `qemu <name> passed` or `qemu <name> FAILED: <why>`.
     QemuVerdict {
@@ -136,6 +156,13 @@ fn main() -> ExitCode {
         Some(Command::Faults { scenario, json }) => {
             run_faults(scenario.as_deref(), json.as_deref())
         }
+        Some(Command::Identify {
+            machine,
+            seed,
+            json,
+            out,
+            no_plots,
+        }) => run_identify(machine.as_deref(), seed, json.as_deref(), &out, no_plots),
         Some(Command::QemuVerdict { file, log }) => return run_verdict(&file, &log),
     };
     match result {
@@ -267,6 +294,32 @@ fn run_faults(scenario: Option<&Path>, json: Option<&Path>) -> Result<()> {
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     if !m.passed {
         bail!("the fault matrix has failing cases");
+    }
+    Ok(())
+}
+
+fn run_identify(
+    machine: Option<&Path>,
+    seed: Option<u64>,
+    json: Option<&Path>,
+    out: &Path,
+    no_plots: bool,
+) -> Result<()> {
+    let started = Instant::now();
+    let r = host_sim::studies::identify::run(machine, seed)?;
+    print!("{}", host_sim::studies::identify::table(&r));
+    if let Some(j) = json {
+        write_json(j, &r)?;
+        println!("JSON: {}", j.display());
+    }
+    if !no_plots {
+        create_dir(out)?;
+        let n = host_sim::output::identify_plots::figures(out, &r)?;
+        println!("{n} figures (PNG + SVG) in {}", out.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    if !r.all_done() {
+        bail!("not every axis was identified");
     }
     Ok(())
 }

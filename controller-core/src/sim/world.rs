@@ -96,8 +96,10 @@ impl SwitchConfig {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
 pub struct ImperfectionConfig {
-    /// Each reading is off by a uniformly drawn -n..=n counts (electrical noise at the
-    /// counter's edge; 0: exact).
+    /// Jitter of the encoder's edges: each reading quantises the true position shifted
+    /// by a uniform draw within ±n/2 counts, so a reading is off by up to n/2 rounded
+    /// counts and consecutive readings of a resting axis dither between neighbours, as a
+    /// quadrature encoder sitting near an edge does (0: exact).
     pub noise_counts: u8,
     /// Seed of the noise (SplitMix64).
     pub seed: u64,
@@ -186,8 +188,8 @@ pub struct World {
     switches: [SwitchConfig; AXES],
     imperfect: ImperfectionConfig,
     rng: u64,
-    /// Noise of the current reading, counts.
-    noise: [i64; AXES],
+    /// Edge jitter of the current reading, counts.
+    noise: [f64; AXES],
     /// Command written last period, applied this period (one period of delay).
     pending: [f64; AXES],
     /// Counts at the previous reading (index crossings).
@@ -299,7 +301,7 @@ impl World {
             switches: cfg.switches,
             imperfect: cfg.imperfections,
             rng: cfg.imperfections.seed,
-            noise: [0; AXES],
+            noise: [0.0; AXES],
             pending: [0.0; AXES],
             last_counts: [0; AXES],
         };
@@ -412,15 +414,19 @@ impl World {
         c
     }
 
-    /// The counts the encoders report (the true counts, unless a fault was injected).
+    /// The counts the encoders report (the true counts with the edge jitter, unless a
+    /// fault was injected).
     pub fn reported_counts(&self) -> [i64; AXES] {
-        let mut c = self.counts();
+        let mut c = [0; AXES];
+        for (i, n) in c.iter_mut().enumerate() {
+            *n = libm::round(self.state[i].pos / self.count_len[i] + self.noise[i]) as i64;
+        }
         let f = &self.faults;
         for (i, n) in c.iter_mut().enumerate() {
             if let Some(pivot) = f.reversed[i] {
                 *n = pivot.saturating_mul(2).saturating_sub(*n);
             }
-            *n = n.saturating_add(f.offset[i]).saturating_add(self.noise[i]);
+            *n = n.saturating_add(f.offset[i]);
             if let Some(frozen) = f.frozen[i] {
                 *n = frozen;
             }
@@ -525,11 +531,11 @@ impl World {
             }
         }
         self.periods += 1;
-        let n = i64::from(self.imperfect.noise_counts);
-        if n > 0 {
+        let n = f64::from(self.imperfect.noise_counts);
+        if n > 0.0 {
             for i in 0..AXES {
-                let span = (2 * n + 1) as u64;
-                self.noise[i] = (self.next_random() % span) as i64 - n;
+                let unit = (self.next_random() >> 11) as f64 / (1u64 << 53) as f64;
+                self.noise[i] = n * (unit - 0.5);
             }
         }
     }

@@ -4,12 +4,14 @@
 //! - [`seeds`]: the patent's and the XY-table paper's methods on the physical gantry;
 //! - [`estimators`]: velocity sources × laws;
 //! - [`faults`]: the fault matrix (every fault class injected, detection and overrun);
+//! - [`identify`]: identification of every axis through the servo step, and the contour it buys;
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
 
 pub mod estimators;
 pub mod faults;
 pub mod generic;
+pub mod identify;
 pub mod paper;
 pub mod qemu_verdict;
 pub mod seeds;
