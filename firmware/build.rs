@@ -10,7 +10,9 @@
 //!   postcard, and written to `OUT_DIR/qemu_scenarios.rs` as
 //!   `pub static SCENARIOS: &[(&str, &[u8])]` (name = file stem, sorted). The firmware
 //!   decodes the one named on its semihosting command line at boot. There is no second
-//!   copy of any scenario to keep in step.
+//!   copy of any scenario to keep in step. `GANTRY_CONTROL_HZ` sets every scenario's
+//!   rate, except a `…_<N>khz` file's (`gantry_scenario::file::load_at_rate`, which
+//!   `host-sim qemu-verdict --rate-hz` uses too).
 
 use std::{env, fs, path::PathBuf};
 
@@ -52,6 +54,13 @@ mod qemu {
 
     /// Writes `OUT_DIR/qemu_scenarios.rs`.
     pub fn scenario_table(manifest_dir: &Path, out: &Path) {
+        // the build's control rate applies to the scenarios too (plant step, servo,
+        // figures), except those whose name states their own (`…_20khz`)
+        let rate_hz = std::env::var("GANTRY_CONTROL_HZ").ok().map(|v| {
+            v.trim()
+                .parse::<u32>()
+                .unwrap_or_else(|_| fail(format!("GANTRY_CONTROL_HZ={v}: not a number")))
+        });
         let dir = manifest_dir.join("../host-sim/scenarios/qemu");
         // The directory (new files) and every machine description the files include.
         println!("cargo:rerun-if-changed={}", dir.display());
@@ -77,7 +86,8 @@ mod qemu {
         for path in &files {
             println!("cargo:rerun-if-changed={}", path.display());
             let name = stem(path);
-            let file = gantry_scenario::load(path).unwrap_or_else(|e| fail(e.to_string()));
+            let file = gantry_scenario::file::load_at_rate(path, rate_hz)
+                .unwrap_or_else(|e| fail(e.to_string()));
             let runs: Vec<&str> = file.runs.iter().map(|r| r.name.as_str()).collect();
             if runs != [name.as_str()] {
                 fail(format!(

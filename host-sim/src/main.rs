@@ -128,6 +128,10 @@ enum Command {
         /// The decoded defmt log of the firmware's QEMU run.
         #[arg(long)]
         log: PathBuf,
+        /// The firmware's build rate (`GANTRY_CONTROL_HZ`): the scenario runs at it unless
+        /// its name states its own (`…_20khz`).
+        #[arg(long)]
+        rate_hz: Option<u32>,
     },
 }
 
@@ -163,7 +167,9 @@ fn main() -> ExitCode {
             out,
             no_plots,
         }) => run_identify(machine.as_deref(), seed, json.as_deref(), &out, no_plots),
-        Some(Command::QemuVerdict { file, log }) => return run_verdict(&file, &log),
+        Some(Command::QemuVerdict { file, log, rate_hz }) => {
+            return run_verdict(&file, &log, rate_hz)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -324,13 +330,13 @@ fn run_identify(
     Ok(())
 }
 
-fn run_verdict(file: &Path, log: &Path) -> ExitCode {
+fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {
     let stem = file
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let res = (|| {
-        let f = builtin::load_path(file)?;
+        let f = gantry_scenario::file::load_at_rate(file, rate_hz)?;
         let text = std::fs::read_to_string(log)
             .with_context(|| format!("cannot read log {}", log.display()))?;
         qemu_verdict::verdict(&f, &text)

@@ -404,6 +404,27 @@ pub fn expand_all(t: &mut Table) {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn qemu_rates_follow_the_build_unless_the_name_states_one() {
+        assert_eq!(stated_rate_khz("gantry_dsmc_helix_20khz"), Some(20));
+        assert_eq!(stated_rate_khz("paper_helix_dsmc"), None);
+        assert_eq!(stated_rate_khz("x_fastkhz"), None);
+        let dir =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/scenarios/qemu");
+        let rate = |file: &str, build: Option<u32>| {
+            let f = load_at_rate(&dir.join(file), build).unwrap();
+            let r = crate::Resolved::new(&f.file, &f.runs[0]).unwrap();
+            (r.run.servo.rate_hz, r.run.periods)
+        };
+        assert_eq!(rate("paper_helix_dsmc.toml", None).0, 10_000);
+        let (hz, periods) = rate("paper_helix_dsmc.toml", Some(20_000));
+        assert_eq!(hz, 20_000);
+        // the same simulated time: twice the periods
+        assert_eq!(periods, 2 * rate("paper_helix_dsmc.toml", None).1);
+        assert_eq!(rate("gantry_dsmc_helix_20khz.toml", Some(10_000)).0, 20_000);
+    }
+
     use super::*;
 
     #[test]
@@ -424,4 +445,31 @@ enc.z = { counter = "bits16" }
         assert_eq!(t["enc"]["z"]["counter"].as_str(), Some("bits16"));
         assert_eq!(t["enc"]["z"]["counts"].as_integer(), Some(1));
     }
+}
+
+/// Load a QEMU scenario file at the firmware's control rate: with `rate_hz` (the build's
+/// `GANTRY_CONTROL_HZ`) every file runs at that rate — plant step, servo and figures —
+/// except a file whose name states its own rate (`…_20khz`), which keeps it. The
+/// firmware's build script and `host-sim qemu-verdict` both load through here, so the
+/// two sides simulate the same run.
+pub fn load_at_rate(path: &Path, rate_hz: Option<u32>) -> Result<ScenarioFile, ScenarioError> {
+    let name = path.display().to_string();
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let fixed = stated_rate_khz(&stem).is_some();
+    let text = read_capped(path).map_err(|m| ScenarioError::new(&name, None, m))?;
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let overrides = match rate_hz {
+        Some(r) if !fixed => format!("[machine]\nrate_hz = {r}\n"),
+        _ => String::new(),
+    };
+    load_str_with(&name, &text, &DirIncludes(dir), &overrides)
+}
+
+/// The rate a file name states (`…_20khz` → 20), if any.
+pub fn stated_rate_khz(stem: &str) -> Option<u32> {
+    let digits = stem.strip_suffix("khz")?.rsplit('_').next()?;
+    digits.parse().ok()
 }

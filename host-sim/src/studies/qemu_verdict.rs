@@ -160,6 +160,15 @@ pub fn verdict(file: &ScenarioFile, log: &str) -> Result<(String, Option<String>
         Err(e) => return Ok((r.name.clone(), Some(format!("{e:#}")))),
     };
     let mut why = Vec::new();
+    // the firmware logs the rate it ran the scenario at; both sides must agree on it
+    let rate_line = format!("periods at {} Hz", r.run.servo.rate_hz);
+    if !log.contains(&rate_line) {
+        why.push(format!(
+            "the firmware did not run at {} Hz (no `{rate_line}` line): build and verdict \
+             rates differ",
+            r.run.servo.rate_hz
+        ));
+    }
     if theirs.samples != u64::from(r.run.periods) {
         why.push(format!(
             "{} periods recorded, expected {}",
