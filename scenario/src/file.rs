@@ -402,6 +402,33 @@ pub fn expand_all(t: &mut Table) {
     }
 }
 
+/// Load a QEMU scenario file at the firmware's control rate: with `rate_hz` (the build's
+/// `GANTRY_CONTROL_HZ`) every file runs at that rate — plant step, servo and figures —
+/// except a file whose name states its own rate (`…_20khz`), which keeps it. The
+/// firmware's build script and `host-sim qemu-verdict` both load through here, so the
+/// two sides simulate the same run.
+pub fn load_at_rate(path: &Path, rate_hz: Option<u32>) -> Result<ScenarioFile, ScenarioError> {
+    let name = path.display().to_string();
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let fixed = stated_rate_khz(&stem).is_some();
+    let text = read_capped(path).map_err(|m| ScenarioError::new(&name, None, m))?;
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let overrides = match rate_hz {
+        Some(r) if !fixed => format!("[machine]\nrate_hz = {r}\n"),
+        _ => String::new(),
+    };
+    load_str_with(&name, &text, &DirIncludes(dir), &overrides)
+}
+
+/// The rate a file name states (`…_20khz` → 20), if any.
+pub fn stated_rate_khz(stem: &str) -> Option<u32> {
+    let digits = stem.strip_suffix("khz")?.rsplit('_').next()?;
+    digits.parse().ok()
+}
+
 #[cfg(test)]
 mod tests {
 
@@ -445,31 +472,4 @@ enc.z = { counter = "bits16" }
         assert_eq!(t["enc"]["z"]["counter"].as_str(), Some("bits16"));
         assert_eq!(t["enc"]["z"]["counts"].as_integer(), Some(1));
     }
-}
-
-/// Load a QEMU scenario file at the firmware's control rate: with `rate_hz` (the build's
-/// `GANTRY_CONTROL_HZ`) every file runs at that rate — plant step, servo and figures —
-/// except a file whose name states its own rate (`…_20khz`), which keeps it. The
-/// firmware's build script and `host-sim qemu-verdict` both load through here, so the
-/// two sides simulate the same run.
-pub fn load_at_rate(path: &Path, rate_hz: Option<u32>) -> Result<ScenarioFile, ScenarioError> {
-    let name = path.display().to_string();
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let fixed = stated_rate_khz(&stem).is_some();
-    let text = read_capped(path).map_err(|m| ScenarioError::new(&name, None, m))?;
-    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let overrides = match rate_hz {
-        Some(r) if !fixed => format!("[machine]\nrate_hz = {r}\n"),
-        _ => String::new(),
-    };
-    load_str_with(&name, &text, &DirIncludes(dir), &overrides)
-}
-
-/// The rate a file name states (`…_20khz` → 20), if any.
-pub fn stated_rate_khz(stem: &str) -> Option<u32> {
-    let digits = stem.strip_suffix("khz")?.rsplit('_').next()?;
-    digits.parse().ok()
 }
