@@ -110,15 +110,16 @@ impl fmt::Display for Range {
         match self {
             Self::F32 { min, max } => write!(f, "[{min}, {max}]"),
             Self::U32 { min, max } => write!(f, "[{min}, {max}] (integer)"),
-            Self::Bool => f.write_str("true | false"),
+            Self::Bool => f.write_str("{true, false}"),
             Self::Choice(names) => {
+                f.write_str("{")?;
                 for (i, n) in names.iter().enumerate() {
                     if i > 0 {
-                        f.write_str(" | ")?;
+                        f.write_str(", ")?;
                     }
                     f.write_str(n)?;
                 }
-                Ok(())
+                f.write_str("}")
             }
         }
     }
@@ -621,7 +622,7 @@ static GLOBAL_KEYS: &[GlobalDef] = &[
         unit::RAD_S,
         f32_range(10.0, 20_000.0),
         OutputsOff,
-        "Velocity PLL natural frequency (stable only below about 0.83 x the control rate)"
+        "Velocity PLL natural frequency (stable below about 0.83 x the control rate in Hz)"
     ),
     global_key!(
         estimator.pll_damping,
@@ -890,7 +891,32 @@ impl Settings {
     /// the whole tree with it must give a servo configuration at `rate_hz` (the control
     /// rate of the machine). On any error nothing changes.
     pub fn set(&mut self, key: &str, value: Value, rate_hz: u32) -> Result<(), SettingError> {
-        let k = find(key)?;
+        self.set_all(&[(key, value)], rate_hz)
+    }
+
+    /// Set several keys at once, validated together: for changes that are only valid
+    /// together (a home switch moved to the other end with its direction, a travel moved
+    /// beyond its old other end). Each value is checked like [`Self::set`]; the tree is
+    /// validated once, after all of them. On any error nothing changes; a whole-tree
+    /// rejection names the last key.
+    pub fn set_all(&mut self, changes: &[(&str, Value)], rate_hz: u32) -> Result<(), SettingError> {
+        let mut next = *self;
+        let mut last = None;
+        for (key, value) in changes {
+            let k = find(key)?;
+            next.put_checked(&k, *value)?;
+            last = Some((k.name, *value));
+        }
+        if let Some((key, value)) = last {
+            next.servo_config(rate_hz)
+                .map_err(|error| SettingError::Rejected { key, value, error })?;
+        }
+        *self = next;
+        Ok(())
+    }
+
+    /// Type and range check of `value` for `k`, then write it (no whole-tree check).
+    fn put_checked(&mut self, k: &Key, value: Value) -> Result<(), SettingError> {
         if !k.range.fits_type(&value) {
             return Err(SettingError::WrongType {
                 key: k.name,
@@ -905,22 +931,13 @@ impl Settings {
                 unit: k.unit,
             });
         }
-        let mut next = *self;
-        k.put(&mut next, value).map_err(|e| match e {
+        k.put(self, value).map_err(|e| match e {
             Put::NoModel => SettingError::NoModel { key: k.name },
             Put::WrongType => SettingError::WrongType {
                 key: k.name,
                 range: k.range,
             },
-        })?;
-        next.servo_config(rate_hz)
-            .map_err(|error| SettingError::Rejected {
-                key: k.name,
-                value,
-                error,
-            })?;
-        *self = next;
-        Ok(())
+        })
     }
 
     /// [`Self::set`] from the CLI's text (`"1.5"`, `"true"`, `"dsmc"`).
@@ -1036,3 +1053,6 @@ impl fmt::Display for Factory {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -26,8 +26,7 @@
 use core::ops::Range as AddrRange;
 
 use embedded_storage::nor_flash::{
-    check_erase, check_read, check_write, NorFlash as BlockingNorFlash, NorFlashErrorKind,
-    ReadNorFlash as BlockingReadNorFlash,
+    NorFlash as BlockingNorFlash, NorFlashErrorKind, ReadNorFlash as BlockingReadNorFlash,
 };
 use embedded_storage_async::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, ReadNorFlash,
@@ -409,10 +408,9 @@ impl<const BYTES: usize, const ERASE: usize> BlockingReadNorFlash for RamFlash<B
     const READ_SIZE: usize = 1;
 
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        check_read(self, offset, bytes.len())?;
         let src = self
             .data
-            .get(offset as usize..offset as usize + bytes.len())
+            .get(span(offset, bytes.len())?)
             .ok_or(NorFlashErrorKind::OutOfBounds)?;
         bytes.copy_from_slice(src);
         Ok(())
@@ -428,19 +426,21 @@ impl<const BYTES: usize, const ERASE: usize> BlockingNorFlash for RamFlash<BYTES
     const ERASE_SIZE: usize = ERASE;
 
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        check_erase(self, from, to)?;
+        if !(from as usize).is_multiple_of(ERASE) || !(to as usize).is_multiple_of(ERASE) {
+            return Err(NorFlashErrorKind::NotAligned);
+        }
+        let n = to.checked_sub(from).ok_or(NorFlashErrorKind::OutOfBounds)?;
         self.data
-            .get_mut(from as usize..to as usize)
+            .get_mut(span(from, n as usize)?)
             .ok_or(NorFlashErrorKind::OutOfBounds)?
             .fill(0xFF);
         Ok(())
     }
 
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        check_write(self, offset, bytes.len())?;
         let dst = self
             .data
-            .get_mut(offset as usize..offset as usize + bytes.len())
+            .get_mut(span(offset, bytes.len())?)
             .ok_or(NorFlashErrorKind::OutOfBounds)?;
         for (d, s) in dst.iter_mut().zip(bytes) {
             // NOR: programming only clears bits
@@ -448,6 +448,16 @@ impl<const BYTES: usize, const ERASE: usize> BlockingNorFlash for RamFlash<BYTES
         }
         Ok(())
     }
+}
+
+/// The byte range `offset .. offset + len` (without overflow; bounds are checked by the
+/// slice `get`).
+fn span(offset: u32, len: usize) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
+    let start = usize::try_from(offset).map_err(|_| NorFlashErrorKind::OutOfBounds)?;
+    let end = start
+        .checked_add(len)
+        .ok_or(NorFlashErrorKind::OutOfBounds)?;
+    Ok(start..end)
 }
 
 impl<const BYTES: usize, const ERASE: usize> embedded_storage::nor_flash::MultiwriteNorFlash

@@ -515,3 +515,24 @@ fn blocking_window_checks_its_bounds() {
     assert_eq!(ram.bytes()[8192..8194], [0x01, 0xAA]);
     assert_eq!(ram.bytes()[8191], 0xFF);
 }
+
+#[test]
+fn ram_flash_checks_its_own_bounds() {
+    use embedded_storage::nor_flash::{NorFlash as _, ReadNorFlash as _};
+    let mut f = RamFlash::<8192, 4096>::new();
+    let mut buf = [0u8; 4];
+    assert_eq!(f.read(8190, &mut buf), Err(NorFlashErrorKind::OutOfBounds));
+    assert_eq!(
+        f.read(u32::MAX, &mut buf),
+        Err(NorFlashErrorKind::OutOfBounds)
+    );
+    assert_eq!(f.write(8191, &[0, 0]), Err(NorFlashErrorKind::OutOfBounds));
+    assert_eq!(f.erase(4096, 12288), Err(NorFlashErrorKind::OutOfBounds));
+    assert_eq!(f.erase(4096, 0), Err(NorFlashErrorKind::OutOfBounds));
+    assert_eq!(f.erase(1, 4096), Err(NorFlashErrorKind::NotAligned));
+    f.write(4096, &[0x12]).unwrap();
+    f.erase(0, 4096).unwrap();
+    assert_eq!(f.bytes()[4096], 0x12);
+    f.erase(4096, 8192).unwrap();
+    assert!(f.bytes().iter().all(|b| *b == 0xFF));
+}
