@@ -578,3 +578,57 @@ fn docs_settings_md_key_table_is_current() {
         }
     }
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn value() -> impl Strategy<Value = Value> {
+        prop_oneof![
+            any::<f32>().prop_map(Value::F32),
+            (-1e4f32..1e4).prop_map(Value::F32),
+            any::<u32>().prop_map(Value::U32),
+            (0u32..70_000).prop_map(Value::U32),
+            any::<bool>().prop_map(Value::Bool),
+            prop::sample::select(std::vec![
+                "pid", "dsmc", "contour", "none", "min", "max", "x"
+            ])
+            .prop_map(Value::Choice),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        /// Any value on any key: accepted values are read back and leave a valid tree;
+        /// refused ones change nothing.
+        #[test]
+        fn any_value_on_any_key(i in 0..KEY_COUNT, v in value(), models in any::<bool>()) {
+            let s0 = if models { with_models() } else { FACTORY };
+            let k = keys().nth(i).unwrap();
+            let mut s = s0;
+            match s.set(k.name, v, RATE) {
+                Ok(()) => {
+                    prop_assert!(s.get(k.name).unwrap().same(&v) || k.name.ends_with("model.known"));
+                    prop_assert_eq!(s.validate(RATE), Ok(()));
+                }
+                Err(e) => {
+                    prop_assert!(same_tree(&s, &s0));
+                    prop_assert!(e.to_string().contains(k.name));
+                }
+            }
+        }
+
+        /// Any text on any key name (known or not) never panics; refusals change nothing.
+        #[test]
+        fn any_text_on_any_key(key in "(axis\\.[xyzw]\\.)?[a-z_.]{0,30}", i in 0..KEY_COUNT, text in "\\PC{0,24}") {
+            let s0 = FACTORY;
+            for name in [key.as_str(), keys().nth(i).unwrap().name] {
+                let mut s = s0;
+                if s.set_text(name, &text, RATE).is_err() {
+                    prop_assert!(same_tree(&s, &s0));
+                }
+            }
+        }
+    }
+}

@@ -434,7 +434,11 @@ fn record_size() {
         a.model = Some(m);
     }
     let with_models = postcard_bytes(&all_models).len();
-    std::println!("postcard bytes: factory {factory}, with three models {with_models}");
+    std::println!(
+        "postcard bytes: factory {factory}, with three models {with_models}; size_of Settings {}, SettingsStore over the F4 window {}",
+        core::mem::size_of::<Settings>(),
+        core::mem::size_of::<SettingsStore<BlockingFlash<RamFlash<0, 4096>>>>()
+    );
     // 3 models × 16 bytes more
     assert_eq!(with_models, factory + 3 * 16);
     assert_eq!(factory, 297);
@@ -535,4 +539,60 @@ fn ram_flash_checks_its_own_bounds() {
     assert_eq!(f.bytes()[4096], 0x12);
     f.erase(4096, 8192).unwrap();
     assert!(f.bytes().iter().all(|b| *b == 0xFF));
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(500))]
+
+        /// Any bytes as the record (after a valid version, or not): the load never
+        /// panics and gives either a valid stored tree or the factory one with a fault.
+        #[test]
+        fn any_record_bytes_load_safely(
+            current_version in any::<bool>(),
+            body in prop::collection::vec(any::<u8>(), 0..400),
+        ) {
+            let mut record = if current_version {
+                Vec::from(SETTINGS_VERSION.to_le_bytes())
+            } else {
+                Vec::new()
+            };
+            record.extend(body);
+            prop_assume!(!record.is_empty());
+            let mut flash = mock();
+            write_raw(&mut flash, &record);
+            let (s, outcome) = block_on(store(flash).load(RATE));
+            match outcome {
+                LoadOutcome::Stored => prop_assert_eq!(s.validate(RATE), Ok(())),
+                LoadOutcome::Empty => prop_assert!(false, "written store reported empty"),
+                _ => {
+                    prop_assert!(outcome.is_fault());
+                    prop_assert_eq!(s, FACTORY);
+                }
+            }
+        }
+
+        /// A valid tree with one byte of its record changed before the CRC is computed
+        /// (what other firmware could have written): never panics, never loads an
+        /// invalid tree.
+        #[test]
+        fn mutated_valid_records_load_safely(at in 0usize..300, byte in any::<u8>()) {
+            let mut record = Vec::from(SETTINGS_VERSION.to_le_bytes());
+            record.extend(postcard_bytes(&tree_a()));
+            let i = 2 + at % (record.len() - 2);
+            record[i] = byte;
+            let mut flash = mock();
+            write_raw(&mut flash, &record);
+            let (s, outcome) = block_on(store(flash).load(RATE));
+            if outcome == LoadOutcome::Stored {
+                prop_assert_eq!(s.validate(RATE), Ok(()));
+            } else {
+                prop_assert!(outcome.is_fault());
+                prop_assert_eq!(s, FACTORY);
+            }
+        }
+    }
 }
