@@ -23,7 +23,9 @@
 //! - [`sysid`]: identification of an axis' model on the machine, and the tuning rules
 //!   from a model to every law's gains;
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering;
-//! - [`presets`]: named parameter sets with their sources.
+//! - [`presets`]: named parameter sets with their sources;
+//! - [`settings`]: the user's settings tree, its dotted keys, the servo configuration it
+//!   gives, and its record in flash (feature `store`).
 #![no_std]
 #![forbid(unsafe_code)]
 // `!(x > y)` is deliberate throughout: it is also true for NaN, which is how NaN inputs are
@@ -43,6 +45,7 @@ pub mod motion;
 pub mod num;
 pub mod presets;
 pub mod servo;
+pub mod settings;
 pub mod sim;
 pub mod sysid;
 

@@ -37,11 +37,14 @@
 //! [`inputs`] (safety inputs, arm button), [`leds`], [`tick`] (control timer),
 //! [`cycles`] (execution-time counter), [`io`] (the core's `ServoIo` for the board),
 //! [`clock`] (clock tree, crystal timeout, clock security system), [`shutdown`] (outputs
-//! off from any context; panic and exception handlers) and [`watchdog`] (the IWDG).
+//! off from any context; panic and exception handlers), [`watchdog`] (the IWDG) and
+//! [`flash`] (the settings store's sectors).
 
 pub mod clock;
 pub mod cycles;
 pub mod encoders;
+#[cfg(not(feature = "qemu"))]
+pub mod flash;
 pub mod inputs;
 #[cfg(not(feature = "qemu"))]
 pub mod io;

@@ -1,0 +1,1058 @@
+//! Dotted keys: every value of the settings tree by name (`axis.x.following_error_mm`,
+//! `axis.y.model.inertia`, `coupling.lambda`, `link.watchdog_ms`, ...), with its unit,
+//! allowed range, one-line doc and apply class, for the link's settings commands and the
+//! `gantry settings` CLI.
+//!
+//! One table-driven registry: each key is one entry below, whose accessor is generated
+//! from the field path, and whose name *is* that field path (so the key, the Rust field
+//! and the serde name cannot drift apart). [`Settings::set`] checks the value's type and
+//! range, applies it to a copy, validates the whole copy ([`Settings::servo_config`]) and
+//! only then replaces the tree: nothing changes on an error.
+//!
+//! Ranges are plausibility bounds for a machine of this class (they catch typos and unit
+//! slips, e.g. metres for millimetres); the relations between values (following error at
+//! speed ≥ at rest, home inside the travel, estimator stable at the control rate, ...) are
+//! the servo's own checks, run on every change.
+
+use core::fmt;
+
+use crate::axes::{Axis, AXES};
+use crate::link::watchdog::{MAX_WATCHDOG_TIMEOUT_MS, MIN_WATCHDOG_TIMEOUT_MS};
+use crate::servo::homing::HomeDirection;
+
+use super::servo_config::{SettingsError, PLACEHOLDER_MODELS};
+use super::tree::{AxisSettings, CouplingKind, LawKind, Settings};
+
+/// A setting's value. Choices are the static names of [`Range::Choice`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Value {
+    F32(f32),
+    Bool(bool),
+    U32(u32),
+    /// One of a key's named choices (`"dsmc"`, `"contour"`, `"min"`).
+    Choice(&'static str),
+}
+
+impl Value {
+    /// Bit-identical (f32 compared by bits, so NaN equals itself and 0.0 differs from -0.0).
+    pub fn same(&self, other: &Value) -> bool {
+        match (self, other) {
+            (Self::F32(a), Self::F32(b)) => a.to_bits() == b.to_bits(),
+            (a, b) => a == b,
+        }
+    }
+}
+
+impl fmt::Display for Value {
+    /// The text [`Range::parse`] reads back to the same value (f32: the shortest text that
+    /// round-trips).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::F32(v) => write!(f, "{v}"),
+            Self::Bool(v) => write!(f, "{v}"),
+            Self::U32(v) => write!(f, "{v}"),
+            Self::Choice(v) => f.write_str(v),
+        }
+    }
+}
+
+/// The values a key accepts (bounds included).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Range {
+    F32 { min: f32, max: f32 },
+    U32 { min: u32, max: u32 },
+    Bool,
+    Choice(&'static [&'static str]),
+}
+
+impl Range {
+    /// `value` has this range's type and lies within it (NaN never does).
+    pub fn admits(&self, value: &Value) -> bool {
+        match (self, value) {
+            (Self::F32 { min, max }, Value::F32(v)) => *v >= *min && *v <= *max,
+            (Self::U32 { min, max }, Value::U32(v)) => *v >= *min && *v <= *max,
+            (Self::Bool, Value::Bool(_)) => true,
+            (Self::Choice(names), Value::Choice(v)) => names.contains(v),
+            _ => false,
+        }
+    }
+
+    /// `value` has this range's type (whether or not it lies within).
+    pub fn fits_type(&self, value: &Value) -> bool {
+        matches!(
+            (self, value),
+            (Self::F32 { .. }, Value::F32(_))
+                | (Self::U32 { .. }, Value::U32(_))
+                | (Self::Bool, Value::Bool(_))
+                | (Self::Choice(_), Value::Choice(_))
+        )
+    }
+
+    /// Parse the CLI's text (`"1.5"`, `"true"`, `"dsmc"`) as a value of this range's type;
+    /// `None` when the text is not such a value (the range itself is checked by `set`).
+    pub fn parse(&self, text: &str) -> Option<Value> {
+        let t = text.trim();
+        match self {
+            Self::F32 { .. } => t.parse::<f32>().ok().map(Value::F32),
+            Self::U32 { .. } => t.parse::<u32>().ok().map(Value::U32),
+            Self::Bool => match t {
+                "true" => Some(Value::Bool(true)),
+                "false" => Some(Value::Bool(false)),
+                _ => None,
+            },
+            Self::Choice(names) => names.iter().find(|n| **n == t).map(|n| Value::Choice(n)),
+        }
+    }
+}
+
+impl fmt::Display for Range {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::F32 { min, max } => write!(f, "[{min}, {max}]"),
+            Self::U32 { min, max } => write!(f, "[{min}, {max}] (integer)"),
+            Self::Bool => f.write_str("{true, false}"),
+            Self::Choice(names) => {
+                f.write_str("{")?;
+                for (i, n) in names.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(", ")?;
+                    }
+                    f.write_str(n)?;
+                }
+                f.write_str("}")
+            }
+        }
+    }
+}
+
+/// When a change may take effect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Apply {
+    /// May change while the outputs are on, at a period boundary: it cannot make the
+    /// output jump (a limit, a jog speed, the link's timeout, identification's next run).
+    Live,
+    /// Only while the outputs are off (`Servo::reconfigure` refuses otherwise): new gains,
+    /// a new model, scale or estimator could make the output jump.
+    OutputsOff,
+}
+
+impl Apply {
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Live => "live",
+            Self::OutputsOff => "outputs_off",
+        }
+    }
+}
+
+/// Why a per-entry accessor refused (the value's type was checked before).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Put {
+    WrongType,
+    NoModel,
+}
+
+/// The conversion between a field's type and [`Value`].
+trait Field: Sized {
+    fn value(&self) -> Value;
+    fn from_value(v: Value) -> Option<Self>;
+}
+
+impl Field for f32 {
+    fn value(&self) -> Value {
+        Value::F32(*self)
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::F32(x) => Some(x),
+            _ => None,
+        }
+    }
+}
+
+impl Field for bool {
+    fn value(&self) -> Value {
+        Value::Bool(*self)
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Bool(x) => Some(x),
+            _ => None,
+        }
+    }
+}
+
+impl Field for u32 {
+    fn value(&self) -> Value {
+        Value::U32(*self)
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::U32(x) => Some(x),
+            _ => None,
+        }
+    }
+}
+
+impl Field for u8 {
+    fn value(&self) -> Value {
+        Value::U32(u32::from(*self))
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::U32(x) => u8::try_from(x).ok(),
+            _ => None,
+        }
+    }
+}
+
+impl Field for LawKind {
+    fn value(&self) -> Value {
+        Value::Choice(self.name())
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Choice(n) => Self::from_name(n),
+            _ => None,
+        }
+    }
+}
+
+impl Field for CouplingKind {
+    fn value(&self) -> Value {
+        Value::Choice(self.name())
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Choice(n) => Self::from_name(n),
+            _ => None,
+        }
+    }
+}
+
+/// Names of [`HomeDirection`] in keys.
+const DIRECTION_NAMES: &[&str] = &["min", "max"];
+
+impl Field for HomeDirection {
+    fn value(&self) -> Value {
+        Value::Choice(match self {
+            HomeDirection::Min => "min",
+            HomeDirection::Max => "max",
+        })
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Choice("min") => Some(HomeDirection::Min),
+            Value::Choice("max") => Some(HomeDirection::Max),
+            _ => None,
+        }
+    }
+}
+
+/// A per-axis registry entry: one for the three keys `axis.{x,y,z}.<path>`.
+struct AxisDef {
+    names: [&'static str; AXES],
+    unit: &'static str,
+    range: Range,
+    apply: Apply,
+    doc: &'static str,
+    get: fn(&AxisSettings) -> Option<Value>,
+    /// Writes the value (type-checked) into the axis of index `usize`.
+    put: fn(&mut AxisSettings, usize, Value) -> Result<(), Put>,
+}
+
+/// A registry entry of a key outside `axis.*`.
+struct GlobalDef {
+    name: &'static str,
+    unit: &'static str,
+    range: Range,
+    apply: Apply,
+    doc: &'static str,
+    get: fn(&Settings) -> Option<Value>,
+    put: fn(&mut Settings, Value) -> Result<(), Put>,
+}
+
+const fn f32_range(min: f32, max: f32) -> Range {
+    Range::F32 { min, max }
+}
+
+/// The key suffix of a field path: `law.kind` → `"law.kind"`.
+macro_rules! path_str {
+    ($first:ident $(. $rest:ident)*) => {
+        concat!(stringify!($first) $(, ".", stringify!($rest))*)
+    };
+}
+
+/// A per-axis entry for the plain field `$path` of [`AxisSettings`].
+macro_rules! axis_key {
+    ($first:ident $(. $rest:ident)*, $unit:expr, $range:expr, $apply:ident, $doc:expr) => {
+        AxisDef {
+            names: [
+                concat!("axis.x.", path_str!($first $(. $rest)*)),
+                concat!("axis.y.", path_str!($first $(. $rest)*)),
+                concat!("axis.z.", path_str!($first $(. $rest)*)),
+            ],
+            unit: $unit,
+            range: $range,
+            apply: Apply::$apply,
+            doc: $doc,
+            get: |a| Some(Field::value(&a.$first $(. $rest)*)),
+            put: |a, _, v| {
+                a.$first $(. $rest)* = Field::from_value(v).ok_or(Put::WrongType)?;
+                Ok(())
+            },
+        }
+    };
+}
+
+/// A per-axis entry for the model parameter `$field` (absent while the model is unknown).
+macro_rules! model_key {
+    ($field:ident, $unit:expr, $range:expr, $doc:expr) => {
+        AxisDef {
+            names: [
+                concat!("axis.x.model.", stringify!($field)),
+                concat!("axis.y.model.", stringify!($field)),
+                concat!("axis.z.model.", stringify!($field)),
+            ],
+            unit: $unit,
+            range: $range,
+            apply: Apply::OutputsOff,
+            doc: $doc,
+            get: |a| a.model.map(|m| Value::F32(m.$field)),
+            put: |a, _, v| {
+                let m = a.model.as_mut().ok_or(Put::NoModel)?;
+                m.$field = f32::from_value(v).ok_or(Put::WrongType)?;
+                Ok(())
+            },
+        }
+    };
+}
+
+/// An entry for the plain field `$path` of [`Settings`].
+macro_rules! global_key {
+    ($first:ident $(. $rest:ident)*, $unit:expr, $range:expr, $apply:ident, $doc:expr) => {
+        GlobalDef {
+            name: path_str!($first $(. $rest)*),
+            unit: $unit,
+            range: $range,
+            apply: Apply::$apply,
+            doc: $doc,
+            get: |s| Some(Field::value(&s.$first $(. $rest)*)),
+            put: |s, v| {
+                s.$first $(. $rest)* = Field::from_value(v).ok_or(Put::WrongType)?;
+                Ok(())
+            },
+        }
+    };
+}
+
+/// Units, written as the rest of the docs write them (UTF-8).
+mod unit {
+    pub const MM: &str = "mm";
+    pub const MM_S: &str = "mm/s";
+    pub const MM_S2: &str = "mm/s²";
+    pub const MNM: &str = "mN·m";
+    pub const RAD_S: &str = "rad/s";
+    pub const NONE: &str = "";
+}
+
+/// Plausible bounds of this machine class, with their reasoning:
+/// - lengths ±10 m: any gantry's travel, far beyond this one's (±150 mm);
+/// - efforts 1 mN·m..100 N·m: the smallest effort a law could resolve to the largest motor
+///   such an amplifier drives (the gantry's: 1–2 N·m peak);
+/// - following errors 1 µm..100 mm: about one count to a third of the X travel;
+/// - speeds up to 10 m/s, accelerations up to 10⁷ mm/s² (≈ 1000 g: bounds what the
+///   encoder check tolerates, above any physical axis).
+const LEN: Range = f32_range(-10_000.0, 10_000.0);
+const EFFORT: Range = f32_range(1.0, 100_000.0);
+const FERROR: Range = f32_range(0.001, 100.0);
+
+/// The per-axis keys, in the tree's field order.
+static AXIS_KEYS: &[AxisDef] = &[
+    axis_key!(
+        law.kind,
+        unit::NONE,
+        Range::Choice(LawKind::NAMES),
+        OutputsOff,
+        "Control law of the axis; the model-based ones (all but pid) need a known model to arm"
+    ),
+    axis_key!(
+        law.bandwidth_rad_s,
+        unit::RAD_S,
+        f32_range(1.0, 1_000.0),
+        OutputsOff,
+        "Closed-loop bandwidth the law's gains are tuned for (sysid::tuning); keep it below the velocity estimator's"
+    ),
+    AxisDef {
+        names: ["axis.x.model.known", "axis.y.model.known", "axis.z.model.known"],
+        unit: unit::NONE,
+        range: Range::Bool,
+        apply: Apply::OutputsOff,
+        doc: "The axis' model is known (identified or entered); false forgets it, true starts from the designed gantry's model",
+        get: |a| Some(Value::Bool(a.model.is_some())),
+        put: |a, i, v| {
+            let known = bool::from_value(v).ok_or(Put::WrongType)?;
+            if !known {
+                a.model = None;
+            } else if a.model.is_none() {
+                a.model = PLACEHOLDER_MODELS.get(i).copied();
+            }
+            Ok(())
+        },
+    },
+    model_key!(
+        inertia,
+        "mN·m/(mm/s²)",
+        f32_range(1e-4, 100.0),
+        "Inertia reflected to the table (the gantry's: 0.041..0.18)"
+    ),
+    model_key!(
+        viscous,
+        "mN·m/(mm/s)",
+        f32_range(0.0, 100.0),
+        "Viscous friction coefficient"
+    ),
+    model_key!(
+        coulomb_pos_mnm,
+        unit::MNM,
+        f32_range(-10_000.0, 10_000.0),
+        "Torque to keep moving forward beyond the viscous part (Coulomb f+ plus any constant load)"
+    ),
+    model_key!(
+        coulomb_neg_mnm,
+        unit::MNM,
+        f32_range(-10_000.0, 10_000.0),
+        "Torque to keep moving backward beyond the viscous part (Coulomb f-, < 0 without load); at most coulomb_pos_mnm"
+    ),
+    axis_key!(
+        encoder.counts_per_mm,
+        "counts/mm",
+        f32_range(1.0, 100_000.0),
+        OutputsOff,
+        "Quadrature counts per mm (lines x 4 / screw lead)"
+    ),
+    axis_key!(
+        amplifier.full_scale,
+        unit::MNM,
+        EFFORT,
+        OutputsOff,
+        "Effort at full command: every law's saturation and the tuning's torque limit"
+    ),
+    axis_key!(
+        min_ferror_mm,
+        unit::MM,
+        FERROR,
+        Live,
+        "Following error allowed at rest"
+    ),
+    axis_key!(
+        following_error_mm,
+        unit::MM,
+        FERROR,
+        Live,
+        "Following error allowed at vel_max_mm_s (at least min_ferror_mm; linear in between)"
+    ),
+    axis_key!(
+        vel_max_mm_s,
+        unit::MM_S,
+        f32_range(0.1, 10_000.0),
+        OutputsOff,
+        "Largest speed of the axis (overspeed trips 10 % above)"
+    ),
+    axis_key!(
+        accel_max_mm_s2,
+        unit::MM_S2,
+        f32_range(1.0, 1e7),
+        OutputsOff,
+        "Largest acceleration the axis can physically make (bounds the encoder-jump check)"
+    ),
+    axis_key!(
+        stop_decel_mm_s2,
+        unit::MM_S2,
+        f32_range(1.0, 1e6),
+        OutputsOff,
+        "Deceleration of a controlled stop"
+    ),
+    axis_key!(
+        stuck_effort_change,
+        unit::MNM,
+        f32_range(0.1, 100_000.0),
+        OutputsOff,
+        "Effort change that must move a resting axis (stuck-encoder and runaway threshold)"
+    ),
+    axis_key!(
+        travel.min_mm,
+        unit::MM,
+        LEN,
+        OutputsOff,
+        "Soft limit at the low end, machine coordinates (below travel.max_mm)"
+    ),
+    axis_key!(
+        travel.max_mm,
+        unit::MM,
+        LEN,
+        OutputsOff,
+        "Soft limit at the high end, machine coordinates"
+    ),
+    axis_key!(
+        homing.enabled,
+        unit::NONE,
+        Range::Bool,
+        OutputsOff,
+        "The axis homes on its switch (false: counts as homed where it is armed)"
+    ),
+    axis_key!(
+        homing.order,
+        unit::NONE,
+        Range::U32 { min: 0, max: 2 },
+        OutputsOff,
+        "Axes home in increasing order (ties: x, y, z)"
+    ),
+    axis_key!(
+        homing.direction,
+        unit::NONE,
+        Range::Choice(DIRECTION_NAMES),
+        OutputsOff,
+        "End of the axis the home switch is at"
+    ),
+    axis_key!(
+        homing.seek_mm_s,
+        unit::MM_S,
+        f32_range(0.1, 1_000.0),
+        OutputsOff,
+        "Search speed toward the switch"
+    ),
+    axis_key!(
+        homing.locate_mm_s,
+        unit::MM_S,
+        f32_range(0.01, 1_000.0),
+        OutputsOff,
+        "Slow speed of the release and locate passes (at most seek_mm_s)"
+    ),
+    axis_key!(
+        homing.accel_mm_s2,
+        unit::MM_S2,
+        f32_range(1.0, 100_000.0),
+        OutputsOff,
+        "Acceleration of every homing move"
+    ),
+    axis_key!(
+        homing.backoff_mm,
+        unit::MM,
+        f32_range(0.01, 100.0),
+        OutputsOff,
+        "Distance moved past the switch's release before locating"
+    ),
+    axis_key!(
+        homing.pulloff_mm,
+        unit::MM,
+        f32_range(0.01, 100.0),
+        OutputsOff,
+        "Final distance from the switch (the home position must lie inside the travel)"
+    ),
+    axis_key!(
+        homing.switch_pos_mm,
+        unit::MM,
+        LEN,
+        OutputsOff,
+        "Machine coordinate of the switch's trigger point"
+    ),
+    axis_key!(
+        homing.max_seek_mm,
+        unit::MM,
+        f32_range(1.0, 20_000.0),
+        OutputsOff,
+        "The seek fails after this distance without the switch"
+    ),
+    axis_key!(
+        homing.use_index,
+        unit::NONE,
+        Range::Bool,
+        OutputsOff,
+        "Latch the encoder's index pulse after the switch"
+    ),
+    axis_key!(
+        homing.index_search_mm,
+        unit::MM,
+        f32_range(0.1, 100.0),
+        OutputsOff,
+        "Distance within which the index must follow the switch (one screw lead)"
+    ),
+    axis_key!(
+        jog.speed_max_mm_s,
+        unit::MM_S,
+        f32_range(0.1, 10_000.0),
+        Live,
+        "Largest jog speed (commands beyond it are clamped)"
+    ),
+    axis_key!(
+        jog.accel_mm_s2,
+        unit::MM_S2,
+        f32_range(1.0, 100_000.0),
+        Live,
+        "Acceleration and deceleration of a jog"
+    ),
+];
+
+/// The keys outside `axis.*`, in the tree's field order.
+static GLOBAL_KEYS: &[GlobalDef] = &[
+    global_key!(
+        jog.timeout_s,
+        "s",
+        f32_range(0.05, 10.0),
+        Live,
+        "A jog decelerates to rest when no jog command came for this long"
+    ),
+    global_key!(
+        coupling.kind,
+        unit::NONE,
+        Range::Choice(CouplingKind::NAMES),
+        OutputsOff,
+        "Coupling between the axes"
+    ),
+    global_key!(
+        coupling.lambda,
+        unit::NONE,
+        f32_range(0.0, 100.0),
+        OutputsOff,
+        "Contour coupling gain (mm units; the board's 1, the paper's 0.01 in its units)"
+    ),
+    global_key!(
+        estimator.pll_bandwidth_rad_s,
+        unit::RAD_S,
+        f32_range(10.0, 20_000.0),
+        OutputsOff,
+        "Velocity PLL natural frequency (stable below about 0.83 x the control rate in Hz)"
+    ),
+    global_key!(
+        estimator.pll_damping,
+        unit::NONE,
+        f32_range(0.1, 10.0),
+        OutputsOff,
+        "Velocity PLL damping (1: critically damped)"
+    ),
+    global_key!(
+        link.watchdog_ms,
+        "ms",
+        Range::U32 {
+            min: MIN_WATCHDOG_TIMEOUT_MS,
+            max: MAX_WATCHDOG_TIMEOUT_MS
+        },
+        Live,
+        "Link silence after which the machine stops (controlled stop, LinkLost)"
+    ),
+    global_key!(
+        identify.torque_cap_mnm,
+        unit::MNM,
+        EFFORT,
+        Live,
+        "Hard limit on identification's effort (never above the axis' full scale); read when a run starts"
+    ),
+    global_key!(
+        identify.edge_margin_mm,
+        unit::MM,
+        f32_range(0.0, 100.0),
+        Live,
+        "Distance identification's motion keeps from each end of its window; read when a run starts"
+    ),
+];
+
+/// How a key reaches its value.
+#[derive(Clone, Copy)]
+enum Access {
+    Axis { axis: usize, def: &'static AxisDef },
+    Global(&'static GlobalDef),
+}
+
+/// One key of the registry.
+#[derive(Clone, Copy)]
+pub struct Key {
+    /// Dotted name (`axis.x.following_error_mm`).
+    pub name: &'static str,
+    /// Unit of the value (empty for booleans, counts and choices).
+    pub unit: &'static str,
+    pub range: Range,
+    pub apply: Apply,
+    /// One line: what it is.
+    pub doc: &'static str,
+    access: Access,
+}
+
+impl fmt::Debug for Key {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Key")
+            .field("name", &self.name)
+            .field("unit", &self.unit)
+            .field("range", &self.range)
+            .field("apply", &self.apply)
+            .finish()
+    }
+}
+
+impl PartialEq for Key {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+
+impl Key {
+    /// The axis of a per-axis key.
+    pub fn axis(&self) -> Option<Axis> {
+        match self.access {
+            Access::Axis { axis, .. } => Axis::from_index(axis),
+            Access::Global(_) => None,
+        }
+    }
+
+    /// The key's value in `s` (`None`: a model parameter of an axis without a model).
+    pub fn get(&self, s: &Settings) -> Option<Value> {
+        match self.access {
+            Access::Axis { axis, def } => s.axis.get(axis).and_then(def.get),
+            Access::Global(def) => (def.get)(s),
+        }
+    }
+
+    fn put(&self, s: &mut Settings, v: Value) -> Result<(), Put> {
+        match self.access {
+            Access::Axis { axis, def } => match s.axis.get_mut(axis) {
+                Some(a) => (def.put)(a, axis, v),
+                None => Err(Put::WrongType),
+            },
+            Access::Global(def) => (def.put)(s, v),
+        }
+    }
+
+    /// Parse the CLI's text as this key's value (type only; `set` checks the range).
+    pub fn parse(&self, text: &str) -> Result<Value, SettingError> {
+        self.range.parse(text).ok_or(SettingError::WrongType {
+            key: self.name,
+            range: self.range,
+        })
+    }
+}
+
+/// Every key: `axis.x.*`, `axis.y.*`, `axis.z.*` (each in the tree's field order), then the
+/// others. Static: the values come from [`Settings::list`] or [`Key::get`].
+pub fn keys() -> impl Iterator<Item = Key> + Clone {
+    let axis_keys = (0..AXES).flat_map(|axis| {
+        AXIS_KEYS.iter().filter_map(move |def| {
+            Some(Key {
+                name: def.names.get(axis).copied()?,
+                unit: def.unit,
+                range: def.range,
+                apply: def.apply,
+                doc: def.doc,
+                access: Access::Axis { axis, def },
+            })
+        })
+    });
+    let global_keys = GLOBAL_KEYS.iter().map(|def| Key {
+        name: def.name,
+        unit: def.unit,
+        range: def.range,
+        apply: def.apply,
+        doc: def.doc,
+        access: Access::Global(def),
+    });
+    axis_keys.chain(global_keys)
+}
+
+/// The key named `name`.
+pub fn find(name: &str) -> Result<Key, KeyError> {
+    keys()
+        .find(|k| k.name == name)
+        .ok_or_else(|| KeyError::Unknown(KeyText::new(name)))
+}
+
+/// Longest key text an error repeats back (longer names are cut, with `…`).
+pub const KEY_TEXT_MAX: usize = 48;
+
+/// A copy of a key as the user gave it (for "unknown key" errors).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KeyText(heapless::String<KEY_TEXT_MAX>);
+
+impl KeyText {
+    fn new(text: &str) -> Self {
+        let mut s = heapless::String::new();
+        for c in text.chars() {
+            // leave room for the ellipsis (3 bytes)
+            if s.len() + c.len_utf8() > KEY_TEXT_MAX - 3 {
+                let _ = s.push('…');
+                break;
+            }
+            let _ = s.push(c);
+        }
+        Self(s)
+    }
+
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+/// Why [`Settings::get`] failed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum KeyError {
+    /// No such key.
+    Unknown(KeyText),
+    /// A model parameter of an axis whose model is unknown.
+    NoModel { key: &'static str },
+}
+
+impl fmt::Display for KeyError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Unknown(k) => write!(f, "unknown key `{}`", k.as_str()),
+            Self::NoModel { key } => write!(
+                f,
+                "{key}: the axis has no model (identify it, or set axis.<a>.model.known true to enter one)"
+            ),
+        }
+    }
+}
+
+/// Why [`Settings::set`] refused; every variant names the key. Nothing was changed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SettingError {
+    /// No such key.
+    Unknown(KeyText),
+    /// The value (or text) is not of the key's type.
+    WrongType { key: &'static str, range: Range },
+    /// The value is outside the key's range.
+    OutOfRange {
+        key: &'static str,
+        value: Value,
+        range: Range,
+        unit: &'static str,
+    },
+    /// A model parameter of an axis whose model is unknown.
+    NoModel { key: &'static str },
+    /// The value is valid alone but the tree with it is not (the servo's reason).
+    Rejected {
+        key: &'static str,
+        value: Value,
+        error: SettingsError,
+    },
+    /// A whole tree from outside (store, import) gives no servo configuration.
+    Tree(SettingsError),
+}
+
+impl fmt::Display for SettingError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Unknown(k) => write!(f, "unknown key `{}`", k.as_str()),
+            Self::WrongType { key, range } => write!(f, "{key}: expected {range}"),
+            Self::OutOfRange {
+                key,
+                value,
+                range,
+                unit,
+            } => {
+                write!(f, "{key}: {value} is outside the allowed range {range}")?;
+                if !unit.is_empty() {
+                    write!(f, " {unit}")?;
+                }
+                Ok(())
+            }
+            Self::NoModel { key } => write!(
+                f,
+                "{key}: the axis has no model (identify it, or set axis.<a>.model.known true to enter one)"
+            ),
+            Self::Rejected { key, value, error } => {
+                write!(f, "{key} = {value} rejected: {error}")
+            }
+            Self::Tree(error) => write!(f, "settings rejected: {error}"),
+        }
+    }
+}
+
+impl From<KeyError> for SettingError {
+    fn from(e: KeyError) -> Self {
+        match e {
+            KeyError::Unknown(k) => Self::Unknown(k),
+            KeyError::NoModel { key } => Self::NoModel { key },
+        }
+    }
+}
+
+impl Settings {
+    /// Every key with its value here (`None`: model parameters of an axis without a model).
+    pub fn list(&self) -> impl Iterator<Item = (Key, Option<Value>)> + '_ {
+        keys().map(move |k| (k, k.get(self)))
+    }
+
+    /// The value of `key`.
+    pub fn get(&self, key: &str) -> Result<Value, KeyError> {
+        let k = find(key)?;
+        k.get(self).ok_or(KeyError::NoModel { key: k.name })
+    }
+
+    /// Set `key` to `value`: the value must have the key's type and lie in its range, and
+    /// the whole tree with it must give a servo configuration at `rate_hz` (the control
+    /// rate of the machine). On any error nothing changes.
+    pub fn set(&mut self, key: &str, value: Value, rate_hz: u32) -> Result<(), SettingError> {
+        self.set_all(&[(key, value)], rate_hz)
+    }
+
+    /// Set several keys at once, validated together: for changes that are only valid
+    /// together (a home switch moved to the other end with its direction, a travel moved
+    /// beyond its old other end). Each value is checked like [`Self::set`]; the tree is
+    /// validated once, after all of them. On any error nothing changes; a whole-tree
+    /// rejection names the last key.
+    pub fn set_all(&mut self, changes: &[(&str, Value)], rate_hz: u32) -> Result<(), SettingError> {
+        let mut next = *self;
+        let mut last = None;
+        for (key, value) in changes {
+            let k = find(key)?;
+            next.put_checked(&k, *value)?;
+            last = Some((k.name, *value));
+        }
+        if let Some((key, value)) = last {
+            next.servo_config(rate_hz)
+                .map_err(|error| SettingError::Rejected { key, value, error })?;
+        }
+        *self = next;
+        Ok(())
+    }
+
+    /// Type and range check of `value` for `k`, then write it (no whole-tree check).
+    fn put_checked(&mut self, k: &Key, value: Value) -> Result<(), SettingError> {
+        if !k.range.fits_type(&value) {
+            return Err(SettingError::WrongType {
+                key: k.name,
+                range: k.range,
+            });
+        }
+        if !k.range.admits(&value) {
+            return Err(SettingError::OutOfRange {
+                key: k.name,
+                value,
+                range: k.range,
+                unit: k.unit,
+            });
+        }
+        k.put(self, value).map_err(|e| match e {
+            Put::NoModel => SettingError::NoModel { key: k.name },
+            Put::WrongType => SettingError::WrongType {
+                key: k.name,
+                range: k.range,
+            },
+        })
+    }
+
+    /// [`Self::set`] from the CLI's text (`"1.5"`, `"true"`, `"dsmc"`).
+    pub fn set_text(&mut self, key: &str, text: &str, rate_hz: u32) -> Result<(), SettingError> {
+        let value = find(key)?.parse(text)?;
+        self.set(key, value, rate_hz)
+    }
+
+    /// The first key whose value lies outside its range (a tree that did not come through
+    /// [`Self::set`]: a stored record, an imported file).
+    pub fn out_of_range(&self) -> Option<SettingError> {
+        self.list().find_map(|(k, v)| {
+            let v = v?;
+            (!k.range.admits(&v)).then_some(SettingError::OutOfRange {
+                key: k.name,
+                value: v,
+                range: k.range,
+                unit: k.unit,
+            })
+        })
+    }
+
+    /// Whole validation of a tree from outside (store, import): every key in range and a
+    /// servo configuration at `rate_hz`.
+    pub fn validate(&self, rate_hz: u32) -> Result<(), SettingError> {
+        if let Some(e) = self.out_of_range() {
+            return Err(e);
+        }
+        self.servo_config(rate_hz)
+            .map(|_| ())
+            .map_err(SettingError::Tree)
+    }
+
+    /// What changing from `self` to `next` needs: `None` if no value differs, `Live` if
+    /// only live keys differ, else `OutputsOff`.
+    pub fn change_class(&self, next: &Settings) -> Option<Apply> {
+        keys()
+            .filter(|k| match (k.get(self), k.get(next)) {
+                (Some(a), Some(b)) => !a.same(&b),
+                (a, b) => a.is_some() != b.is_some(),
+            })
+            .map(|k| k.apply)
+            .max()
+    }
+}
+
+/// The key table of docs/settings.md (Markdown), from the registry and the factory values
+/// of `s`: per-axis keys once as `axis.<a>.…` with the x / y / z values, then the others.
+pub fn write_markdown_table(w: &mut impl fmt::Write, s: &Settings) -> fmt::Result {
+    writeln!(
+        w,
+        "| key | unit | range | factory (x / y / z) | apply | meaning |"
+    )?;
+    writeln!(w, "| --- | --- | --- | --- | --- | --- |")?;
+    let cell = |v: Option<Value>| v.map_or(Cell::Unset, Cell::Value);
+    for def in AXIS_KEYS {
+        let suffix = def.names[0].strip_prefix("axis.x.").unwrap_or(def.names[0]);
+        let vals = [0, 1, 2].map(|i| cell(s.axis.get(i).and_then(def.get)));
+        let factory = if vals[0] == vals[1] && vals[1] == vals[2] {
+            Factory::One(vals[0])
+        } else {
+            Factory::Three(vals)
+        };
+        writeln!(
+            w,
+            "| `axis.<a>.{suffix}` | {} | {} | {factory} | {} | {} |",
+            def.unit,
+            def.range,
+            def.apply.name(),
+            def.doc
+        )?;
+    }
+    for def in GLOBAL_KEYS {
+        writeln!(
+            w,
+            "| `{}` | {} | {} | {} | {} | {} |",
+            def.name,
+            def.unit,
+            def.range,
+            Factory::One(cell((def.get)(s))),
+            def.apply.name(),
+            def.doc
+        )?;
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Cell {
+    Value(Value),
+    Unset,
+}
+
+impl fmt::Display for Cell {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Value(v) => write!(f, "{v}"),
+            Self::Unset => f.write_str("(none)"),
+        }
+    }
+}
+
+enum Factory {
+    One(Cell),
+    Three([Cell; AXES]),
+}
+
+impl fmt::Display for Factory {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::One(c) => write!(f, "{c}"),
+            Self::Three([x, y, z]) => write!(f, "{x} / {y} / {z}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

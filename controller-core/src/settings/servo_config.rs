@@ -1,0 +1,267 @@
+//! From the settings tree to the servo configuration: the laws from each axis' model and
+//! bandwidth (the tuning rules of [`crate::sysid::tuning`]), everything else copied into
+//! the board's [`factory_config`], and the result validated by the servo itself.
+
+use crate::axes::{Axis, AXES};
+use crate::config::{positive, ConfigError};
+use crate::coupling::{ContourCouplingConfig, CouplingConfig};
+use crate::estimator::{EstimatorBankConfig, EstimatorConfig};
+use crate::law::LawConfig;
+use crate::link::LinkConfigError;
+use crate::presets::board::factory_config;
+use crate::presets::gantry::{GANTRY_X, GANTRY_Y, GANTRY_Z};
+use crate::servo::monitor::AxisSafetyConfig;
+use crate::servo::{Servo, ServoConfig};
+use crate::sysid::tuning::{self, TuningConfig};
+use crate::sysid::AxisModel;
+
+use super::tree::{AxisSettings, CouplingKind, LawKind, Settings};
+
+/// The model a law is built from on an axis whose model is unknown (`model = None`): the
+/// designed gantry's rigid-body models ([`crate::presets::gantry`]; Z without its gravity
+/// load, as the board default's DSMC uses them). It only makes the configuration complete
+/// and valid: the servo refuses to arm a model-based law on such an axis
+/// (`ServoConfig::model_known` is false), so these gains never drive a machine nobody
+/// identified. PID is not model-based and arms with the gains this placeholder gives.
+pub const PLACEHOLDER_MODELS: [AxisModel; AXES] = [
+    AxisModel::from_physical(&GANTRY_X),
+    AxisModel::from_physical(&GANTRY_Y),
+    AxisModel::from_physical(&GANTRY_Z),
+];
+
+/// Why a settings tree does not give a servo configuration; every variant names the part.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SettingsError {
+    /// The axis' model is not one a law can be built from.
+    Model { axis: Axis, error: ConfigError },
+    /// The axis' tuning (bandwidth, full scale, counts per mm) is invalid.
+    Tuning { axis: Axis, error: ConfigError },
+    /// The link watchdog's timeout is outside its range.
+    Link(LinkConfigError),
+    /// The servo rejected the configuration (its own validation, e.g. an estimator
+    /// bandwidth unstable at the control rate, a following error below its at-rest value,
+    /// a home position outside the travel).
+    Servo(ConfigError),
+}
+
+impl core::fmt::Display for SettingsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Model { axis, error } => write!(f, "axis.{}.model: {error}", axis.name()),
+            Self::Tuning { axis, error } => write!(f, "axis.{} tuning: {error}", axis.name()),
+            Self::Link(e) => write!(f, "{e}"),
+            Self::Servo(e) => write!(f, "servo configuration: {e}"),
+        }
+    }
+}
+
+/// The law of one axis from its settings.
+fn law(a: &AxisSettings, placeholder: &AxisModel, axis: Axis) -> Result<LawConfig, SettingsError> {
+    let model = match &a.model {
+        Some(m) => {
+            m.validate()
+                .map_err(|error| SettingsError::Model { axis, error })?;
+            m
+        }
+        None => placeholder,
+    };
+    let tuning_err = |error| SettingsError::Tuning { axis, error };
+    // guards the division below
+    let counts = positive(a.encoder.counts_per_mm, "encoder.counts_per_mm").map_err(tuning_err)?;
+    let t = TuningConfig {
+        bandwidth_rad_s: a.law.bandwidth_rad_s,
+        torque_max_mnm: a.amplifier.full_scale,
+        // one count, the DSMC's singular floor; 1/1600 equals the presets' 5/8000 bit for bit
+        count_mm: 1.0 / counts,
+    };
+    t.validate().map_err(tuning_err)?;
+    Ok(match a.law.kind {
+        LawKind::Pid => LawConfig::Pid(tuning::pid(model, &t)),
+        LawKind::Dsmc => LawConfig::Smc(tuning::dsmc(model, &t)),
+        LawKind::DobSmc => LawConfig::DobSmc(tuning::dob_smc(model, &t)),
+        LawKind::AdaptiveSmc => LawConfig::AdaptiveSmc(tuning::adaptive_smc(model, &t)),
+    })
+}
+
+impl Settings {
+    /// The servo configuration these settings describe at control rate `rate_hz`: the
+    /// board's [`factory_config`] (counter widths, amplifier resolution, fault-check
+    /// timings, the demo path, identification's template) with every value the tree holds
+    /// written over it, each axis' law tuned from its model (or the
+    /// [`PLACEHOLDER_MODELS`] entry, with `model_known` false). Validated whole: by the
+    /// model and tuning checks, the link watchdog's range, `check_for_machine` (every limit
+    /// finite) and `Servo::new` itself, so a configuration returned here is one the servo
+    /// accepts.
+    ///
+    /// This builds a `Servo<f32>` on the stack to validate (3.2 KiB on a 64-bit host,
+    /// less on the MCU).
+    pub fn servo_config(&self, rate_hz: u32) -> Result<ServoConfig, SettingsError> {
+        let mut c = factory_config(rate_hz);
+        for (i, a) in self.axis.iter().enumerate() {
+            let Some((axis, placeholder)) = Axis::from_index(i).zip(PLACEHOLDER_MODELS.get(i))
+            else {
+                continue;
+            };
+            let law = law(a, placeholder, axis)?;
+            if let Some(l) = c.controller.laws.get_mut(i) {
+                *l = law;
+            }
+            if let Some(e) = c.encoders.get_mut(i) {
+                e.counts_per_mm = a.encoder.counts_per_mm;
+            }
+            if let Some(amp) = c.amplifiers.get_mut(i) {
+                amp.full_scale = a.amplifier.full_scale;
+            }
+            if let Some(s) = c.safety.axes.get_mut(i) {
+                *s = AxisSafetyConfig {
+                    vel_max_mm_s: a.vel_max_mm_s,
+                    accel_max_mm_s2: a.accel_max_mm_s2,
+                    min_ferror_mm: a.min_ferror_mm,
+                    ferror_mm: a.following_error_mm,
+                    stuck_effort_change: a.stuck_effort_change,
+                    stop_decel_mm_s2: a.stop_decel_mm_s2,
+                };
+            }
+            if let Some(t) = c.travel.axes.get_mut(i) {
+                *t = a.travel;
+            }
+            if let Some(h) = c.homing.axes.get_mut(i) {
+                *h = a.homing;
+            }
+            if let Some(j) = c.jog.axes.get_mut(i) {
+                *j = a.jog;
+            }
+            if let Some(k) = c.model_known.get_mut(i) {
+                *k = a.model.is_some();
+            }
+        }
+        c.jog.timeout_s = self.jog.timeout_s;
+        c.controller.coupling = match self.coupling.kind {
+            CouplingKind::None => CouplingConfig::None,
+            CouplingKind::Contour => {
+                CouplingConfig::Contour(ContourCouplingConfig::lambda(self.coupling.lambda))
+            }
+        };
+        c.estimator = EstimatorBankConfig::uniform(EstimatorConfig::Pll(self.estimator.pll()));
+        c.identify.torque_cap_mnm = self.identify.torque_cap_mnm;
+        c.identify.edge_margin_mm = self.identify.edge_margin_mm;
+        self.link
+            .watchdog()
+            .validate()
+            .map_err(SettingsError::Link)?;
+        c.safety.check_for_machine().map_err(SettingsError::Servo)?;
+        Servo::<f32>::new(&c, [0; AXES], [0; AXES]).map_err(SettingsError::Servo)?;
+        Ok(c)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::presets::board::{factory_config, servo_config, BOARD_RATE_HZ};
+    use crate::presets::gantry::{dsmc_for, GANTRY_AXES};
+    use crate::settings::FACTORY;
+
+    #[test]
+    fn factory_settings_give_exactly_the_factory_config() {
+        for rate in [2_000, BOARD_RATE_HZ, 20_000, 50_000] {
+            assert_eq!(FACTORY.servo_config(rate), Ok(factory_config(rate)));
+        }
+    }
+
+    #[test]
+    fn entering_the_preset_models_gives_the_board_default_bit_for_bit() {
+        let mut s = FACTORY;
+        for (a, p) in s.axis.iter_mut().zip(&GANTRY_AXES) {
+            a.model = Some(AxisModel::from_physical(p));
+        }
+        let c = s.servo_config(BOARD_RATE_HZ).unwrap();
+        assert_eq!(c, servo_config(BOARD_RATE_HZ));
+        for (l, p) in c.controller.laws.iter().zip(&GANTRY_AXES) {
+            assert_eq!(*l, LawConfig::Smc(dsmc_for(p)));
+        }
+    }
+
+    #[test]
+    fn placeholders_are_the_models_the_board_default_is_tuned_for() {
+        for (m, p) in PLACEHOLDER_MODELS.iter().zip(&GANTRY_AXES) {
+            assert_eq!(*m, AxisModel::from_physical(p));
+            assert_eq!(m.validate(), Ok(()));
+        }
+    }
+
+    #[test]
+    fn every_law_kind_builds_and_validates_on_every_axis() {
+        for kind in LawKind::ALL {
+            let mut s = FACTORY;
+            for a in &mut s.axis {
+                a.law.kind = kind;
+            }
+            let c = s.servo_config(BOARD_RATE_HZ).unwrap();
+            for (i, l) in c.controller.laws.iter().enumerate() {
+                let t = TuningConfig {
+                    bandwidth_rad_s: 157.0,
+                    torque_max_mnm: [1000.0, 2000.0, 1000.0][i],
+                    count_mm: 1.0 / 1600.0,
+                };
+                let m = &PLACEHOLDER_MODELS[i];
+                let expected = match kind {
+                    LawKind::Pid => LawConfig::Pid(tuning::pid(m, &t)),
+                    LawKind::Dsmc => LawConfig::Smc(tuning::dsmc(m, &t)),
+                    LawKind::DobSmc => LawConfig::DobSmc(tuning::dob_smc(m, &t)),
+                    LawKind::AdaptiveSmc => LawConfig::AdaptiveSmc(tuning::adaptive_smc(m, &t)),
+                };
+                assert_eq!(*l, expected);
+            }
+            assert_eq!(c.model_known, [false; AXES]);
+        }
+    }
+
+    #[test]
+    fn rejections_name_the_part() {
+        let mut s = FACTORY;
+        s.axis[1].model = Some(AxisModel {
+            inertia: -1.0,
+            ..PLACEHOLDER_MODELS[1]
+        });
+        assert_eq!(
+            s.servo_config(BOARD_RATE_HZ),
+            Err(SettingsError::Model {
+                axis: Axis::Y,
+                error: ConfigError::NotPositive("inertia")
+            })
+        );
+        let mut s = FACTORY;
+        s.axis[2].encoder.counts_per_mm = 0.0;
+        assert_eq!(
+            s.servo_config(BOARD_RATE_HZ),
+            Err(SettingsError::Tuning {
+                axis: Axis::Z,
+                error: ConfigError::NotPositive("encoder.counts_per_mm")
+            })
+        );
+        let mut s = FACTORY;
+        s.link.watchdog_ms = 5;
+        assert_eq!(
+            s.servo_config(BOARD_RATE_HZ),
+            Err(SettingsError::Link(LinkConfigError::OutOfRange(
+                "watchdog.timeout_ms"
+            )))
+        );
+        // valid alone, rejected by the servo: PLL at 5000 rad/s is unstable at 2 kHz
+        let mut s = FACTORY;
+        s.estimator.pll_bandwidth_rad_s = 5000.0;
+        assert!(matches!(
+            s.servo_config(2_000),
+            Err(SettingsError::Servo(ConfigError::Unstable(_)))
+        ));
+        assert!(s.servo_config(20_000).is_ok());
+    }
+
+    #[test]
+    fn validating_servo_fits_the_documented_stack_budget() {
+        // servo_config's doc states the stack the validation takes
+        let size = core::mem::size_of::<Servo<f32>>();
+        assert!(size <= 3300, "Servo<f32> is {size} bytes");
+    }
+}

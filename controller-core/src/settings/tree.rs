@@ -1,0 +1,307 @@
+//! The settings tree: one typed value per user setting, in the units its name says.
+//!
+//! The field names are the dotted keys' segments ([`super::keys`]): `axis.x.law.kind` is
+//! `settings.axis[0].law.kind`, and the serde form (TOML export/import) uses the same
+//! names (`[axis.x.law] kind = "dsmc"`). Per-axis blocks reuse the servo's own config
+//! types where they exist ([`AxisTravel`], [`AxisHomingConfig`], [`AxisJogConfig`],
+//! [`AxisModel`]), so a field has one definition.
+//!
+//! Layout changes (a field added, removed, retyped or moved) change the stored record:
+//! bump [`SETTINGS_VERSION`] with them (the store then reports a version mismatch and
+//! starts from the factory defaults instead of misreading an old record). The test
+//! `store::tests::record_layout_is_pinned` fails when the record's bytes change without
+//! that decision being made.
+
+use crate::axes::AXES;
+use crate::estimator::PllConfig;
+use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
+use crate::presets::board::{BOARD_LAMBDA, BOARD_PLL};
+use crate::presets::gantry::{
+    GANTRY_AMPLIFIERS, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL, LOOP_OMEGA,
+};
+use crate::servo::homing::AxisHomingConfig;
+use crate::servo::jog::{AxisJogConfig, JogConfig};
+use crate::servo::travel::AxisTravel;
+use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
+
+/// Version of the tree's layout, stored with every record (see the module docs).
+pub const SETTINGS_VERSION: u16 = 1;
+
+/// Which law an axis runs; its gains follow from the axis' model and the bandwidth
+/// ([`crate::sysid::tuning`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum LawKind {
+    /// PID by pole placement `(s + ω)³` on `J s²` ([`crate::sysid::tuning::pid`]).
+    Pid,
+    /// Double-power-reaching terminal SMC, the board's default ([`crate::sysid::tuning::dsmc`]).
+    Dsmc,
+    /// SMC with a disturbance observer ([`crate::sysid::tuning::dob_smc`]).
+    DobSmc,
+    /// SMC with online friction identification ([`crate::sysid::tuning::adaptive_smc`]).
+    AdaptiveSmc,
+}
+
+impl LawKind {
+    /// Every kind, in the order of [`Self::NAMES`].
+    pub const ALL: [LawKind; 4] = [Self::Pid, Self::Dsmc, Self::DobSmc, Self::AdaptiveSmc];
+    /// The names keys and files use.
+    pub const NAMES: &'static [&'static str] = &["pid", "dsmc", "dob_smc", "adaptive_smc"];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Pid => "pid",
+            Self::Dsmc => "dsmc",
+            Self::DobSmc => "dob_smc",
+            Self::AdaptiveSmc => "adaptive_smc",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+/// Coupling between the axes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum CouplingKind {
+    /// Independent axes.
+    None,
+    /// The paper's 3-D contour coupling with gain [`CouplingSettings::lambda`].
+    Contour,
+}
+
+impl CouplingKind {
+    pub const ALL: [CouplingKind; 2] = [Self::None, Self::Contour];
+    pub const NAMES: &'static [&'static str] = &["none", "contour"];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Contour => "contour",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+/// An axis' law and its tuning.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct LawSettings {
+    pub kind: LawKind,
+    /// Closed-loop bandwidth of the position loop the gains are tuned for, rad/s.
+    pub bandwidth_rad_s: f32,
+}
+
+/// An axis' encoder scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct EncoderSettings {
+    /// Quadrature counts per mm of travel (lines × 4 / screw lead).
+    pub counts_per_mm: f32,
+}
+
+/// An axis' amplifier scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct AmplifierSettings {
+    /// Effort at full command (100 % duty), in the laws' unit (mN·m of motor torque):
+    /// the saturation of every law and the tuning's torque limit.
+    pub full_scale: f32,
+}
+
+/// Everything one axis has of its own.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct AxisSettings {
+    pub law: LawSettings,
+    /// The axis' rigid-body model, identified or entered; `None`: never identified nor
+    /// entered, so the model-based laws refuse to arm on this axis.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub model: Option<AxisModel>,
+    pub encoder: EncoderSettings,
+    pub amplifier: AmplifierSettings,
+    /// Following error allowed at rest, mm (LinuxCNC MIN_FERROR).
+    pub min_ferror_mm: f32,
+    /// Following error allowed at `vel_max_mm_s`, mm (LinuxCNC FERROR); it grows linearly
+    /// from `min_ferror_mm` at rest.
+    pub following_error_mm: f32,
+    /// Largest speed of the axis, mm/s (overspeed trips 10 % above).
+    pub vel_max_mm_s: f32,
+    /// Largest acceleration the axis can physically make, mm/s² (bounds the count jump the
+    /// encoder check accepts).
+    pub accel_max_mm_s2: f32,
+    /// Deceleration of a controlled stop, mm/s².
+    pub stop_decel_mm_s2: f32,
+    /// Effort change that must move a resting axis (stuck-encoder and runaway threshold),
+    /// mN·m.
+    pub stuck_effort_change: f32,
+    /// Soft limits, machine coordinates.
+    pub travel: AxisTravel,
+    pub homing: AxisHomingConfig,
+    pub jog: AxisJogConfig,
+}
+
+/// Jog settings shared by the axes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct JogSettings {
+    /// Without a new jog command for this long the axis decelerates to rest, s.
+    pub timeout_s: f32,
+}
+
+/// Coupling between the axes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct CouplingSettings {
+    pub kind: CouplingKind,
+    /// Contour coupling gain λ (kept while `kind` is `none`).
+    pub lambda: f32,
+}
+
+/// The velocity estimator (a PLL on every axis).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct EstimatorSettings {
+    /// PLL natural frequency ω, rad/s.
+    pub pll_bandwidth_rad_s: f32,
+    /// PLL damping ζ (1: critically damped).
+    pub pll_damping: f32,
+}
+
+/// The host link.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct LinkSettings {
+    /// Silence after which the link counts as lost (controlled stop, `LinkLost`), ms.
+    pub watchdog_ms: u32,
+}
+
+/// What identification may do (the rest of its configuration is the firmware's
+/// [`IDENTIFY_DEFAULTS`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct IdentifySettings {
+    /// Hard limit on the effort identification commands, mN·m (never above the axis'
+    /// amplifier full scale).
+    pub torque_cap_mnm: f32,
+    /// Distance the planned motion keeps from each end of the travel window, mm.
+    pub edge_margin_mm: f32,
+}
+
+/// The settings tree (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct Settings {
+    /// Per axis, `axis.x`, `axis.y`, `axis.z`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
+    pub axis: [AxisSettings; AXES],
+    pub jog: JogSettings,
+    pub coupling: CouplingSettings,
+    pub estimator: EstimatorSettings,
+    pub link: LinkSettings,
+    pub identify: IdentifySettings,
+    // PLANNER: the motion planner's settings (path tolerance, per-axis velocity /
+    // acceleration / jerk limits) go here as `pub planner: PlannerSettings`, with their keys
+    // in keys.rs (`planner.*`, `axis.<a>.planner.*`) and a SETTINGS_VERSION bump. Added
+    // when the planner is merged; its fields are the planner's to define.
+}
+
+/// One axis' factory settings: the designed gantry ([`crate::presets::gantry`]), no
+/// model.
+const fn factory_axis(i: usize) -> AxisSettings {
+    let safety = GANTRY_SAFETY[i];
+    AxisSettings {
+        law: LawSettings {
+            kind: LawKind::Dsmc,
+            bandwidth_rad_s: LOOP_OMEGA,
+        },
+        model: None,
+        encoder: EncoderSettings {
+            counts_per_mm: GANTRY_ENCODERS[i].counts_per_mm,
+        },
+        amplifier: AmplifierSettings {
+            full_scale: GANTRY_AMPLIFIERS[i].full_scale,
+        },
+        min_ferror_mm: safety.min_ferror_mm,
+        following_error_mm: safety.ferror_mm,
+        vel_max_mm_s: safety.vel_max_mm_s,
+        accel_max_mm_s2: safety.accel_max_mm_s2,
+        stop_decel_mm_s2: safety.stop_decel_mm_s2,
+        stuck_effort_change: safety.stuck_effort_change,
+        travel: GANTRY_TRAVEL.axes[i],
+        homing: GANTRY_HOMING.axes[i],
+        jog: JogConfig::GANTRY.axes[i],
+    }
+}
+
+/// The factory settings: what a board runs before anything was stored, equal to
+/// [`crate::presets::board::factory_config`] (tested): the designed gantry's DSMC at
+/// [`LOOP_OMEGA`], contour coupling λ = [`BOARD_LAMBDA`], the PLL at [`BOARD_PLL`], the
+/// gantry's limits, travel, homing and jog, the link's default watchdog, identification's
+/// default cap and margin — and no axis model, so the model-based laws refuse to arm
+/// until the axes are identified or their models entered.
+pub const FACTORY: Settings = Settings {
+    axis: [factory_axis(0), factory_axis(1), factory_axis(2)],
+    jog: JogSettings {
+        timeout_s: JogConfig::GANTRY.timeout_s,
+    },
+    coupling: CouplingSettings {
+        kind: CouplingKind::Contour,
+        lambda: BOARD_LAMBDA,
+    },
+    estimator: EstimatorSettings {
+        pll_bandwidth_rad_s: BOARD_PLL.bandwidth_rad_s,
+        pll_damping: BOARD_PLL.damping,
+    },
+    link: LinkSettings {
+        watchdog_ms: DEFAULT_WATCHDOG_CONFIG.timeout_ms,
+    },
+    identify: IdentifySettings {
+        torque_cap_mnm: IDENTIFY_DEFAULTS.torque_cap_mnm,
+        edge_margin_mm: IDENTIFY_DEFAULTS.edge_margin_mm,
+    },
+};
+
+impl Default for Settings {
+    fn default() -> Self {
+        FACTORY
+    }
+}
+
+impl EstimatorSettings {
+    /// The PLL configuration.
+    pub const fn pll(&self) -> PllConfig {
+        PllConfig {
+            bandwidth_rad_s: self.pll_bandwidth_rad_s,
+            damping: self.pll_damping,
+        }
+    }
+}
+
+impl LinkSettings {
+    /// The link's watchdog configuration (validated by [`Settings::servo_config`]).
+    pub const fn watchdog(&self) -> crate::link::WatchdogConfig {
+        crate::link::WatchdogConfig {
+            timeout_ms: self.watchdog_ms,
+        }
+    }
+}
+
+const _: () = assert!(AXES == 3);
