@@ -8,6 +8,8 @@
 //! cargo insns bitexact     replay a recorded closed-loop input sequence through the
 //!                          controller on the host and in the emulator; fail unless the
 //!                          outputs are bit-identical
+//! cargo insns profile K    exclusive instructions per function of kernel K
+//! cargo insns parts        `servo_period` per part of the period (exact attribution)
 //! ```
 //!
 //! The emulator side is `insns/count.py` (Python: `unicorn`, `capstone`, `pyelftools`);
@@ -43,8 +45,12 @@ fn main() -> Result<()> {
             Some(kernel) => profile(&elf, kernel),
             None => bail!("usage: cargo insns profile <kernel>"),
         },
+        Some("parts") => parts(&elf),
         Some(other) => {
-            bail!("unknown command `{other}` (expected `count`, `bitexact` or `profile <kernel>`)")
+            bail!(
+                "unknown command `{other}` (expected `count`, `bitexact`, `parts` or \
+                 `profile <kernel>`)"
+            )
         }
     }
 }
@@ -125,6 +131,22 @@ fn profile(elf: &Path, kernel: &str) -> Result<()> {
         .context("running insns/count.py")?;
     if !status.success() {
         bail!("insns/count.py profile failed ({status})");
+    }
+    Ok(())
+}
+
+/// Instructions of one `servo_period` per part of the period (estimators, reference,
+/// checks, coupling, laws, the servo's own body), attributed from the DWARF inline tree of
+/// the real optimised `Servo::period`: the parts add up to the `servo_period` count.
+fn parts(elf: &Path) -> Result<()> {
+    let status = python()
+        .arg(elf)
+        .arg("parts")
+        .arg("servo_period")
+        .status()
+        .context("running insns/count.py")?;
+    if !status.success() {
+        bail!("insns/count.py parts failed ({status})");
     }
     Ok(())
 }

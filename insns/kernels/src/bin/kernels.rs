@@ -12,6 +12,7 @@
 use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
+use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
 use insns_kernels::{replay, Dsmc3, Estimator3, Law3, LawKind, ServoPeriod, REPLAY_IN, REPLAY_OUT};
 
 use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
@@ -112,6 +113,27 @@ kernel!(
     |k| k.step()
 );
 kernel!(servo_period, ServoPeriod, ServoPeriod::setup(), |k| k
+    .step());
+kernel!(
+    servo_part_estimators,
+    PartEstimators,
+    PartEstimators::setup(),
+    |k| k.step()
+);
+kernel!(
+    servo_part_reference,
+    PartReference,
+    PartReference::setup(),
+    |k| k.step()
+);
+kernel!(
+    servo_part_coupling,
+    PartCoupling,
+    PartCoupling::setup(),
+    |k| k.step()
+);
+kernel!(servo_part_laws, PartLaws, PartLaws::setup(), |k| k.step());
+kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
     .step());
 
 /// Replay `n` records from `inp` (REPLAY_IN f32 each) through the Q32.32 controller,
