@@ -364,12 +364,11 @@ PERIOD_ROOT = "5servo14Servo$LT$R$GT$6period"
 PERIOD_PARTS = [
     ("io (the kernel's stub): inputs, counters, outputs", ["read_inputs", "read_counters",
                                                           "write_outputs", "disable_outputs"]),
+    ("checks (encoder, overrun, tracking, non-finite)", ["servo::monitor::", "unhealthy_axis"]),
     ("encoder counts (wrap extension)", ["estimator::wide::"]),
     ("estimators (positions, PLL)", ["estimator::", "bank::"]),
     ("reference (motion, trajectory, sin/cos)", ["servo::motion::", "motion::trajectory::",
                                                  "sin_cos"]),
-    ("checks (encoder, overrun, tracking, non-finite)", ["servo::monitor::", "unhealthy_axis",
-                                                       "nonfinite"]),
     ("coupling (contour error, cross-coupling)", ["coupling::"]),
     ("laws (3 axes: evaluate, commit)", ["law::", "num::powers", "num::shared_root",
                                          "root_abs", "controller::"]),

@@ -151,23 +151,40 @@ impl<R: Real> EstimatorBank<R> {
         reference_acc: Vec3<R>,
         true_vel: Option<[f64; AXES]>,
     ) -> Measured<R> {
-        let mut m = Measured::default();
-        for i in 0..AXES {
-            let est = &mut self.axes[i];
-            let accel = match &self.accel {
-                Accel::None => R::ZERO,
-                Accel::Reference => reference_acc[i],
-                Accel::Model(md) => md[i].accel(self.applied_u[i], &est.estimate()),
-            };
-            let e = est.update(counts[i], accel);
-            m.pos[i] = super::counts_to_position(counts[i], self.count_len[i]);
-            m.vel[i] = match (self.exact[i], true_vel) {
+        // written out per axis: each inlines with a constant index
+        let x = self.update_axis(0, counts[0], reference_acc, true_vel);
+        let y = self.update_axis(1, counts[1], reference_acc, true_vel);
+        let z = self.update_axis(2, counts[2], reference_acc, true_vel);
+        Measured {
+            pos: Vec3::new(x.pos, y.pos, z.pos),
+            vel: Vec3::new(x.vel, y.vel, z.vel),
+        }
+    }
+
+    /// Axis `i` of [`Self::update`]: its measured position and velocity.
+    #[inline(always)]
+    fn update_axis(
+        &mut self,
+        i: usize,
+        count: i64,
+        reference_acc: Vec3<R>,
+        true_vel: Option<[f64; AXES]>,
+    ) -> Estimate<R> {
+        let est = &mut self.axes[i];
+        let accel = match &self.accel {
+            Accel::None => R::ZERO,
+            Accel::Reference => reference_acc[i],
+            Accel::Model(md) => md[i].accel(self.applied_u[i], &est.estimate()),
+        };
+        let e = est.update(count, accel);
+        Estimate {
+            pos: super::counts_to_position(count, self.count_len[i]),
+            vel: match (self.exact[i], true_vel) {
                 (true, Some(v)) => R::from_f64(v[i]),
                 (true, None) => R::ZERO,
                 (false, _) => e.vel,
-            };
+            },
         }
-        m
     }
 
     /// Call once per period with the (saturated) output actually applied to the axes.

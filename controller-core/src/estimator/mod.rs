@@ -115,19 +115,62 @@ impl<R: Real> Scales<R> {
 /// value the number type cannot hold.
 const MAX_STEP_COUNTS: i64 = 1 << 20;
 
+/// `n - last` saturated to the `i32` range: exact whenever the difference fits, which is
+/// always the case for two successive wide counts of a [`WideCounter`] (one reading moves
+/// the count by the hardware counter's signed delta, at most 2^31 for a 32-bit timer,
+/// 2^15 for a 16-bit one). The common case costs a 64-bit subtraction and a range check;
+/// the saturation is the rare path.
+#[inline(always)]
+pub(crate) fn count_step(n: i64, last: i64) -> i32 {
+    let (d, overflow) = n.overflowing_sub(last);
+    let lo = d as i32;
+    if !overflow && i64::from(lo) == d {
+        lo
+    } else {
+        count_step_saturated(n, last)
+    }
+}
+
+/// [`count_step`] beyond the `i32` range (never for successive wide counts).
+#[cold]
+#[inline(never)]
+fn count_step_saturated(n: i64, last: i64) -> i32 {
+    if n > last {
+        i32::MAX
+    } else {
+        i32::MIN
+    }
+}
+
 /// `n - last` as a Real, clamped to [`MAX_STEP_COUNTS`]. Converted through `i32`/`f32`
 /// (exact below 2^24): the Cortex-M4 does that in hardware, while `i64`/`f64`
 /// conversions are software routines costing hundreds of cycles.
+#[inline(always)]
 pub(crate) fn step_counts<R: Real>(n: i64, last: i64) -> R {
-    let d = n
-        .saturating_sub(last)
-        .clamp(-MAX_STEP_COUNTS, MAX_STEP_COUNTS);
-    R::from_f32(d as i32 as f32)
+    // in range (the common case): one 64-bit subtraction and one unsigned comparison;
+    // otherwise the clamp of the exact difference, whose sign is that of `n - last`
+    let (d, overflow) = n.overflowing_sub(last);
+    let c = if !overflow && (d.wrapping_add(MAX_STEP_COUNTS) as u64) <= (2 * MAX_STEP_COUNTS) as u64
+    {
+        d
+    } else if n > last {
+        MAX_STEP_COUNTS
+    } else {
+        -MAX_STEP_COUNTS
+    };
+    R::from_f32(c as i32 as f32)
 }
 
-/// A wide count as a Real, through two hardware `i32 -> f32` conversions (upper and lower
-/// 16 bits; exact while `|n| < 2^40`, i.e. beyond 680 km of 0.625 µm counts).
+/// A wide count as a Real: exact in every `Real` while `|n| <= 2^24` (10 m of 0.625 µm
+/// counts), which is one hardware `i32 -> f32` conversion; beyond, two (upper and lower
+/// 16 bits, each exact; the sum rounds once, so the result is `n` correctly rounded to
+/// `R`, while `|n| < 2^47`).
+#[inline(always)]
 pub(crate) fn count_to_real<R: Real>(n: i64) -> R {
+    const EXACT: i64 = 1 << 24;
+    if (n.wrapping_add(EXACT) as u64) <= (2 * EXACT) as u64 {
+        return R::from_f32(n as i32 as f32);
+    }
     let hi = (n >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
     let lo = (n & 0xFFFF) as i32;
     R::from_f32(hi as f32) * R::from_f32(65_536.0) + R::from_f32(lo as f32)
@@ -146,8 +189,9 @@ pub(crate) fn to_units<R: Real>(count: i64, frac: R, s: &Scales<R>) -> R {
 
 /// An observer state after its correction: NaN never survives a period, and the state
 /// stays within `±limit` counts (per period) of the last count.
+#[inline(always)]
 pub(crate) fn settle<R: Real>(x: R, limit: R) -> R {
-    x.finite_or_zero().clamp_sym(limit)
+    x.clamp_finite(limit)
 }
 
 /// Position and velocity in units from an observer's state relative to the last count.

@@ -54,7 +54,12 @@ impl WideCounter {
             CounterWidth::Bits32 => i64::from(raw.wrapping_sub(self.last_raw) as i32),
         };
         self.last_raw = raw;
-        self.total = self.total.saturating_add(delta);
+        // saturating (a wide count never wraps), the rare case kept off the common path
+        self.total = match self.total.checked_add(delta) {
+            Some(t) => t,
+            None if delta > 0 => i64::MAX,
+            None => i64::MIN,
+        };
         self.total
     }
 

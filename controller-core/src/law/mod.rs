@@ -62,7 +62,17 @@ pub struct LawOutput<R> {
 /// Saturation and conditional integration shared by PID and the sliding-mode laws: the
 /// output is clamped to `±u_max`, and the error is not integrated while the output is
 /// saturated in the direction the error would push it further.
+#[inline(always)]
 pub(crate) fn finish<R: Real>(u_raw: R, e: R, u_max: R, s: R) -> LawOutput<R> {
+    if u_raw.in_range(u_max) {
+        // the common case: finite and not saturated (what the general path below gives)
+        return LawOutput {
+            u: u_raw,
+            integral_rate: e.finite_or_zero(),
+            s: s.finite_or_zero(),
+            finite: true,
+        };
+    }
     let finite = u_raw.is_finite();
     let u_raw = u_raw.finite_or_zero();
     let u = u_raw.clamp_sym(u_max);
@@ -81,6 +91,7 @@ pub(crate) fn finish<R: Real>(u_raw: R, e: R, u_max: R, s: R) -> LawOutput<R> {
 }
 
 /// Advance an integral by one period, clamped to `±limit`.
+#[inline(always)]
 pub(crate) fn integrate<R: Real>(integral: R, rate: R, dt: R, limit: R) -> R {
     (integral + rate * dt).clamp_sym(limit)
 }
@@ -223,7 +234,8 @@ impl<R: Real> Law<R> {
     /// (a fixed-point state pinned at the type's limit has saturated).
     pub fn state_healthy(&self, st: &LawState<R>) -> bool {
         let big = R::from_f32(f32::MAX);
-        let ok = |x: R| x.is_finite() && x.abs() < big;
+        // `|x| < MAX` is false for ±inf and NaN: finite and unsaturated in one comparison
+        let ok = |x: R| x.abs() < big;
         match self {
             Self::Pid(_) | Self::Smc(_) => ok(st.integral),
             Self::DobSmc(_) => ok(st.dob.v_hat) && ok(st.dob.d_hat),

@@ -47,19 +47,23 @@ fn inv_cbrt_step_f32(x: f32, y: f32) -> f32 {
     y + y * (r * (1.0 / 3.0 + r * (2.0 / 9.0)))
 }
 
-/// `x^(-1/3)` for `x > 0` normal and finite; other inputs: `0 → +inf`-free large value is
-/// the caller's job (see [`pow_abs_f32`], which floors the base first).
+/// `x^(-1/3)` for `x > 0` finite; other inputs: `0 → +inf`-free large value is the
+/// caller's job (see [`pow_abs_f32`], which floors the base first).
 #[inline]
 pub fn inv_cbrt_f32(x: f32) -> f32 {
-    // Subnormals break the bit trick: scale by 2^24 (whose cube root is 2^8).
-    let (x, scale) = if x < f32::MIN_POSITIVE {
-        (x * 16_777_216.0, 256.0)
-    } else {
-        (x, 1.0)
-    };
+    if x < f32::MIN_POSITIVE {
+        // Subnormals break the bit trick: scale by 2^24 (whose cube root is 2^8).
+        return inv_cbrt_normal_f32(x * 16_777_216.0) * 256.0;
+    }
+    inv_cbrt_normal_f32(x)
+}
+
+/// [`inv_cbrt_f32`] for a normal, finite, positive `x` (the caller has checked).
+#[inline(always)]
+fn inv_cbrt_normal_f32(x: f32) -> f32 {
     let y0 = f32::from_bits(INV_CBRT_MAGIC.wrapping_sub(x.to_bits() / 3));
     let y1 = inv_cbrt_step_f32(x, y0);
-    inv_cbrt_step_f32(x, y1) * scale
+    inv_cbrt_step_f32(x, y1)
 }
 
 /// Real cube root, odd in `x` (`cbrt(-8) = -2`), exact at 0, NaN/inf pass through.
@@ -153,12 +157,16 @@ const INV_ROOT9_MAGIC: u32 = 0x4687_6c98;
 /// `y ← y (1 + r/9 + 5r²/81)`, `r = 1 - x y⁹` (one root instead of two cube roots).
 #[inline]
 pub fn inv_root9_f32(x: f32) -> f32 {
-    // Subnormals: scale by 2^63, whose ninth root is 2^7.
-    let (x, scale) = if x < f32::MIN_POSITIVE {
-        (x * 9.223_372e18, 128.0)
-    } else {
-        (x, 1.0)
-    };
+    if x < f32::MIN_POSITIVE {
+        // Subnormals: scale by 2^63, whose ninth root is 2^7.
+        return inv_root9_normal_f32(x * 9.223_372e18) * 128.0;
+    }
+    inv_root9_normal_f32(x)
+}
+
+/// [`inv_root9_f32`] for a normal, finite, positive `x` (the caller has checked).
+#[inline(always)]
+fn inv_root9_normal_f32(x: f32) -> f32 {
     let mut y = f32::from_bits(INV_ROOT9_MAGIC.wrapping_sub(x.to_bits() / 9));
     for _ in 0..2 {
         let y2 = y * y;
@@ -166,15 +174,53 @@ pub fn inv_root9_f32(x: f32) -> f32 {
         let r = 1.0 - x * (y4 * y4 * y);
         y += y * (r * (1.0 / 9.0 + r * (5.0 / 81.0)));
     }
-    y * scale
+    y
 }
+
+/// `x^(1/3)` and `x^(1/9)` from their inverse roots, `x` normal, finite, positive.
+#[inline(always)]
+fn root_normal_f32(a: f32, den: i16) -> Option<f32> {
+    match den {
+        3 => {
+            let y = inv_cbrt_normal_f32(a);
+            Some(a * y * y)
+        }
+        9 => {
+            let y = inv_root9_normal_f32(a);
+            let y2 = y * y;
+            let y4 = y2 * y2;
+            Some(a * (y4 * y4))
+        }
+        _ => None,
+    }
+}
+
+/// Bits of `f32::MIN_POSITIVE` (the smallest normal) and of `+inf`.
+const MIN_NORMAL_BITS: u32 = 0x0080_0000;
+const INF_BITS: u32 = 0x7f80_0000;
 
 /// `|x|^(1/den)`, the shared root of the sliding-mode powers: cube and ninth roots by
 /// their bit-trick seeds and Newton-type steps directly (no exponent dispatch), any other
-/// denominator through [`pow_abs_f32`]. Same accuracy as [`pow_abs_f32`].
-#[inline]
+/// denominator through [`pow_abs_f32`]. Same accuracy as [`pow_abs_f32`]. Always inlined:
+/// the laws call it with a constant `den` (the dispatch then folds away); a normal, finite
+/// `x` (the control period's case) is recognised by one unsigned comparison of its bits,
+/// everything else (0, subnormals, inf, NaN) takes [`root_abs_rare_f32`].
+#[inline(always)]
 pub fn root_abs_f32(x: f32, den: i16) -> f32 {
-    let a = if x < 0.0 { -x } else { x };
+    let a = x.abs();
+    if a.to_bits().wrapping_sub(MIN_NORMAL_BITS) < INF_BITS - MIN_NORMAL_BITS {
+        if let Some(r) = root_normal_f32(a, den) {
+            return r;
+        }
+    }
+    root_abs_rare_f32(a, den)
+}
+
+/// [`root_abs_f32`] of `a >= 0` (or NaN) for zero, subnormal, infinite and NaN `a`, and
+/// for denominators other than 3 and 9.
+#[cold]
+#[inline(never)]
+fn root_abs_rare_f32(a: f32, den: i16) -> f32 {
     if a == 0.0 || !(a <= f32::MAX) {
         return pow_abs_f32(a, Exponent { num: 1, den }, 0.0);
     }

@@ -141,6 +141,22 @@ pub trait Real:
         self.max_of(-limit).min_of(limit)
     }
 
+    /// Finite and within `[-limit, limit]`: [`Self::clamp_sym`] and
+    /// [`Self::clamp_finite`] leave such a value unchanged (the test the fast paths use).
+    fn in_range(self, limit: Self) -> bool {
+        self.is_finite() && self >= -limit && self <= limit
+    }
+
+    /// [`Self::finite_or_zero`], then [`Self::clamp_sym`]: a state or an output that must
+    /// stay finite and within `±limit` (`limit >= 0`, possibly infinite).
+    fn clamp_finite(self, limit: Self) -> Self {
+        if self.in_range(limit) {
+            self
+        } else {
+            self.finite_or_zero().clamp_sym(limit)
+        }
+    }
+
     /// `sig(x)^e = sign(x) |x|^e`.
     fn sig_pow(self, e: Exponent, floor: Self) -> Self {
         self.sign() * self.pow_abs(e, floor)
@@ -201,7 +217,30 @@ macro_rules! impl_float_real {
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
             }
+            /// The hardware absolute value (`VABS`, clears the sign bit): `|-0.0| = +0.0`,
+            /// which no law can tell from the default's `-0.0`.
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            /// The in-range case (the common one) first: one `VABS` and one comparison;
+            /// the result is the default's for every input.
+            #[inline(always)]
+            fn clamp_sym(self, limit: Self) -> Self {
+                if <$t>::abs(self) <= limit {
+                    self
+                } else {
+                    self.max_of(-limit).min_of(limit)
+                }
+            }
+            /// `|x| <= limit` and `|x| <= MAX` (NaN fails both): finite and in range.
+            #[inline(always)]
+            fn in_range(self, limit: Self) -> bool {
+                let a = <$t>::abs(self);
+                a <= limit && a <= <$t>::MAX
+            }
             $(
+                #[inline(always)]
                 fn root_abs(self, den: i16) -> Self {
                     $root_abs(self, den)
                 }

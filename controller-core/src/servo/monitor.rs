@@ -34,6 +34,7 @@
 
 use crate::axes::{Axis, AXES};
 use crate::config::{limit, positive, ConfigError};
+use crate::estimator::count_step;
 use crate::servo::faults::{Fault, FaultKind};
 
 /// One axis' limits and fault thresholds.
@@ -225,11 +226,16 @@ struct AxisLimits {
     runaway_speed: f32,
 }
 
-/// Per-axis memory of the checks.
+/// Per-axis memory of the checks. The count history is one wide count and one step: a
+/// step between successive readings is the counter's signed delta, within ±2^31 (half
+/// the 32-bit counter's range; ±2^15 for a 16-bit one), so it is an exact `i32`
+/// ([`count_step`]) and the second difference needs no 64-bit arithmetic.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct AxisWatch {
+    /// The previous wide count.
     n1: i64,
-    n2: i64,
+    /// The previous step `n[k-1] - n[k-2]`, counts.
+    step1: i32,
     /// Readings since the last reset (the second difference needs two before).
     primed: u8,
     stuck: u32,
@@ -367,7 +373,14 @@ impl Monitor {
         if l.ferror_slope == 0.0 {
             return l.min_ferror;
         }
-        (l.min_ferror + l.ferror_slope * v_ref.abs()).min(l.ferror_max)
+        // `f32::min` is a libm call (`fminf`) on the Cortex-M4; a NaN speed gives the
+        // maximum either way (`ferror_max` is never NaN)
+        let limit = l.min_ferror + l.ferror_slope * v_ref.abs();
+        if limit < l.ferror_max {
+            limit
+        } else {
+            l.ferror_max
+        }
     }
 
     /// The encoder checks of this period: wide counts, velocity estimates (mm/s) and the
@@ -378,58 +391,72 @@ impl Monitor {
         vel: &[f32; AXES],
         effort: &[f32; AXES],
     ) -> Option<(Fault, f32)> {
+        // written out per axis (each inlines with a constant index); every axis' history
+        // is updated, the first fault in axis order is reported
+        let x = self.check_encoder(0, counts[0], vel[0], effort[0]);
+        let y = self.check_encoder(1, counts[1], vel[1], effort[1]);
+        let z = self.check_encoder(2, counts[2], vel[2], effort[2]);
+        x.or(y).or(z)
+    }
+
+    /// [`Self::check_encoders`] of axis `i`: the first of its jump, stuck and runaway
+    /// faults.
+    #[inline(always)]
+    fn check_encoder(&mut self, i: usize, n: i64, v: f32, effort: f32) -> Option<(Fault, f32)> {
+        let (l, w) = (&self.lim[i], &mut self.watch[i]);
+        let axis = Axis::ALL[i];
         let mut found = None;
-        for i in 0..AXES {
-            let (l, w) = (&self.lim[i], &mut self.watch[i]);
-            let n = counts[i];
-            let axis = Axis::ALL[i];
-            let step = n.saturating_sub(w.n1);
-            if w.primed >= 2 {
-                let d2 = step.saturating_sub(w.n1.saturating_sub(w.n2));
-                let d2f = d2 as f32;
-                if !(d2f.abs() <= l.jump_counts) {
-                    let kind = if step == 0 {
-                        FaultKind::EncoderStuck
-                    } else {
-                        FaultKind::EncoderJump
-                    };
-                    found = found.or(Some((Fault::on(kind, axis), d2f)));
-                }
-            }
-            if w.primed >= 1 {
-                // an effort change that must move the axis, and no count
-                if step != 0 {
-                    w.u_ref = effort[i];
-                    w.stuck = 0;
-                } else if (effort[i] - w.u_ref).abs() >= l.stuck_effort {
-                    w.stuck = w.stuck.saturating_add(1);
+        // exact for successive wide counts (their step is within ±2^31)
+        let step = count_step(n, w.n1);
+        if w.primed >= 2 {
+            // the second difference of two `i32` steps: in `i32` (one hardware conversion
+            // to f32) unless it overflows (steps of opposite sign beyond ±2^30, physically
+            // impossible), then exactly as a 64-bit value: the same `f32` as the 64-bit
+            // difference of the counts
+            let d2f = match step.checked_sub(w.step1) {
+                Some(d2) => d2 as f32,
+                None => (i64::from(step) - i64::from(w.step1)) as f32,
+            };
+            if !(d2f.abs() <= l.jump_counts) {
+                let kind = if step == 0 {
+                    FaultKind::EncoderStuck
                 } else {
-                    w.stuck = 0;
-                }
-                if w.stuck >= self.stuck_periods {
-                    found = found.or(Some((Fault::on(FaultKind::EncoderStuck, axis), effort[i])));
-                }
-                // velocity growing against the effort
-                let v = vel[i];
-                let against = effort[i].abs() >= l.runaway_effort
-                    && effort[i] * v < 0.0
-                    && v.abs() >= l.runaway_speed;
-                if against {
-                    if w.runaway == 0 {
-                        w.runaway_from = v.abs();
-                    }
-                    w.runaway = w.runaway.saturating_add(1);
-                    if w.runaway >= self.runaway_periods && v.abs() > w.runaway_from {
-                        found = found.or(Some((Fault::on(FaultKind::EncoderRunaway, axis), v)));
-                    }
-                } else {
-                    w.runaway = 0;
-                }
+                    FaultKind::EncoderJump
+                };
+                found = Some((Fault::on(kind, axis), d2f));
             }
-            w.n2 = w.n1;
-            w.n1 = n;
-            w.primed = w.primed.saturating_add(1).min(2);
         }
+        if w.primed >= 1 {
+            // an effort change that must move the axis, and no count
+            if step != 0 {
+                w.u_ref = effort;
+                w.stuck = 0;
+            } else if (effort - w.u_ref).abs() >= l.stuck_effort {
+                w.stuck = w.stuck.saturating_add(1);
+            } else {
+                w.stuck = 0;
+            }
+            if w.stuck >= self.stuck_periods {
+                found = found.or(Some((Fault::on(FaultKind::EncoderStuck, axis), effort)));
+            }
+            // velocity growing against the effort
+            let against =
+                effort.abs() >= l.runaway_effort && effort * v < 0.0 && v.abs() >= l.runaway_speed;
+            if against {
+                if w.runaway == 0 {
+                    w.runaway_from = v.abs();
+                }
+                w.runaway = w.runaway.saturating_add(1);
+                if w.runaway >= self.runaway_periods && v.abs() > w.runaway_from {
+                    found = found.or(Some((Fault::on(FaultKind::EncoderRunaway, axis), v)));
+                }
+            } else {
+                w.runaway = 0;
+            }
+        }
+        w.step1 = step;
+        w.n1 = n;
+        w.primed = if w.primed >= 2 { 2 } else { w.primed + 1 };
         found
     }
 
