@@ -115,33 +115,6 @@ impl<R: Real> Scales<R> {
 /// value the number type cannot hold.
 const MAX_STEP_COUNTS: i64 = 1 << 20;
 
-/// `n - last` saturated to the `i32` range: exact whenever the difference fits, which is
-/// always the case for two successive wide counts of a [`WideCounter`] (one reading moves
-/// the count by the hardware counter's signed delta, at most 2^31 for a 32-bit timer,
-/// 2^15 for a 16-bit one). The common case costs a 64-bit subtraction and a range check;
-/// the saturation is the rare path.
-#[inline(always)]
-pub(crate) fn count_step(n: i64, last: i64) -> i32 {
-    let (d, overflow) = n.overflowing_sub(last);
-    let lo = d as i32;
-    if !overflow && i64::from(lo) == d {
-        lo
-    } else {
-        count_step_saturated(n, last)
-    }
-}
-
-/// [`count_step`] beyond the `i32` range (never for successive wide counts).
-#[cold]
-#[inline(never)]
-fn count_step_saturated(n: i64, last: i64) -> i32 {
-    if n > last {
-        i32::MAX
-    } else {
-        i32::MIN
-    }
-}
-
 /// `n - last` as a Real, clamped to [`MAX_STEP_COUNTS`]. Converted through `i32`/`f32`
 /// (exact below 2^24): the Cortex-M4 does that in hardware, while `i64`/`f64`
 /// conversions are software routines costing hundreds of cycles.
@@ -152,13 +125,22 @@ pub(crate) fn step_counts<R: Real>(n: i64, last: i64) -> R {
     let (d, overflow) = n.overflowing_sub(last);
     let c = if !overflow && (d.wrapping_add(MAX_STEP_COUNTS) as u64) <= (2 * MAX_STEP_COUNTS) as u64
     {
-        d
-    } else if n > last {
-        MAX_STEP_COUNTS
+        d as i32
     } else {
-        -MAX_STEP_COUNTS
+        step_counts_clamped(n, last)
     };
-    R::from_f32(c as i32 as f32)
+    R::from_f32(c as f32)
+}
+
+/// [`step_counts`] beyond ±[`MAX_STEP_COUNTS`] (a corrupted reading).
+#[cold]
+#[inline(never)]
+fn step_counts_clamped(n: i64, last: i64) -> i32 {
+    if n > last {
+        MAX_STEP_COUNTS as i32
+    } else {
+        -MAX_STEP_COUNTS as i32
+    }
 }
 
 /// A wide count as a Real: exact in every `Real` while `|n| <= 2^24` (10 m of 0.625 µm
@@ -267,6 +249,7 @@ impl<R: Real> VelocityEstimator<R> {
     /// Feed the wide count measured this period and the acceleration commanded over the
     /// period that just ended (units/s²; only the Kalman filter uses it, pass zero when it
     /// is unknown). Returns the estimate at the sample instant.
+    #[inline(always)]
     pub fn update(&mut self, count: i64, accel_cmd: R) -> Estimate<R> {
         match self {
             Self::BackwardDifference(e) => e.update(count),

@@ -64,12 +64,14 @@ pub struct LawOutput<R> {
 /// saturated in the direction the error would push it further.
 #[inline(always)]
 pub(crate) fn finish<R: Real>(u_raw: R, e: R, u_max: R, s: R) -> LawOutput<R> {
-    if u_raw.in_range(u_max) {
-        // the common case: finite and not saturated (what the general path below gives)
+    // The common case: `u_raw` finite and not saturated, `e` and `s` finite (one range
+    // test covers all three, see `zero_if_finite`); the result is what the general path
+    // below gives.
+    if (u_raw + (zero_if_finite(e) + zero_if_finite(s))).in_range(u_max) {
         return LawOutput {
             u: u_raw,
-            integral_rate: e.finite_or_zero(),
-            s: s.finite_or_zero(),
+            integral_rate: e,
+            s,
             finite: true,
         };
     }
@@ -88,6 +90,15 @@ pub(crate) fn finish<R: Real>(u_raw: R, e: R, u_max: R, s: R) -> LawOutput<R> {
         s: s.finite_or_zero(),
         finite,
     }
+}
+
+/// `x - x`: zero for a finite `x`, NaN for ±inf and NaN (in fixed point always zero), so
+/// adding it to a value makes that value fail a finiteness or range test exactly when `x`
+/// is not finite: several tests in one.
+#[allow(clippy::eq_op)]
+#[inline(always)]
+fn zero_if_finite<R: Real>(x: R) -> R {
+    x - x
 }
 
 /// Advance an integral by one period, clamped to `±limit`.

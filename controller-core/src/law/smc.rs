@@ -280,7 +280,8 @@ impl<R: Real> Smc<R> {
                     e.pow_abs(qp_minus_one, floor)
                 };
                 (
-                    e_dot + alpha * e + beta * e.sign() * e_qp,
+                    // sig(e)^(q/p): e_qp is 0 where e is, so the sign flip is sign(e)·e_qp
+                    e_dot + alpha * e + beta * e_qp.with_sign_of(e),
                     alpha * e_dot + beta_qp * singular * e_dot,
                     Some(e_b3),
                 )
@@ -291,10 +292,9 @@ impl<R: Real> Smc<R> {
                 beta_over_gamma,
             } => {
                 let [g, two_minus_g] = e_dot_powers.eval(e_dot);
-                let sign = e_dot.sign();
                 (
-                    e + inv_beta * sign * g,
-                    beta_over_gamma * sign * two_minus_g,
+                    e + inv_beta * g.with_sign_of(e_dot),
+                    beta_over_gamma * two_minus_g.with_sign_of(e_dot),
                     None,
                 )
             }
@@ -321,7 +321,7 @@ impl<R: Real> Smc<R> {
             } => {
                 let [s_b1, s_b2] = powers.s_powers(&s_powers, s);
                 let e_b3 = e_beta3.unwrap_or_else(|| e.pow_abs(beta3, R::ZERO));
-                s.sign() * (k1 * s_b1 + k2 * s_b2) + k3 * e_b3 * s
+                (k1 * s_b1 + k2 * s_b2).with_sign_of(s) + k3 * e_b3 * s
             }
         };
         let u = self.inv_k

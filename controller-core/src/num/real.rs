@@ -81,6 +81,15 @@ pub trait Real:
     /// representable (zero for floats; the type's resolution for fixed point).
     fn div_or(self, d: Self, fallback: Self) -> Self;
 
+    /// `(a / d, b / d)`, each with [`Self::div_or`]'s guard. The default is two
+    /// [`Self::div_or`]; floats multiply by one reciprocal instead (one division: each
+    /// quotient within 1.5 ulp of the divided one; the fallback when `1/d` overflows,
+    /// `|d|` below 2^-128 in `f32`, or the product does), fixed point shares the
+    /// reciprocal (bit-identical to the default).
+    fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+        (a.div_or(d, fallback), b.div_or(d, fallback))
+    }
+
     /// Real cube root, odd: `cbrt(-8) = -2`.
     fn cbrt(self) -> Self;
 
@@ -117,6 +126,18 @@ pub trait Real:
             -Self::ONE
         } else {
             Self::ZERO
+        }
+    }
+
+    /// `self` with the sign of `s`: `-self` where `s < 0`, else `self`. For a magnitude
+    /// `self >= 0` that is 0 where `s` is (`|s|^e`, e > 0) this is `sign(s) · self`, with
+    /// one comparison instead of the sign's two and a multiplication (the same value:
+    /// `(β·sign(s))·x` and `β·(-x)` round alike).
+    fn with_sign_of(self, s: Self) -> Self {
+        if s < Self::ZERO {
+            -self
+        } else {
+            self
         }
     }
 
@@ -190,13 +211,30 @@ macro_rules! impl_float_real {
             fn to_f64(self) -> f64 {
                 self as f64
             }
+            /// A zero `d` gives an infinite or NaN quotient: one finiteness test covers it.
+            #[inline]
             fn div_or(self, d: Self, fallback: Self) -> Self {
                 let q = self / d;
-                if d == 0.0 || !q.is_finite() {
-                    fallback
-                } else {
+                if q.is_finite() {
                     q
+                } else {
+                    fallback
                 }
+            }
+            /// `a · (1/d)`: a quotient that is not finite (`d` zero or NaN, `1/d`
+            /// overflowing, the product overflowing) is the fallback.
+            #[inline(always)]
+            fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+                let r = 1.0 / d;
+                let q = |x: Self| {
+                    let q = x * r;
+                    if q.is_finite() {
+                        q
+                    } else {
+                        fallback
+                    }
+                };
+                (q(a), q(b))
             }
             fn cbrt(self) -> Self {
                 $cbrt(self)
@@ -211,6 +249,7 @@ macro_rules! impl_float_real {
             fn pow_abs(self, e: Exponent, floor: Self) -> Self {
                 $pow_abs(self, e, floor)
             }
+            #[inline(always)]
             fn sin_cos(self) -> (Self, Self) {
                 $sin_cos(self)
             }
@@ -321,6 +360,10 @@ impl Real for LibmF32 {
     }
     fn div_or(self, d: Self, fallback: Self) -> Self {
         LibmF32(self.0.div_or(d.0, fallback.0))
+    }
+    fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+        let (x, y) = f32::div2_or(a.0, b.0, d.0, fallback.0);
+        (LibmF32(x), LibmF32(y))
     }
     fn cbrt(self) -> Self {
         LibmF32(libm::cbrtf(self.0))

@@ -470,8 +470,11 @@ impl<R: Real> Servo<R> {
         // 2. Wide counts.
         let raw = io.read_counters();
         let mut counts = [0i64; AXES];
-        for ((n, c), r) in counts.iter_mut().zip(self.counters.iter_mut()).zip(raw) {
-            *n = c.update(r);
+        // the steps of the wide counts (exact i32 counter deltas) for the encoder checks
+        let mut steps = [0i32; AXES];
+        for i in 0..AXES {
+            counts[i] = self.counters[i].update(raw[i]);
+            steps[i] = self.counters[i].step();
         }
         for &c in commands {
             self.apply_command(c, &inputs, &counts);
@@ -496,7 +499,7 @@ impl<R: Real> Servo<R> {
         match self.state {
             ServoState::Idle | ServoState::Run | ServoState::Stopping => {
                 let prev = self.applied.to_array().map(Real::to_f32);
-                if let Some((f, v)) = self.monitor.check_encoders(&counts, &vel, &prev) {
+                if let Some((f, v)) = self.monitor.check_encoders(&steps, &vel, &prev) {
                     self.trip(f, v, Some(&reference));
                 }
                 if let Some((f, v)) = self
@@ -519,7 +522,8 @@ impl<R: Real> Servo<R> {
                 }
                 let mut u = self.out.u;
                 for i in 0..AXES {
-                    u[i] = u[i].finite_or_zero().clamp_sym(self.full_scale[i]);
+                    // finite_or_zero, then clamp_sym (in-range case first: issue 14)
+                    u[i] = u[i].clamp_finite(self.full_scale[i]);
                 }
                 if self.state.drives() {
                     let tracking = self.out.tracking.to_array().map(Real::to_f32);

@@ -34,7 +34,6 @@
 
 use crate::axes::{Axis, AXES};
 use crate::config::{limit, positive, ConfigError};
-use crate::estimator::count_step;
 use crate::servo::faults::{Fault, FaultKind};
 
 /// One axis' limits and fault thresholds.
@@ -226,14 +225,13 @@ struct AxisLimits {
     runaway_speed: f32,
 }
 
-/// Per-axis memory of the checks. The count history is one wide count and one step: a
-/// step between successive readings is the counter's signed delta, within ±2^31 (half
-/// the 32-bit counter's range; ±2^15 for a 16-bit one), so it is an exact `i32`
-/// ([`count_step`]) and the second difference needs no 64-bit arithmetic.
+/// Per-axis memory of the checks. The count history is the previous step: a step between
+/// successive readings is the counter's signed delta, within ±2^31 (half the 32-bit
+/// counter's range; ±2^15 for a 16-bit one), so it is an exact `i32`
+/// ([`crate::estimator::WideCounter::step`]) and the second difference needs no 64-bit
+/// arithmetic.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct AxisWatch {
-    /// The previous wide count.
-    n1: i64,
     /// The previous step `n[k-1] - n[k-2]`, counts.
     step1: i32,
     /// Readings since the last reset (the second difference needs two before).
@@ -383,31 +381,30 @@ impl Monitor {
         }
     }
 
-    /// The encoder checks of this period: wide counts, velocity estimates (mm/s) and the
-    /// efforts applied during the period that just ended.
+    /// The encoder checks of this period: the steps of the wide counts over the period
+    /// (`n[k] - n[k-1]`, [`crate::estimator::WideCounter::step`]), velocity estimates
+    /// (mm/s) and the efforts applied during the period that just ended.
     pub fn check_encoders(
         &mut self,
-        counts: &[i64; AXES],
+        steps: &[i32; AXES],
         vel: &[f32; AXES],
         effort: &[f32; AXES],
     ) -> Option<(Fault, f32)> {
         // written out per axis (each inlines with a constant index); every axis' history
         // is updated, the first fault in axis order is reported
-        let x = self.check_encoder(0, counts[0], vel[0], effort[0]);
-        let y = self.check_encoder(1, counts[1], vel[1], effort[1]);
-        let z = self.check_encoder(2, counts[2], vel[2], effort[2]);
+        let x = self.check_encoder(0, steps[0], vel[0], effort[0]);
+        let y = self.check_encoder(1, steps[1], vel[1], effort[1]);
+        let z = self.check_encoder(2, steps[2], vel[2], effort[2]);
         x.or(y).or(z)
     }
 
     /// [`Self::check_encoders`] of axis `i`: the first of its jump, stuck and runaway
     /// faults.
     #[inline(always)]
-    fn check_encoder(&mut self, i: usize, n: i64, v: f32, effort: f32) -> Option<(Fault, f32)> {
+    fn check_encoder(&mut self, i: usize, step: i32, v: f32, effort: f32) -> Option<(Fault, f32)> {
         let (l, w) = (&self.lim[i], &mut self.watch[i]);
         let axis = Axis::ALL[i];
         let mut found = None;
-        // exact for successive wide counts (their step is within ±2^31)
-        let step = count_step(n, w.n1);
         if w.primed >= 2 {
             // the second difference of two `i32` steps: in `i32` (one hardware conversion
             // to f32) unless it overflows (steps of opposite sign beyond ±2^30, physically
@@ -455,7 +452,6 @@ impl Monitor {
             }
         }
         w.step1 = step;
-        w.n1 = n;
         w.primed = if w.primed >= 2 { 2 } else { w.primed + 1 };
         found
     }

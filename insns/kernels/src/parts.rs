@@ -265,12 +265,19 @@ impl PartLaws {
     }
 }
 
+/// The count steps between two snapshots.
+fn steps(now: &[i64; AXES], before: &[i64; AXES]) -> [i32; AXES] {
+    [0, 1, 2].map(|i| now[i].wrapping_sub(before[i]) as i32)
+}
+
 /// `servo_part_checks`: the supervisor's per-period checks on the board's thresholds:
 /// encoder jump/stuck/runaway, deadline overrun, following error and overspeed, and the
 /// controller's state health.
 pub struct PartChecks {
     monitor: Monitor,
     controller: Controller3<f32>,
+    /// The counted period's count steps (what the servo's counters report).
+    steps: [i32; AXES],
     now: Snapshot,
     prev_effort: [f32; AXES],
     v_ref: [f32; AXES],
@@ -286,11 +293,12 @@ impl PartChecks {
         let mut monitor =
             Monitor::new(&cfg.safety, counts_per_mm, full_scale, run.period_s()).ok()?;
         let [s0, s1, _] = &run.snaps;
-        monitor.check_encoders(&s0.counts, &s0.vel, &s0.effort);
-        monitor.check_encoders(&s1.counts, &s1.vel, &s0.effort);
+        monitor.check_encoders(&steps(&s0.counts, &s0.counts), &s0.vel, &s0.effort);
+        monitor.check_encoders(&steps(&s1.counts, &s0.counts), &s1.vel, &s0.effort);
         Some(Self {
             monitor,
             controller: Controller3::new(&cfg.controller).ok()?,
+            steps: steps(&run.now().counts, &s1.counts),
             now: *run.now(),
             prev_effort: s1.effort,
             v_ref: run.reference()?.vel.to_array(),
@@ -302,7 +310,7 @@ impl PartChecks {
         let s = &self.now;
         let a = self
             .monitor
-            .check_encoders(&s.counts, &s.vel, &self.prev_effort);
+            .check_encoders(&self.steps, &s.vel, &self.prev_effort);
         let b = self.monitor.check_overrun(false, s.period);
         let c = self
             .monitor

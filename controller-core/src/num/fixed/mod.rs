@@ -18,7 +18,7 @@
 
 pub mod trig;
 
-use crate::num::powers::{cbrt_raw, div_raw, inv_cbrt_raw};
+use crate::num::powers::{cbrt_raw, div_by_raw, div_raw, inv_cbrt_raw, RawDivisor};
 use crate::{Exponent, Real};
 use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 use fixed::types::{I16F16, I32F32};
@@ -179,6 +179,21 @@ macro_rules! impl_fx {
                     Some(q) if q <= <$raw>::MAX as u64 => Self::from_mag(q, negative),
                     _ => fallback,
                 }
+            }
+
+            /// One reciprocal of `d` for both quotients: exactly two `div_or` calls.
+            fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+                let Some(div) = RawDivisor::new(d.mag()) else {
+                    return (fallback, fallback);
+                };
+                let q = |x: Self| {
+                    let negative = (x.to_bits() < 0) != (d.to_bits() < 0);
+                    match div_by_raw(x.mag(), &div, $frac) {
+                        Some(q) if q <= <$raw>::MAX as u64 => Self::from_mag(q, negative),
+                        _ => fallback,
+                    }
+                };
+                (q(a), q(b))
             }
 
             fn cbrt(self) -> Self {
