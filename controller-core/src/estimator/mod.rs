@@ -327,4 +327,70 @@ mod tests {
             Err(ConfigError::NotPositive("period_s"))
         );
     }
+
+    /// The count conversions as they were written before their fast paths.
+    fn step_counts_general(n: i64, last: i64) -> f32 {
+        let d = n
+            .saturating_sub(last)
+            .clamp(-MAX_STEP_COUNTS, MAX_STEP_COUNTS);
+        d as i32 as f32
+    }
+
+    fn count_to_real_general<R: Real>(n: i64) -> R {
+        let hi = (n >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        let lo = (n & 0xFFFF) as i32;
+        R::from_f32(hi as f32) * R::from_f32(65_536.0) + R::from_f32(lo as f32)
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn count_fast_paths_equal_the_general_formulas(
+            n in proptest::num::i64::ANY, d in -(1i64 << 21)..(1i64 << 21), small in -(1i64 << 25)..(1i64 << 25),
+        ) {
+            // every kind of pair: extremes (overflowing differences), near and far
+            for (a, b) in [(n, n.wrapping_sub(d)), (n, 0), (n, -n), (n, i64::MAX), (small, d)] {
+                proptest::prop_assert_eq!(step_counts::<f32>(a, b), step_counts_general(a, b));
+            }
+            for x in [n, small, d, n >> 20] {
+                proptest::prop_assert_eq!(count_to_real::<f32>(x), count_to_real_general::<f32>(x));
+                proptest::prop_assert_eq!(count_to_real::<f64>(x), count_to_real_general::<f64>(x));
+            }
+        }
+    }
+
+    #[test]
+    fn count_conversions_at_their_edges() {
+        for n in [
+            0,
+            1,
+            -1,
+            (1 << 24) - 1,
+            1 << 24,
+            (1 << 24) + 1,
+            -(1 << 24),
+            -(1 << 24) - 1,
+        ] {
+            assert_eq!(
+                count_to_real::<f32>(n),
+                count_to_real_general::<f32>(n),
+                "{n}"
+            );
+            assert_eq!(count_to_real::<f64>(n), n as f64, "{n}");
+        }
+        let max = MAX_STEP_COUNTS;
+        for (a, b) in [
+            (max, 0),
+            (max + 1, 0),
+            (-max, 0),
+            (-max - 1, 0),
+            (i64::MIN, i64::MAX),
+        ] {
+            assert_eq!(
+                step_counts::<f32>(a, b),
+                step_counts_general(a, b),
+                "{a} {b}"
+            );
+        }
+        assert_eq!(step_counts::<f32>(i64::MIN, i64::MAX), -(max as f32));
+    }
 }

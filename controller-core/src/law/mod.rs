@@ -272,3 +272,63 @@ impl<R: Real> Law<R> {
         ev.u
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `finish` as it was written before its fast path (the general path alone).
+    fn finish_general(u_raw: f32, e: f32, u_max: f32, s: f32) -> LawOutput<f32> {
+        let finite = u_raw.is_finite();
+        let u_raw = u_raw.finite_or_zero();
+        let u = u_raw.max_of(-u_max).min_of(u_max);
+        let saturated = u != u_raw;
+        let winds_up = saturated && (e * u_raw > 0.0);
+        LawOutput {
+            u,
+            integral_rate: if winds_up { 0.0 } else { e.finite_or_zero() },
+            s: s.finite_or_zero(),
+            finite,
+        }
+    }
+
+    #[test]
+    fn finish_fast_path_equals_the_general_path() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0e-3,
+            -2.5,
+            99.0,
+            100.0,
+            100.000_01,
+            -250.0,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut fast = 0;
+        for u in values {
+            for e in values {
+                for s in values {
+                    for u_max in [100.0, f32::INFINITY] {
+                        let a = finish(u, e, u_max, s);
+                        let b = finish_general(u, e, u_max, s);
+                        let same = |x: f32, y: f32| x.to_bits() == y.to_bits();
+                        assert!(
+                            same(a.u, b.u)
+                                && same(a.integral_rate, b.integral_rate)
+                                && same(a.s, b.s)
+                                && a.finite == b.finite,
+                            "finish({u}, {e}, {u_max}, {s}): {a:?} vs {b:?}"
+                        );
+                        fast += usize::from(u.in_range(u_max) && e.is_finite() && s.is_finite());
+                    }
+                }
+            }
+        }
+        // both paths were exercised
+        assert!(fast > 100 && fast < values.len().pow(3) * 2, "{fast}");
+    }
+}

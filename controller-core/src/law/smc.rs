@@ -458,6 +458,58 @@ mod tests {
         assert_eq!(Smc::<f32>::new(&c), Err(ConfigError::BadExponent("q/p")));
     }
 
+    #[test]
+    fn paper_dsmc_plan_is_recognised() {
+        use crate::presets::gantry::{dsmc_for, GANTRY_X};
+        assert!(Smc::<f32>::new(&PAPER_DSMC)
+            .unwrap()
+            .has_paper_dsmc_powers());
+        assert!(Smc::<f32>::new(&dsmc_for(&GANTRY_X))
+            .unwrap()
+            .has_paper_dsmc_powers());
+        // the exponential reaching law has no reaching powers; other exponents differ
+        assert!(!Smc::<f32>::new(&PAPER_SMC).unwrap().has_paper_dsmc_powers());
+        let mut c = PAPER_DSMC;
+        if let ReachingConfig::DoublePower { beta2, .. } = &mut c.reaching {
+            *beta2 = Exponent { num: 1, den: 9 };
+        }
+        assert!(!Smc::<f32>::new(&c).unwrap().has_paper_dsmc_powers());
+    }
+
+    proptest::proptest! {
+        /// The compile-time plan of the paper's powers gives the law's own plan's result,
+        /// bit for bit, in f32 and in fixed point.
+        #[test]
+        fn paper_plan_is_bit_identical_to_the_own_plan(
+            e in -2.0f32..2.0, e_dot in -50.0f32..50.0, integral in -1.0f32..1.0,
+            q in -100.0f32..100.0, q_dot in -50.0f32..50.0, acc in -10.0f32..10.0,
+            tiny in 0usize..4,
+        ) {
+            use crate::num::fixed::FxQ32;
+            use crate::presets::gantry::{dsmc_for, GANTRY_Y};
+            // errors at and around zero and the singular floor as well
+            let e = [e, 0.0, 1.0e-5 * e, -1.0e-4][tiny];
+            let sig = AxisSignals { e, e_dot, qd_dot: q_dot, qd_ddot: acc, q, q_dot };
+            for cfg in [PAPER_DSMC, dsmc_for(&GANTRY_Y)] {
+                let l = Smc::<f32>::new(&cfg).unwrap();
+                let a = l.evaluate_with(integral, &sig, &PaperDsmcPowers);
+                let b = l.evaluate_with(integral, &sig, &OwnPowers);
+                proptest::prop_assert_eq!(a.u.to_bits(), b.u.to_bits());
+                proptest::prop_assert_eq!(a.s.to_bits(), b.s.to_bits());
+                proptest::prop_assert_eq!(a, l.evaluate(&LawState { integral, ..Default::default() }, &sig));
+                let f = |x: f32| FxQ32::from_f32(x);
+                let lx = Smc::<FxQ32>::new(&cfg).unwrap();
+                let sx = AxisSignals {
+                    e: f(e), e_dot: f(e_dot), qd_dot: f(q_dot), qd_ddot: f(acc), q: f(q), q_dot: f(q_dot),
+                };
+                proptest::prop_assert_eq!(
+                    lx.evaluate_with(f(integral), &sx, &PaperDsmcPowers),
+                    lx.evaluate_with(f(integral), &sx, &OwnPowers)
+                );
+            }
+        }
+    }
+
     trait IntoF32 {
         fn into_f32(self) -> AxisSignals<f32>;
     }

@@ -415,6 +415,92 @@ mod tests {
         assert_eq!(f32::NAN.finite_or_zero(), 0.0);
     }
 
+    /// Values where the float fast paths could part from the general definitions.
+    const SPECIAL: [f32; 17] = [
+        0.0,
+        -0.0,
+        1.0e-45,
+        -1.0e-45,
+        1.0,
+        -1.0,
+        2.5,
+        -2.5,
+        3.0,
+        -3.0,
+        3.000_000_2,
+        -3.000_000_2,
+        f32::MAX,
+        -f32::MAX,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ];
+
+    /// Same value, NaN equal to NaN, -0.0 distinct from +0.0.
+    fn same(a: f32, b: f32) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    #[test]
+    fn float_fast_paths_equal_the_general_definitions() {
+        // the trait's general definitions, written out
+        let clamp_ref = |x: f32, l: f32| x.max_of(-l).min_of(l);
+        let in_range_ref = |x: f32, l: f32| x.is_finite() && x >= -l && x <= l;
+        let mut checked = 0;
+        for x in SPECIAL {
+            for l in [0.0, 1.0, 3.0, f32::MAX, f32::INFINITY] {
+                assert!(same(x.clamp_sym(l), clamp_ref(x, l)), "clamp_sym({x}, {l})");
+                assert_eq!(x.in_range(l), in_range_ref(x, l), "in_range({x}, {l})");
+                let cf = clamp_ref(x.finite_or_zero(), l);
+                assert!(same(x.clamp_finite(l), cf), "clamp_finite({x}, {l})");
+                checked += 1;
+            }
+            // with_sign_of is sign(s)·|x|^e (0 where s is 0)
+            for e in [Exponent { num: 1, den: 3 }, Exponent { num: 5, den: 9 }] {
+                let m = x.pow_abs(e, 0.0);
+                if x.is_finite() {
+                    assert_eq!(m.with_sign_of(x), x.sign() * m, "{x}");
+                    assert_eq!(2.5 * m.with_sign_of(x), 2.5 * x.sign() * m, "{x}");
+                }
+            }
+        }
+        assert_eq!(checked, SPECIAL.len() * 5);
+        // the fast paths keep the general results on either side of the limit
+        assert_eq!(3.000_000_2f32.clamp_sym(3.0), 3.0);
+        assert_eq!(f32::INFINITY.clamp_finite(f32::INFINITY), 0.0);
+        assert!(!f32::INFINITY.in_range(f32::INFINITY));
+    }
+
+    #[test]
+    fn one_reciprocal_for_two_quotients() {
+        // floats: within 1.5 ulp of the divided quotients; the fallback where a quotient
+        // is not finite
+        let mut worst = 0.0f64;
+        let mut d = 1.0e-6f32;
+        while d < 1.0e6 {
+            for a in [1.0f32, -3.7, 1234.5, 1.0e-3, 0.0] {
+                let (q, q2) = f32::div2_or(a, -a, d, 9.0);
+                let exact = a as f64 / d as f64;
+                let ulp = (exact.abs() as f32).max(f32::MIN_POSITIVE) * f32::EPSILON;
+                worst = worst.max((q as f64 - exact).abs() / ulp as f64);
+                assert_eq!(q2, -q);
+            }
+            d *= 1.37;
+        }
+        assert!(worst <= 1.5, "{worst} ulp");
+        assert!(
+            worst > 0.0,
+            "the reciprocal must round differently somewhere"
+        );
+        assert_eq!(f32::div2_or(1.0, 2.0, 0.0, 7.0), (7.0, 7.0));
+        assert_eq!(f32::div2_or(0.0, 2.0, 0.0, 7.0), (7.0, 7.0));
+        assert_eq!(f32::div2_or(1.0, 2.0, f32::NAN, 7.0), (7.0, 7.0));
+        assert_eq!(f32::div2_or(f32::MAX, 1.0, 0.5, 7.0), (7.0, 2.0));
+        // LibmF32 differs from f32 in the powers only
+        let (a, b) = LibmF32::div2_or(LibmF32(3.0), LibmF32(-6.1), LibmF32(7.0), LibmF32(0.0));
+        assert_eq!((a.0, b.0), f32::div2_or(3.0, -6.1, 7.0, 0.0));
+    }
+
     #[test]
     fn exponent_requires_odd_denominator() {
         assert!(Exponent::new(1, 2).is_none());

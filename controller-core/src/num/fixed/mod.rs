@@ -358,4 +358,31 @@ mod tests {
         );
         assert_eq!(FxQ16::from_f32(-27.0).cbrt().to_f32(), -3.0);
     }
+
+    proptest::proptest! {
+        /// One shared reciprocal gives exactly the two guarded divisions (any bits).
+        #[test]
+        fn shared_divisor_is_bit_identical_q32(a: i64, b: i64, d: i64, fb: i64) {
+            let f = FxQ32::from_bits;
+            let (qa, qb) = FxQ32::div2_or(f(a), f(b), f(d), f(fb));
+            proptest::prop_assert_eq!(qa, f(a).div_or(f(d), f(fb)));
+            proptest::prop_assert_eq!(qb, f(b).div_or(f(d), f(fb)));
+        }
+
+        #[test]
+        fn shared_divisor_is_bit_identical_q16(a: i32, b: i32, d: i32, fb: i32) {
+            let f = FxQ16::from_bits;
+            let (qa, qb) = FxQ16::div2_or(f(a), f(b), f(d), f(fb));
+            proptest::prop_assert_eq!(qa, f(a).div_or(f(d), f(fb)));
+            proptest::prop_assert_eq!(qb, f(b).div_or(f(d), f(fb)));
+        }
+
+        /// ... and for the divisors of the coupling (|d|² of a path direction).
+        #[test]
+        fn shared_divisor_is_bit_identical_small(a in -1.0e6f64..1.0e6, d in 1.0e-9f64..1.0e7) {
+            let (x, n2) = (FxQ32::from_f64(a), FxQ32::from_f64(d));
+            let (q, _) = FxQ32::div2_or(x, x, n2, FxQ32::ZERO);
+            proptest::prop_assert_eq!(q, x.div_or(n2, FxQ32::ZERO));
+        }
+    }
 }
