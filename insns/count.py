@@ -1,12 +1,18 @@
 #!/usr/bin/env python3
-"""Run the Cortex-M4 kernels of insns/kernels in the unicorn emulator.
+"""Run the Cortex-M4 (and Cortex-M3) kernels of insns/kernels in the unicorn emulator.
 
-Usage (normally through `cargo insns`, which builds the ELF and calls this):
+Usage (normally through `cargo insns`, which builds the ELFs and calls this):
   count.py ELF count                    one line per kernel:
                                         `<name> instructions=<N> cycles_est=<M>`
+  count.py ELF profile NAME             exclusive instructions per function of one kernel
+  count.py ELF parts NAME               one `servo_period` by part of the period
   count.py ELF replay NAME IN N OUT     run `insns_replay_<NAME>` on N records read
                                         from IN (f32 little-endian), write the raw
                                         outputs to OUT
+
+The core is read from the ELF: a hard-float ELF (`thumbv7em-none-eabihf`) is a
+Cortex-M4F, a soft-float one (`thumbv7m-none-eabi`) a Cortex-M3 (the cycle model
+differs in the long multiplies, see below).
 
 Kernels are discovered by symbol: every `insns_kernel_<name>` with a matching
 `insns_setup_<name>`. The emulator first runs the binary's reset handler up to `main`
@@ -33,6 +39,10 @@ in single-cycle SRAM/flash with ART hits, no interrupts, no bus contention):
 The estimate is therefore an upper bound for zero-wait-state memory; with the STM32F407
 at 168 MHz from flash (5 wait states, ART accelerator) straight-line code fetched from
 flash can cost more on ART misses.
+
+Cortex-M3 (TRM table 18-1): the same, except UMULL/SMULL 5 and UMLAL/SMLAL 7 cycles
+(the upper bounds of 3..5 and 4..7: early termination on small operands), and no FPU
+(every float operation is a call into compiler-builtins' soft float).
 """
 
 import os
@@ -139,9 +149,10 @@ def make_emu(segs):
 class Counter:
     """Code hook: counts instructions, IT-skipped instructions and estimated cycles."""
 
-    def __init__(self, uc):
+    def __init__(self, uc, core="m4"):
         self.cs = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
         self.uc = uc
+        self.core = core
         self.cache = {}
         self.reset()
 
@@ -185,9 +196,12 @@ class Counter:
             a += size
         return out
 
-    @staticmethod
-    def base_cycles(m, ops):
+    def base_cycles(self, m, ops):
         m = m.split(".")[0]
+        if self.core == "m3" and m in ("umull", "smull"):
+            return 5
+        if self.core == "m3" and m in ("umlal", "smlal"):
+            return 7
         if m in ("sdiv", "udiv"):
             return 12
         if m in ("vdiv", "vsqrt"):
@@ -277,7 +291,7 @@ class Counter:
             self.add_skipped()
 
 
-def call(uc, counter, addr, args=(), count=False):
+def call(uc, counter, addr, args=(), count=False, limit=MAX_INSNS):
     regs = [A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R3]
     for r, v in zip(regs, args):
         uc.reg_write(r, v)
@@ -285,18 +299,27 @@ def call(uc, counter, addr, args=(), count=False):
     uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
     counter.reset()
     counter.active = count
-    uc.emu_start(addr | 1, RET_ADDR, count=MAX_INSNS)
+    uc.emu_start(addr | 1, RET_ADDR, count=limit)
     counter.active = False
     if uc.reg_read(A.UC_ARM_REG_PC) & ~1 != RET_ADDR:
         raise RuntimeError("function at 0x%08x did not return" % addr)
     return uc.reg_read(A.UC_ARM_REG_R0)
 
 
-def boot(elf_path):
+def core_of(elf_path):
+    """`m4` for a hard-float ELF (EF_ARM_ABI_FLOAT_HARD), else `m3`."""
+    with open(elf_path, "rb") as f:
+        return "m4" if ELFFile(f)["e_flags"] & 0x400 else "m3"
+
+
+def boot(elf_path, hook=True):
+    """The emulator after the reset handler; `hook`: install the counting hook (a
+    replay runs without it, at the emulator's own speed)."""
     segs, syms = load(elf_path)
     uc = make_emu(segs)
-    counter = Counter(uc)
-    uc.hook_add(UC_HOOK_CODE, counter.hook)
+    counter = Counter(uc, core_of(elf_path))
+    if hook:
+        uc.hook_add(UC_HOOK_CODE, counter.hook)
     # Reset handler up to main: initialises .data/.bss, enables the FPU.
     sp0, reset = struct.unpack("<II", bytes(uc.mem_read(FLASH[0], 8)))
     uc.reg_write(A.UC_ARM_REG_SP, sp0)
@@ -571,7 +594,7 @@ def cmd_parts(elf_path, name, root=PERIOD_ROOT, rules=PERIOD_PARTS, body=BODY_PA
 
 
 def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
-    uc, counter, syms = boot(elf_path)
+    uc, counter, syms = boot(elf_path, hook=False)
     data = open(in_path, "rb").read()
     if len(data) != n * in_rec * 4:
         raise SystemExit("replay input has %d bytes, expected %d" % (len(data), n * in_rec * 4))
@@ -579,7 +602,8 @@ def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
     if out_addr + n * out_rec * 8 > REPLAY[0] + REPLAY[1]:
         raise SystemExit("replay too long for the emulated buffer region")
     uc.mem_write(REPLAY[0], data)
-    ran = call(uc, counter, syms["insns_replay_" + name], (REPLAY[0], n, out_addr))
+    # no instruction limit: soft-float replays on the Cortex-M3 run tens of millions
+    ran = call(uc, counter, syms["insns_replay_" + name], (REPLAY[0], n, out_addr), limit=0)
     if ran != n:
         raise SystemExit("replay ran %d of %d steps" % (ran, n))
     with open(out_path, "wb") as f:
