@@ -1,12 +1,18 @@
 #!/usr/bin/env python3
-"""Run the Cortex-M4 kernels of insns/kernels in the unicorn emulator.
+"""Run the Cortex-M4 (and Cortex-M3) kernels of insns/kernels in the unicorn emulator.
 
-Usage (normally through `cargo insns`, which builds the ELF and calls this):
+Usage (normally through `cargo insns`, which builds the ELFs and calls this):
   count.py ELF count                    one line per kernel:
                                         `<name> instructions=<N> cycles_est=<M>`
+  count.py ELF profile NAME             exclusive instructions per function of one kernel
+  count.py ELF parts NAME               one `servo_period` by part of the period
   count.py ELF replay NAME IN N OUT     run `insns_replay_<NAME>` on N records read
                                         from IN (f32 little-endian), write the raw
                                         outputs to OUT
+
+The core is read from the ELF: a hard-float ELF (`thumbv7em-none-eabihf`) is a
+Cortex-M4F, a soft-float one (`thumbv7m-none-eabi`) a Cortex-M3 (the cycle model
+differs in the long multiplies, see below).
 
 Kernels are discovered by symbol: every `insns_kernel_<name>` with a matching
 `insns_setup_<name>`. The emulator first runs the binary's reset handler up to `main`
@@ -33,6 +39,10 @@ in single-cycle SRAM/flash with ART hits, no interrupts, no bus contention):
 The estimate is therefore an upper bound for zero-wait-state memory; with the STM32F407
 at 168 MHz from flash (5 wait states, ART accelerator) straight-line code fetched from
 flash can cost more on ART misses.
+
+Cortex-M3 (TRM table 18-1): the same, except UMULL/SMULL 5 and UMLAL/SMLAL 7 cycles
+(the upper bounds of 3..5 and 4..7: early termination on small operands), and no FPU
+(every float operation is a call into compiler-builtins' soft float).
 """
 
 import os
@@ -105,6 +115,26 @@ def demangle_short(name):
     return "::".join(parts[-3:])
 
 
+def demangle(name):
+    """Full path of a mangled Rust symbol (legacy mangling), generics kept."""
+    if not name.startswith("_ZN"):
+        return name
+    parts, i = [], 3
+    while i < len(name) and name[i].isdigit():
+        j = i
+        while name[j].isdigit():
+            j += 1
+        n = int(name[i:j])
+        parts.append(name[j:j + n])
+        i = j + n
+    parts = [p for p in parts if not (p.startswith("h") and len(p) == 17)]
+    out = "::".join(parts)
+    for a, b in (("$LT$", "<"), ("$GT$", ">"), ("$u20$", " "), ("$C$", ","), ("$RF$", "&"),
+                 ("..", "::"), ("_$", "$")):
+        out = out.replace(a, b)
+    return out
+
+
 def make_emu(segs):
     uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
     for base, size in (FLASH, RAM, PPB, REPLAY):
@@ -119,9 +149,10 @@ def make_emu(segs):
 class Counter:
     """Code hook: counts instructions, IT-skipped instructions and estimated cycles."""
 
-    def __init__(self, uc):
+    def __init__(self, uc, core="m4"):
         self.cs = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
         self.uc = uc
+        self.core = core
         self.cache = {}
         self.reset()
 
@@ -131,8 +162,15 @@ class Counter:
         self.it_skipped = 0  # instructions added back from IT blocks
         self.prev = None  # (address, size, mnemonic, is_branch_like)
         self.it_pending = []
+        self.it_addr = None  # the IT instruction of `it_pending`
         self.active = False
         self.profile = None
+        # parts mode: `attrib(addr)` names the part an instruction belongs to
+        self.attrib = None
+        self.parts = None
+        self.cycles_by_part = {}
+        self.it_part = None
+        self.prev_part = None
 
     def decode(self, addr, size):
         d = self.cache.get(addr)
@@ -158,9 +196,12 @@ class Counter:
             a += size
         return out
 
-    @staticmethod
-    def base_cycles(m, ops):
+    def base_cycles(self, m, ops):
         m = m.split(".")[0]
+        if self.core == "m3" and m in ("umull", "smull"):
+            return 5
+        if self.core == "m3" and m in ("umlal", "smlal"):
+            return 7
         if m in ("sdiv", "udiv"):
             return 12
         if m in ("vdiv", "vsqrt"):
@@ -194,39 +235,63 @@ class Counter:
             return
         if self.profile is not None:
             self.profile[addr] = self.profile.get(addr, 0) + 1
+        part = None
+        if self.attrib is not None:
+            part = self.attrib(addr)
+            self.parts[part] = self.parts.get(part, 0) + 1
         m, ops, _ = self.decode(addr, size)
         # IT bookkeeping: instructions of the block that were not reported were skipped.
         if self.it_pending:
             if addr in self.it_pending:
                 self.it_pending.remove(addr)
             else:
-                skipped = len(self.it_pending)
-                self.it_skipped += skipped
-                self.insns += skipped
-                self.cycles += skipped
-                self.it_pending = []
+                self.add_skipped()
         # Taken branch (or any control transfer): refill penalty on the previous one.
         if self.prev is not None:
             pa, ps = self.prev
             if addr != pa + ps:
                 self.cycles += REFILL
+                self.part_cycles(self.prev_part, REFILL)
         self.insns += 1
-        self.cycles += self.base_cycles(m, ops)
+        c = self.base_cycles(m, ops)
+        self.cycles += c
+        self.part_cycles(part, c)
         if m[:2] == "it" and set(m[2:]) <= {"t", "e"}:
             self.it_pending = self.it_block(addr, m)
+            self.it_addr = addr
+            self.it_part = part
         self.prev = (addr, size)
+        self.prev_part = part
         if self.insns > MAX_INSNS:
             uc.emu_stop()
 
-    def finish(self):
-        """Account for the final return (taken branch) and unflushed IT entries."""
-        self.insns += len(self.it_pending)
-        self.it_skipped += len(self.it_pending)
-        self.cycles += len(self.it_pending) + REFILL
+    def part_cycles(self, part, c):
+        if self.parts is not None:
+            self.cycles_by_part[part] = self.cycles_by_part.get(part, 0) + c
+
+    def add_skipped(self):
+        """Count the instructions of the pending IT block that were not reported (skipped:
+        the core still issues them), in the IT instruction's function and part."""
+        skipped = len(self.it_pending)
+        self.it_skipped += skipped
+        self.insns += skipped
+        self.cycles += skipped
+        if self.profile is not None:
+            self.profile[self.it_addr] = self.profile.get(self.it_addr, 0) + skipped
+        if self.parts is not None:
+            self.parts[self.it_part] = self.parts.get(self.it_part, 0) + skipped
+            self.part_cycles(self.it_part, skipped)
         self.it_pending = []
 
+    def finish(self):
+        """Account for the final return (taken branch) and unflushed IT entries."""
+        self.cycles += REFILL
+        self.part_cycles(self.prev_part, REFILL)
+        if self.it_pending:
+            self.add_skipped()
 
-def call(uc, counter, addr, args=(), count=False):
+
+def call(uc, counter, addr, args=(), count=False, limit=MAX_INSNS):
     regs = [A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R3]
     for r, v in zip(regs, args):
         uc.reg_write(r, v)
@@ -234,18 +299,27 @@ def call(uc, counter, addr, args=(), count=False):
     uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
     counter.reset()
     counter.active = count
-    uc.emu_start(addr | 1, RET_ADDR, count=MAX_INSNS)
+    uc.emu_start(addr | 1, RET_ADDR, count=limit)
     counter.active = False
     if uc.reg_read(A.UC_ARM_REG_PC) & ~1 != RET_ADDR:
         raise RuntimeError("function at 0x%08x did not return" % addr)
     return uc.reg_read(A.UC_ARM_REG_R0)
 
 
-def boot(elf_path):
+def core_of(elf_path):
+    """`m4` for a hard-float ELF (EF_ARM_ABI_FLOAT_HARD), else `m3`."""
+    with open(elf_path, "rb") as f:
+        return "m4" if ELFFile(f)["e_flags"] & 0x400 else "m3"
+
+
+def boot(elf_path, hook=True):
+    """The emulator after the reset handler; `hook`: install the counting hook (a
+    replay runs without it, at the emulator's own speed)."""
     segs, syms = load(elf_path)
     uc = make_emu(segs)
-    counter = Counter(uc)
-    uc.hook_add(UC_HOOK_CODE, counter.hook)
+    counter = Counter(uc, core_of(elf_path))
+    if hook:
+        uc.hook_add(UC_HOOK_CODE, counter.hook)
     # Reset handler up to main: initialises .data/.bss, enables the FPU.
     sp0, reset = struct.unpack("<II", bytes(uc.mem_read(FLASH[0], 8)))
     uc.reg_write(A.UC_ARM_REG_SP, sp0)
@@ -284,6 +358,8 @@ def cmd_profile(elf_path, name, top=25):
     uc.reg_write(A.UC_ARM_REG_SP, STACK_TOP)
     uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
     uc.emu_start(syms["insns_kernel_" + name] | 1, RET_ADDR, count=MAX_INSNS)
+    counter.active = False
+    counter.finish()
     starts = [f[0] for f in FUNCS]
     per = {}
     for addr, n in prof.items():
@@ -299,8 +375,226 @@ def cmd_profile(elf_path, name, top=25):
     return 0
 
 
-def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
+# Parts of the control period (`count.py ELF parts servo_period`): every instruction of
+# one `Servo::period` is attributed to the part of the period it belongs to, from the
+# DWARF inline tree of the real, optimised code (no separate kernel, so the parts add up
+# to the `servo_period` count exactly). An instruction belongs to the first part below
+# whose patterns match the qualified name of any function it was inlined from (or, for
+# code outside `Servo::period`, of the function `Servo::period` called, or of a function
+# inlined at that call); what matches none is the period's own body: state machine,
+# saturation, output write, snapshot.
+PERIOD_ROOT = "5servo14Servo$LT$R$GT$6period"
+PERIOD_PARTS = [
+    ("io (the kernel's stub): inputs, counters, outputs", ["read_inputs", "read_counters",
+                                                          "write_outputs", "disable_outputs"]),
+    ("checks (encoder, overrun, tracking, non-finite)", ["servo::monitor::", "unhealthy_axis"]),
+    ("encoder counts (wrap extension)", ["estimator::wide::"]),
+    ("estimators (positions, PLL)", ["estimator::", "bank::"]),
+    ("reference (motion, trajectory, sin/cos)", ["servo::motion::", "motion::trajectory::",
+                                                 "sin_cos"]),
+    ("coupling (contour error, cross-coupling)", ["coupling::"]),
+    ("laws (3 axes: evaluate, commit)", ["law::", "num::powers", "num::shared_root",
+                                         "root_abs", "controller::"]),
+]
+BODY_PART = "servo body: states, commands, saturation, snapshot"
+
+
+def _strip_generics(name):
+    """`a::b<f32, c::D>::e` -> `a::b::e`: match on paths, not on type arguments."""
+    out, depth = [], 0
+    for ch in name:
+        if ch == "<":
+            depth += 1
+        elif ch == ">":
+            depth = max(depth - 1, 0)
+        elif depth == 0:
+            out.append(ch)
+    return "".join(out)
+
+
+def _die_name(die):
+    """Qualified name of a DWARF subprogram DIE (namespaces from its declaration)."""
+    seen = 0
+    while seen < 4 and "DW_AT_name" not in die.attributes:
+        for a in ("DW_AT_specification", "DW_AT_abstract_origin"):
+            if a in die.attributes:
+                die = die.get_DIE_from_attribute(a)
+                break
+        else:
+            break
+        seen += 1
+    name = die.attributes.get("DW_AT_name")
+    parts = [name.value.decode() if name else "?"]
+    p = die.get_parent()
+    while p is not None and p.tag != "DW_TAG_compile_unit":
+        a = p.attributes.get("DW_AT_name")
+        if a is not None:
+            parts.append(a.value.decode())
+        p = p.get_parent()
+    return _strip_generics("::".join(reversed(parts)))
+
+
+def _die_ranges(dw, cu, die):
+    at = die.attributes
+    if "DW_AT_low_pc" in at and "DW_AT_high_pc" in at:
+        lo = at["DW_AT_low_pc"].value
+        hi = at["DW_AT_high_pc"]
+        hi = hi.value if hi.form == "DW_FORM_addr" else lo + hi.value
+        return [(lo, hi)]
+    if "DW_AT_ranges" in at:
+        base = cu.get_top_DIE().attributes.get("DW_AT_low_pc")
+        base = base.value if base is not None else 0
+        out = []
+        for e in dw.range_lists().get_range_list_at_offset(at["DW_AT_ranges"].value):
+            if hasattr(e, "base_address"):
+                base = e.base_address
+            else:
+                off = 0 if getattr(e, "is_absolute", False) else base
+                out.append((e.begin_offset + off, e.end_offset + off))
+        return out
+    return []
+
+
+def inline_trees(elf_path):
+    """{function start: [(lo, hi, depth, qualified name)]}: every inlined call of every
+    out-of-line function, from the DWARF of the ELF."""
+    from elftools.elf.elffile import ELFFile
+    trees = {}
+    with open(elf_path, "rb") as f:
+        dw = ELFFile(f).get_dwarf_info()
+        for cu in dw.iter_CUs():
+            for die in cu.iter_DIEs():
+                if die.tag != "DW_TAG_subprogram":
+                    continue
+                lo = die.attributes.get("DW_AT_low_pc")
+                if lo is None or lo.value == 0:
+                    continue
+                out = trees.setdefault(lo.value & ~1, [])
+
+                def walk(d, depth):
+                    for c in d.iter_children():
+                        if c.tag == "DW_TAG_inlined_subroutine":
+                            name = _die_name(c)
+                            for a, b in _die_ranges(dw, cu, c):
+                                out.append((a, b, depth, name))
+                            walk(c, depth + 1)
+                        elif c.tag == "DW_TAG_lexical_block":
+                            walk(c, depth)
+
+                walk(die, 0)
+    return trees
+
+
+def _is_return(m, ops):
+    """A function return (the instruction was issued: unicorn does not report skipped
+    ones)."""
+    if m in ("bx",) and ops.strip() == "lr":
+        return True
+    if m.split(".")[0] in ("pop", "ldm", "ldmia") and "pc" in ops:
+        return True
+    return m.split(".")[0] == "ldr" and ops.startswith("pc,")
+
+
+def cmd_parts(elf_path, name, root=PERIOD_ROOT, rules=PERIOD_PARTS, body=BODY_PART):
+    """Instructions of one step of kernel `name` per part of `root` (see PERIOD_PARTS).
+
+    Every instruction issued inside the dynamic extent of `root` gets the names of the
+    functions it runs in: for each call on the way down from `root`, the function and
+    everything inlined at the call site, then the current function and what is inlined at
+    the instruction. A return-address stack (pushed on BL/BLX, popped on returns) keeps
+    the call sites."""
+    import bisect
     uc, counter, syms = boot(elf_path)
+    roots = [f for f in FUNCS if root in f[2]]
+    if len(roots) != 1:
+        raise SystemExit("expected one function matching %s, found %d" % (root, len(roots)))
+    r_lo = roots[0][0]
+    trees = inline_trees(elf_path)
+    starts = [f[0] for f in FUNCS]
+
+    def function(addr):
+        k = bisect.bisect_right(starts, addr) - 1
+        if k >= 0 and addr < FUNCS[k][0] + max(FUNCS[k][1], 1):
+            return FUNCS[k]
+        return (addr, 0, "?")
+
+    def classify(names):
+        for part, pats in rules:
+            if any(p in n for n in names for p in pats):
+                return part
+        return body
+
+    here_cache = {}
+
+    def here(addr):
+        """Names at `addr` within its own function: the function, then its inlined calls
+        outermost first."""
+        h = here_cache.get(addr)
+        if h is None:
+            lo, _, sym = function(addr)
+            inl = sorted((t for t in trees.get(lo, ()) if t[0] <= addr < t[1]),
+                         key=lambda t: t[2])
+            h = [demangle(sym).replace("<", "").replace(">", "")] + [t[3] for t in inl]
+            here_cache[addr] = h
+        return h
+
+    # stack of call sites: None outside `root`, else the names at the call
+    stack = [None]
+    detail = {} if os.environ.get("INSNS_VERBOSE") else None
+
+    def attrib(addr):
+        site = stack[-1]
+        if addr == r_lo and site is None:
+            stack[-1] = []  # entered the root: its callees' names start here
+            site = []
+        if site is None:
+            part = "kernel entry (outside the period)"
+            names = None
+        else:
+            names = site + here(addr)
+            part = classify(names)
+            if detail is not None:
+                key = (part, " > ".join(n.split("::")[-1] for n in names[:6]))
+                detail[key] = detail.get(key, 0) + 1
+        m, ops, _ = counter.decode(addr, 4)
+        if m.split(".")[0] in ("bl", "blx"):
+            stack.append(names)
+        elif _is_return(m, ops):
+            if len(stack) > 1:
+                stack.pop()
+            elif site is not None:
+                stack[-1] = None  # the root returned
+        return part
+
+    if call(uc, counter, syms["insns_setup_" + name]) != 1:
+        raise SystemExit("%s setup failed" % name)
+    counter.reset()
+    counter.attrib = attrib
+    counter.parts = {}
+    counter.active = True
+    uc.reg_write(A.UC_ARM_REG_SP, STACK_TOP)
+    uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
+    uc.emu_start(syms["insns_kernel_" + name] | 1, RET_ADDR, count=MAX_INSNS)
+    counter.active = False
+    counter.finish()
+    total = counter.insns
+    print("%s: %d instructions, %d cycles_est, by part of %s (DWARF inline tree)"
+          % (name, total, counter.cycles, demangle_short(roots[0][2])))
+    print("  insns cycles_est  share  part")
+    order = [p for p, _ in rules] + [body, "kernel entry (outside the period)"]
+    for part in order:
+        n = counter.parts.get(part, 0)
+        if n:
+            print("%7d %10d %5.1f%%  %s" % (n, counter.cycles_by_part.get(part, 0),
+                                           100.0 * n / total, part))
+    if detail:
+        for (part, chain_), n in sorted(detail.items(), key=lambda x: (x[0][0], -x[1])):
+            print("  %5d  %-20.20s %s" % (n, part, chain_))
+    return 0
+
+
+def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
+    uc, counter, syms = boot(elf_path, hook=False)
     data = open(in_path, "rb").read()
     if len(data) != n * in_rec * 4:
         raise SystemExit("replay input has %d bytes, expected %d" % (len(data), n * in_rec * 4))
@@ -308,7 +602,8 @@ def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
     if out_addr + n * out_rec * 8 > REPLAY[0] + REPLAY[1]:
         raise SystemExit("replay too long for the emulated buffer region")
     uc.mem_write(REPLAY[0], data)
-    ran = call(uc, counter, syms["insns_replay_" + name], (REPLAY[0], n, out_addr))
+    # no instruction limit: soft-float replays on the Cortex-M3 run tens of millions
+    ran = call(uc, counter, syms["insns_replay_" + name], (REPLAY[0], n, out_addr), limit=0)
     if ran != n:
         raise SystemExit("replay ran %d of %d steps" % (ran, n))
     with open(out_path, "wb") as f:
@@ -321,6 +616,8 @@ def main(argv):
         return cmd_count(argv[1])
     if len(argv) == 4 and argv[2] == "profile":
         return cmd_profile(argv[1], argv[3])
+    if len(argv) == 4 and argv[2] == "parts":
+        return cmd_parts(argv[1], argv[3])
     if len(argv) == 7 and argv[2] == "replay":
         return cmd_replay(argv[1], argv[3], argv[4], int(argv[5]), argv[6])
     sys.stderr.write(__doc__)

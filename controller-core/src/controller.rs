@@ -14,7 +14,9 @@ use crate::config::ConfigError;
 use crate::coupling::contour::{cross_couple, Coupled, DirectionSource};
 use crate::coupling::variable_gain::VariableGainState;
 use crate::coupling::{Coupling, CouplingConfig};
-use crate::law::{AxisSignals, Law, LawConfig, LawEval, LawState};
+use crate::law::adaptive_smc::AdaptiveRegressors;
+use crate::law::smc::{OwnPowers, PaperDsmcPowers, Smc, SmcPowers};
+use crate::law::{integrate, AxisSignals, Law, LawConfig, LawEval, LawState};
 use crate::motion::trajectory::RefSample;
 use crate::{Real, Vec3};
 
@@ -64,10 +66,13 @@ pub struct ControlOutput<R> {
     pub contour: Vec3<R>,
     /// Variable-gain coupling correction before saturation (0 otherwise).
     pub correction: Vec3<R>,
-    /// Per-axis evaluations, for [`Controller3::commit`].
-    pub evals: [LawEval<R>; AXES],
     /// Axes whose law produced a non-finite raw output this period (replaced by 0).
     pub nonfinite: [bool; AXES],
+    /// Rates of the laws' integral states, for [`Controller3::commit`].
+    integral_rate: [R; AXES],
+    /// Regressors of the adaptive laws' updates, for [`Controller3::commit`] (written
+    /// only by controllers with an adaptive law: no other commit reads them).
+    adapt: [AdaptiveRegressors<R>; AXES],
     /// Rate of the variable-gain coupling's integral.
     vg_rate: Vec3<R>,
 }
@@ -75,18 +80,50 @@ pub struct ControlOutput<R> {
 impl<R: Real> ControlOutput<R> {
     /// Rates of the laws' integral states (the continuous mode's ODE).
     pub fn integral_rates(&self) -> [R; AXES] {
-        [
-            self.evals[0].integral_rate,
-            self.evals[1].integral_rate,
-            self.evals[2].integral_rate,
-        ]
+        self.integral_rate
+    }
+}
+
+/// The three axes' laws, resolved once (in [`Controller3::new`]) from the configured mix,
+/// so that the period runs the common mixes without per-axis dispatch. The law code is the
+/// same either way: only how it is reached differs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LawSet<R> {
+    /// A sliding-mode law ([`Smc`]: SMC, DSMC) on every axis: evaluated directly, no
+    /// [`Law`] dispatch and no adaptive regressors; `paper_powers` when every axis has the
+    /// paper DSMC's exponents, whose power plan is then fixed at compile time
+    /// ([`PaperDsmcPowers`]) instead of dispatched per call (the board runs this mix).
+    Smc {
+        laws: [Smc<R>; AXES],
+        paper_powers: bool,
+    },
+    /// Any other mix: each axis dispatches on its [`Law`].
+    Mixed([Law<R>; AXES]),
+}
+
+impl<R: Real> LawSet<R> {
+    fn new(laws: [Law<R>; AXES]) -> Self {
+        match laws {
+            [Law::Smc(x), Law::Smc(y), Law::Smc(z)] => Self::Smc {
+                paper_powers: [x, y, z].iter().all(Smc::has_paper_dsmc_powers),
+                laws: [x, y, z],
+            },
+            _ => Self::Mixed(laws),
+        }
+    }
+
+    fn get(&self, i: usize) -> Law<R> {
+        match self {
+            Self::Smc { laws, .. } => Law::Smc(laws[i.min(AXES - 1)]),
+            Self::Mixed(laws) => laws[i.min(AXES - 1)],
+        }
     }
 }
 
 /// The 3-axis controller: configuration plus its state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Controller3<R> {
-    laws: [Law<R>; AXES],
+    laws: LawSet<R>,
     coupling: Coupling<R>,
     states: [LawState<R>; AXES],
     vg_state: VariableGainState<R>,
@@ -96,11 +133,11 @@ pub struct Controller3<R> {
 impl<R: Real> Controller3<R> {
     /// Validate `cfg`; nothing is built when it is rejected.
     pub fn new(cfg: &ControllerConfig) -> Result<Self, ConfigError> {
-        let laws = [
+        let laws = LawSet::new([
             Law::new(&cfg.laws[0])?,
             Law::new(&cfg.laws[1])?,
             Law::new(&cfg.laws[2])?,
-        ];
+        ]);
         let mut c = Self {
             laws,
             coupling: Coupling::new(&cfg.coupling)?,
@@ -115,8 +152,8 @@ impl<R: Real> Controller3<R> {
     /// Fresh states: integrals and observers zero, adaptive estimates at their initial
     /// values, no previous reference point.
     pub fn reset(&mut self) {
-        for (st, law) in self.states.iter_mut().zip(&self.laws) {
-            *st = law.initial_state();
+        for (i, st) in self.states.iter_mut().enumerate() {
+            *st = self.laws.get(i).initial_state();
         }
         self.vg_state = VariableGainState::default();
         self.prev_ref = None;
@@ -169,7 +206,8 @@ impl<R: Real> Controller3<R> {
         out
     }
 
-    /// [`Self::evaluate_with`] into `out` (every field of `out` is written).
+    /// [`Self::evaluate_with`] into `out` (every field of `out` that this controller's
+    /// [`Self::commit`] or the caller reads is written).
     pub fn evaluate_with_into(
         &self,
         states: &[LawState<R>; AXES],
@@ -201,20 +239,21 @@ impl<R: Real> Controller3<R> {
         out.contour = errors.contour;
         out.correction = Vec3::zero();
         out.vg_rate = Vec3::zero();
-        for (i, (law, st)) in self.laws.iter().zip(states).enumerate() {
-            let sig = AxisSignals {
-                e: errors.c[i],
-                e_dot: errors.c_dot[i],
-                qd_dot: reference.vel[i],
-                qd_ddot: reference.acc[i],
-                q: meas.pos[i],
-                q_dot: meas.vel[i],
-            };
-            let ev = law.evaluate(st, &sig);
-            out.u[i] = ev.u;
-            out.s[i] = ev.s;
-            out.nonfinite[i] = !ev.finite;
-            out.evals[i] = ev;
+        let sig = Signals {
+            c: &errors,
+            reference,
+            meas,
+        };
+        match &self.laws {
+            LawSet::Smc {
+                laws,
+                paper_powers: true,
+            } => eval_smc(laws, states, &sig, &PaperDsmcPowers, out),
+            LawSet::Smc {
+                laws,
+                paper_powers: false,
+            } => eval_smc(laws, states, &sig, &OwnPowers, out),
+            LawSet::Mixed(laws) => eval_mixed(laws, states, &sig, out),
         }
         if let Coupling::VariableGain(vg) = &self.coupling {
             let v = vg.evaluate(vg_state, tracking, tracking_rate, reference.vel);
@@ -244,14 +283,23 @@ impl<R: Real> Controller3<R> {
         if let Coupling::VariableGain(vg) = &self.coupling {
             vg.integrate_rate(&mut self.vg_state, out.vg_rate, dt);
         }
-        for i in 0..AXES {
-            self.laws[i].commit(
-                &mut self.states[i],
-                &out.evals[i],
-                applied[i],
-                meas.vel[i],
-                dt,
-            );
+        match &self.laws {
+            LawSet::Smc { laws, .. } => {
+                for ((st, law), rate) in self.states.iter_mut().zip(laws).zip(out.integral_rate) {
+                    st.integral = integrate(st.integral, rate, dt, law.integral_limit());
+                }
+            }
+            LawSet::Mixed(laws) => {
+                let (applied, q_dot) = (applied.to_array(), meas.vel.to_array());
+                for i in 0..AXES {
+                    let ev = LawEval {
+                        integral_rate: out.integral_rate[i],
+                        adapt: out.adapt[i],
+                        ..LawEval::default()
+                    };
+                    laws[i].commit(&mut self.states[i], &ev, applied[i], q_dot[i], dt);
+                }
+            }
         }
     }
 
@@ -283,10 +331,20 @@ impl<R: Real> Controller3<R> {
     /// (including the variable-gain coupling's integral, reported on its axis).
     pub fn unhealthy_axis(&self) -> Option<usize> {
         let big = R::from_f32(f32::MAX);
-        (0..AXES).find(|&i| {
-            let vg = self.vg_state.integral[i];
-            !(self.laws[i].state_healthy(&self.states[i]) && vg.is_finite() && vg.abs() < big)
-        })
+        // `|x| < MAX` is false for ±inf and NaN: finite and unsaturated in one comparison
+        let ok = |x: R| x.abs() < big;
+        let vg_ok = |i: usize| match self.coupling {
+            // the variable-gain integral stays zero without that coupling
+            Coupling::VariableGain(_) => ok(self.vg_state.integral[i]),
+            Coupling::None | Coupling::Contour(_) => true,
+        };
+        match &self.laws {
+            // a sliding-mode law's only state is its integral
+            LawSet::Smc { .. } => (0..AXES).find(|&i| !(ok(self.states[i].integral) && vg_ok(i))),
+            LawSet::Mixed(laws) => {
+                (0..AXES).find(|&i| !(laws[i].state_healthy(&self.states[i]) && vg_ok(i)))
+            }
+        }
     }
 
     /// Corrupt axis `axis`'s law state (∞ in floating point, the type's limit in fixed
@@ -310,12 +368,13 @@ impl<R: Real> Controller3<R> {
     pub fn set_states(&mut self, states: [LawState<R>; AXES]) {
         self.states = states;
         for i in 0..AXES {
-            self.laws[i].clamp_state(&mut self.states[i]);
+            self.laws.get(i).clamp_state(&mut self.states[i]);
         }
     }
 
-    pub fn laws(&self) -> &[Law<R>; AXES] {
-        &self.laws
+    /// The configured law of every axis.
+    pub fn laws(&self) -> [Law<R>; AXES] {
+        [self.laws.get(0), self.laws.get(1), self.laws.get(2)]
     }
 
     pub fn coupling(&self) -> &Coupling<R> {
@@ -325,6 +384,89 @@ impl<R: Real> Controller3<R> {
     pub fn variable_gain_state(&self) -> &VariableGainState<R> {
         &self.vg_state
     }
+}
+
+/// The per-axis signals of one evaluation.
+struct Signals<'a, R> {
+    /// The (coupled) errors.
+    c: &'a Coupled<R>,
+    reference: &'a RefSample<R>,
+    meas: &'a Measured<R>,
+}
+
+impl<R: Real> Signals<'_, R> {
+    /// Axis `i`'s signals (inlined with a constant `i`, the `Vec3` indexing folds away).
+    #[inline(always)]
+    fn axis(&self, i: usize) -> AxisSignals<R> {
+        AxisSignals {
+            e: self.c.c[i],
+            e_dot: self.c.c_dot[i],
+            qd_dot: self.reference.vel[i],
+            qd_ddot: self.reference.acc[i],
+            q: self.meas.pos[i],
+            q_dot: self.meas.vel[i],
+        }
+    }
+}
+
+/// The sliding-mode laws of all three axes, their powers formed by `powers`, into `out`
+/// (written out per axis: the three evaluations inline with constant indices).
+#[inline(always)]
+fn eval_smc<R: Real, P: SmcPowers>(
+    laws: &[Smc<R>; AXES],
+    states: &[LawState<R>; AXES],
+    sig: &Signals<'_, R>,
+    powers: &P,
+    out: &mut ControlOutput<R>,
+) {
+    #[inline(always)]
+    fn axis<R: Real, P: SmcPowers>(
+        i: usize,
+        laws: &[Smc<R>; AXES],
+        states: &[LawState<R>; AXES],
+        sig: &Signals<'_, R>,
+        powers: &P,
+        out: &mut ControlOutput<R>,
+    ) -> (R, R) {
+        let o = laws[i].evaluate_with(states[i].integral, &sig.axis(i), powers);
+        out.nonfinite[i] = !o.finite;
+        out.integral_rate[i] = o.integral_rate;
+        (o.u, o.s)
+    }
+    let (ux, sx) = axis(0, laws, states, sig, powers, out);
+    let (uy, sy) = axis(1, laws, states, sig, powers, out);
+    let (uz, sz) = axis(2, laws, states, sig, powers, out);
+    out.u = Vec3::new(ux, uy, uz);
+    out.s = Vec3::new(sx, sy, sz);
+}
+
+/// Any mix of laws, each axis dispatching on its law, into `out` (written out per axis).
+#[inline(always)]
+fn eval_mixed<R: Real>(
+    laws: &[Law<R>; AXES],
+    states: &[LawState<R>; AXES],
+    sig: &Signals<'_, R>,
+    out: &mut ControlOutput<R>,
+) {
+    #[inline(always)]
+    fn axis<R: Real>(
+        i: usize,
+        laws: &[Law<R>; AXES],
+        states: &[LawState<R>; AXES],
+        sig: &Signals<'_, R>,
+        out: &mut ControlOutput<R>,
+    ) -> (R, R) {
+        let ev = laws[i].evaluate(&states[i], &sig.axis(i));
+        out.nonfinite[i] = !ev.finite;
+        out.integral_rate[i] = ev.integral_rate;
+        out.adapt[i] = ev.adapt;
+        (ev.u, ev.s)
+    }
+    let (ux, sx) = axis(0, laws, states, sig, out);
+    let (uy, sy) = axis(1, laws, states, sig, out);
+    let (uz, sz) = axis(2, laws, states, sig, out);
+    out.u = Vec3::new(ux, uy, uz);
+    out.s = Vec3::new(sx, sy, sz);
 }
 
 #[cfg(test)]
@@ -405,5 +547,104 @@ mod tests {
         .unwrap();
         assert_eq!(a.step(&r, &m, 1e-4).u, b.step(&r, &m, 1e-4).u);
         assert!(a.evaluate(&r, &m).contour.norm() > 0.0);
+    }
+
+    /// Evaluate and commit every axis' law through `Law` one by one (the dispatching
+    /// path), with the coupled errors the controller computes: what any law set must give.
+    fn per_law(
+        c: &Controller3<f32>,
+        r: &RefSample<f32>,
+        m: &Measured<f32>,
+        dt: f32,
+    ) -> ([LawEval<f32>; AXES], [LawState<f32>; AXES]) {
+        let coupled = match c.coupling() {
+            Coupling::Contour(k) => cross_couple(
+                r.pos - m.pos,
+                r.vel - m.vel,
+                r.vel,
+                r.vel,
+                k.lambda,
+                k.min_dir_sq,
+            ),
+            _ => Coupled {
+                tracking: r.pos - m.pos,
+                contour: Vec3::zero(),
+                c: r.pos - m.pos,
+                c_dot: r.vel - m.vel,
+            },
+        };
+        let laws = c.laws();
+        let mut states = *c.states();
+        let evals = [0, 1, 2].map(|i| {
+            let sig = AxisSignals {
+                e: coupled.c[i],
+                e_dot: coupled.c_dot[i],
+                qd_dot: r.vel[i],
+                qd_ddot: r.acc[i],
+                q: m.pos[i],
+                q_dot: m.vel[i],
+            };
+            laws[i].evaluate(&states[i], &sig)
+        });
+        for i in 0..AXES {
+            laws[i].commit(&mut states[i], &evals[i], evals[i].u, m.vel[i], dt);
+        }
+        (evals, states)
+    }
+
+    proptest::proptest! {
+        /// The law set resolved at construction (the SMC set with the compile-time plan,
+        /// or per-axis dispatch) gives what each axis' law gives on its own, bit for bit.
+        #[test]
+        fn law_sets_equal_the_laws_one_by_one(
+            p in proptest::array::uniform3(-50.0f32..50.0),
+            v in proptest::array::uniform3(-20.0f32..20.0),
+            a in proptest::array::uniform3(-5.0f32..5.0),
+            dp in proptest::array::uniform3(-0.05f32..0.05),
+            dv in proptest::array::uniform3(-1.0f32..1.0),
+            mix in 0usize..3,
+        ) {
+            use crate::presets::board::servo_config;
+            let r = RefSample {
+                pos: Vec3::from_array(p),
+                vel: Vec3::from_array(v),
+                acc: Vec3::from_array(a),
+            };
+            let m = Measured {
+                pos: r.pos - Vec3::from_array(dp),
+                vel: r.vel - Vec3::from_array(dv),
+            };
+            let cfg = match mix {
+                // the board: DSMC on every axis (paper powers), contour coupling
+                0 => servo_config(10_000).controller,
+                // SMC on every axis without the paper's powers
+                1 => ControllerConfig::uniform(
+                    LawConfig::Smc(crate::presets::paper::PAPER_SMC),
+                    PAPER_LAMBDA,
+                ),
+                // a mix: per-axis dispatch
+                _ => ControllerConfig {
+                    laws: [
+                        LawConfig::Pid(PAPER_PID),
+                        LawConfig::Smc(PAPER_DSMC),
+                        LawConfig::DobSmc(dob_smc_for(&GANTRY_X)),
+                    ],
+                    coupling: CouplingConfig::None,
+                },
+            };
+            let mut c = Controller3::<f32>::new(&cfg).unwrap();
+            // a populated state first
+            c.step(&r, &m, 1.0e-4);
+            let (evals, states) = per_law(&c, &r, &m, 1.0e-4);
+            let out = c.evaluate(&r, &m);
+            for (i, ev) in evals.iter().enumerate() {
+                proptest::prop_assert_eq!(out.u[i].to_bits(), ev.u.to_bits());
+                proptest::prop_assert_eq!(out.s[i].to_bits(), ev.s.to_bits());
+                proptest::prop_assert_eq!(out.integral_rates()[i], ev.integral_rate);
+                proptest::prop_assert_eq!(out.nonfinite[i], !ev.finite);
+            }
+            c.commit(&out, &r, &m, out.u, 1.0e-4);
+            proptest::prop_assert_eq!(c.states(), &states);
+        }
     }
 }

@@ -8,6 +8,8 @@
 //! cargo insns bitexact     replay a recorded closed-loop input sequence through the
 //!                          controller on the host and in the emulator; fail unless the
 //!                          outputs are bit-identical
+//! cargo insns profile K    exclusive instructions per function of kernel K
+//! cargo insns parts        `servo_period` per part of the period (exact attribution)
 //! ```
 //!
 //! The emulator side is `insns/count.py` (Python: `unicorn`, `capstone`, `pyelftools`);
@@ -33,18 +35,33 @@ const REPLAY_QUANTUM: f64 = 1e-4;
 /// Start time of the recording (s): past the first quadrant, so `sin`/`cos` reduce.
 const REPLAY_T0_S: f64 = 3.0;
 
+/// The Cortex-M4F target (the board) and the FPU-less Cortex-M3 one (STM32F1 class):
+/// every kernel is built for the first, the `_m3` kernels for the second.
+const M4: &str = "thumbv7em-none-eabihf";
+const M3: &str = "thumbv7m-none-eabi";
+
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let elf = build_kernels()?;
-    match args.first().map(String::as_str) {
-        None | Some("count") => count(&elf),
-        Some("bitexact") => bitexact(&elf),
+    let command = args.first().map(String::as_str);
+    let elf = build_kernels(M4)?;
+    // `profile` and `parts` look at one kernel of the board's ELF only
+    let elf_m3 = match command {
+        None | Some("count") | Some("bitexact") => Some(build_kernels(M3)?),
+        _ => None,
+    };
+    match command {
+        None | Some("count") => count(&[elf].into_iter().chain(elf_m3).collect::<Vec<_>>()),
+        Some("bitexact") => bitexact(&[elf].into_iter().chain(elf_m3).collect::<Vec<_>>()),
         Some("profile") => match args.get(1) {
             Some(kernel) => profile(&elf, kernel),
             None => bail!("usage: cargo insns profile <kernel>"),
         },
+        Some("parts") => parts(&elf),
         Some(other) => {
-            bail!("unknown command `{other}` (expected `count`, `bitexact` or `profile <kernel>`)")
+            bail!(
+                "unknown command `{other}` (expected `count`, `bitexact`, `parts` or \
+                 `profile <kernel>`)"
+            )
         }
     }
 }
@@ -53,32 +70,39 @@ fn manifest_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Build the thumb ELF with the workspace's release profile (the firmware's) and return
-/// its path, taken from cargo's own build report.
-fn build_kernels() -> Result<PathBuf> {
+/// Build the thumb ELF for `target` with the workspace's release profile (the
+/// firmware's) and return its path, taken from cargo's own build report. The workspace's
+/// `.cargo/config.toml` gives cortex-m-rt's linker script to the board's target only;
+/// the Cortex-M3 build gets it here.
+fn build_kernels(target: &str) -> Result<PathBuf> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(cargo)
-        .current_dir(manifest_dir().join(".."))
-        .args([
-            "build",
-            "-p",
-            "insns-kernels",
-            "--release",
-            "--target",
-            "thumbv7em-none-eabihf",
-            "--features",
-            "target",
-            "--bin",
-            "insns-kernels",
-            "--message-format=json-render-diagnostics",
-        ])
+    let link_script = format!("target.{target}.rustflags=[\"-C\", \"link-arg=-Tlink.x\"]");
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(manifest_dir().join(".."));
+    cmd.args([
+        "build",
+        "-p",
+        "insns-kernels",
+        "--release",
+        "--target",
+        target,
+        "--features",
+        "target",
+        "--bin",
+        "insns-kernels",
+        "--message-format=json-render-diagnostics",
+    ]);
+    if target != M4 {
+        cmd.args(["--config", &link_script]);
+    }
+    let out = cmd
         .stderr(Stdio::inherit())
         .output()
         .context("running cargo to build the thumb kernels")?;
     if !out.status.success() {
         bail!(
-            "building the kernels for thumbv7em-none-eabihf failed \
-             (is the target installed? `rustup target add thumbv7em-none-eabihf`)"
+            "building the kernels for {target} failed \
+             (is the target installed? `rustup target add {target}`)"
         );
     }
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -102,14 +126,41 @@ fn python() -> Command {
     c
 }
 
-fn count(elf: &Path) -> Result<()> {
-    let status = python()
-        .arg(elf)
-        .arg("count")
-        .status()
-        .context("running insns/count.py (python3 with unicorn, capstone, pyelftools)")?;
-    if !status.success() {
-        bail!("insns/count.py failed ({status})");
+/// Count every kernel of every ELF; print the lines of all of them sorted by name.
+fn count(elfs: &[PathBuf]) -> Result<()> {
+    let mut lines = Vec::new();
+    let mut failed = false;
+    for elf in elfs {
+        let out = python()
+            .arg(elf)
+            .arg("count")
+            .stderr(Stdio::inherit())
+            .output()
+            .context("running insns/count.py (python3 with unicorn, capstone, pyelftools)")?;
+        failed |= !out.status.success();
+        lines.extend(
+            String::from_utf8_lossy(&out.stdout)
+                .lines()
+                .map(str::to_owned),
+        );
+    }
+    // the kernels' lines sorted by name; any note a kernel line carries stays below it
+    let mut records: Vec<(String, Vec<String>)> = Vec::new();
+    for l in lines {
+        match records.last_mut() {
+            Some((_, notes)) if l.starts_with(' ') => notes.push(l),
+            _ => records.push((l, Vec::new())),
+        }
+    }
+    records.sort_by(|a, b| a.0.cmp(&b.0));
+    for (l, notes) in records {
+        println!("{l}");
+        for n in notes {
+            println!("{n}");
+        }
+    }
+    if failed {
+        bail!("insns/count.py failed");
     }
     Ok(())
 }
@@ -125,6 +176,22 @@ fn profile(elf: &Path, kernel: &str) -> Result<()> {
         .context("running insns/count.py")?;
     if !status.success() {
         bail!("insns/count.py profile failed ({status})");
+    }
+    Ok(())
+}
+
+/// Instructions of one `servo_period` per part of the period (estimators, reference,
+/// checks, coupling, laws, the servo's own body), attributed from the DWARF inline tree of
+/// the real optimised `Servo::period`: the parts add up to the `servo_period` count.
+fn parts(elf: &Path) -> Result<()> {
+    let status = python()
+        .arg(elf)
+        .arg("parts")
+        .arg("servo_period")
+        .status()
+        .context("running insns/count.py")?;
+    if !status.success() {
+        bail!("insns/count.py parts failed ({status})");
     }
     Ok(())
 }
@@ -189,7 +256,9 @@ fn host_outputs<R: RawBits>(inputs: &[f32]) -> Vec<u64> {
     out
 }
 
-fn bitexact(elf: &Path) -> Result<()> {
+/// Replay the recorded sequence on the host and on every ELF (the Cortex-M4F, then the
+/// Cortex-M3 with soft float); fail on the first differing bit.
+fn bitexact(elfs: &[PathBuf]) -> Result<()> {
     let inputs = record_inputs()?;
     let dir = std::env::temp_dir().join(format!("insns-bitexact-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
@@ -203,11 +272,22 @@ fn bitexact(elf: &Path) -> Result<()> {
         ("f32_libm", host_outputs::<LibmF32>(&inputs)),
     ];
     let mut failed = 0;
-    for (name, host) in cases {
+    let runs = elfs.iter().enumerate().flat_map(|(k, elf)| {
+        // kernel-name suffix and core of each ELF (the board's first)
+        let (suffix, core) = if k == 0 {
+            ("", "cortex-m4")
+        } else {
+            ("_m3", "cortex-m3")
+        };
+        cases
+            .iter()
+            .map(move |(name, host)| (elf, suffix, core, *name, host))
+    });
+    for (elf, suffix, core, name, host) in runs {
         if host.len() != REPLAY_STEPS * REPLAY_OUT {
             bail!("host replay of {name} ran {} values", host.len());
         }
-        let out_path = dir.join(format!("{name}.out"));
+        let out_path = dir.join(format!("{name}{suffix}.out"));
         let status = python()
             .arg(elf)
             .args(["replay", name])
@@ -227,13 +307,13 @@ fn bitexact(elf: &Path) -> Result<()> {
         let first_diff = host.iter().zip(&target).position(|(a, b)| a != b);
         match (target.len() == host.len(), first_diff) {
             (true, None) => println!(
-                "bitexact dsmc3_{name}: {REPLAY_STEPS} steps x {REPLAY_OUT} outputs identical (host == cortex-m4)"
+                "bitexact dsmc3_{name}{suffix}: {REPLAY_STEPS} steps x {REPLAY_OUT} outputs identical (host == {core})"
             ),
             (_, d) => {
                 failed += 1;
                 let i = d.unwrap_or(host.len().min(target.len()));
                 println!(
-                    "bitexact dsmc3_{name}: MISMATCH at step {} output {} (host {:#x}, target {:#x})",
+                    "bitexact dsmc3_{name}{suffix}: MISMATCH at step {} output {} (host {:#x}, target {:#x})",
                     i / REPLAY_OUT,
                     i % REPLAY_OUT,
                     host.get(i).copied().unwrap_or(0),

@@ -55,6 +55,7 @@ pub struct Coupled<R> {
     pub c_dot: Vec3<R>,
 }
 
+#[inline(always)]
 pub fn cross_couple<R: Real>(
     tracking: Vec3<R>,
     tracking_rate: Vec3<R>,
@@ -63,20 +64,24 @@ pub fn cross_couple<R: Real>(
     lambda: R,
     min_norm_sq: R,
 ) -> Coupled<R> {
-    // |d|² once for both projections (this runs every control period on three axes).
-    let (d, n2) = match (dir, dir.norm_sq()) {
-        (d, n2) if n2 > min_norm_sq => (d, n2),
-        _ => (fallback_dir, fallback_dir.norm_sq()),
-    };
-    let normal = |v: Vec3<R>| {
-        if n2 > min_norm_sq {
-            v - d * v.dot(d).div_or(n2, R::ZERO)
-        } else {
-            Vec3::zero()
-        }
-    };
-    let contour = normal(tracking);
-    let contour_rate = normal(tracking_rate);
+    // |d|² once, and one division for both projections (`Real::div2_or`: one reciprocal
+    // in floating point; this runs every control period on three axes)
+    let mut d = dir;
+    let mut n2 = dir.norm_sq();
+    if !(n2 > min_norm_sq) {
+        d = fallback_dir;
+        n2 = fallback_dir.norm_sq();
+    }
+    if !(n2 > min_norm_sq) {
+        return Coupled {
+            tracking,
+            contour: Vec3::zero(),
+            c: tracking,
+            c_dot: tracking_rate,
+        };
+    }
+    let (k, k_rate) = R::div2_or(tracking.dot(d), tracking_rate.dot(d), n2, R::ZERO);
+    let (contour, contour_rate) = (tracking - d * k, tracking_rate - d * k_rate);
     Coupled {
         tracking,
         contour,

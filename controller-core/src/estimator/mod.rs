@@ -118,16 +118,41 @@ const MAX_STEP_COUNTS: i64 = 1 << 20;
 /// `n - last` as a Real, clamped to [`MAX_STEP_COUNTS`]. Converted through `i32`/`f32`
 /// (exact below 2^24): the Cortex-M4 does that in hardware, while `i64`/`f64`
 /// conversions are software routines costing hundreds of cycles.
+#[inline(always)]
 pub(crate) fn step_counts<R: Real>(n: i64, last: i64) -> R {
-    let d = n
-        .saturating_sub(last)
-        .clamp(-MAX_STEP_COUNTS, MAX_STEP_COUNTS);
-    R::from_f32(d as i32 as f32)
+    // in range (the common case): one 64-bit subtraction and one unsigned comparison;
+    // otherwise the clamp of the exact difference, whose sign is that of `n - last`
+    let (d, overflow) = n.overflowing_sub(last);
+    let c = if !overflow && (d.wrapping_add(MAX_STEP_COUNTS) as u64) <= (2 * MAX_STEP_COUNTS) as u64
+    {
+        d as i32
+    } else {
+        step_counts_clamped(n, last)
+    };
+    R::from_f32(c as f32)
 }
 
-/// A wide count as a Real, through two hardware `i32 -> f32` conversions (upper and lower
-/// 16 bits; exact while `|n| < 2^40`, i.e. beyond 680 km of 0.625 µm counts).
+/// [`step_counts`] beyond ±[`MAX_STEP_COUNTS`] (a corrupted reading).
+#[cold]
+#[inline(never)]
+fn step_counts_clamped(n: i64, last: i64) -> i32 {
+    if n > last {
+        MAX_STEP_COUNTS as i32
+    } else {
+        -MAX_STEP_COUNTS as i32
+    }
+}
+
+/// A wide count as a Real: exact in every `Real` while `|n| <= 2^24` (10 m of 0.625 µm
+/// counts), which is one hardware `i32 -> f32` conversion; beyond, two (upper and lower
+/// 16 bits, each exact; the sum rounds once, so the result is `n` correctly rounded to
+/// `R`, while `|n| < 2^47`).
+#[inline(always)]
 pub(crate) fn count_to_real<R: Real>(n: i64) -> R {
+    const EXACT: i64 = 1 << 24;
+    if (n.wrapping_add(EXACT) as u64) <= (2 * EXACT) as u64 {
+        return R::from_f32(n as i32 as f32);
+    }
     let hi = (n >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
     let lo = (n & 0xFFFF) as i32;
     R::from_f32(hi as f32) * R::from_f32(65_536.0) + R::from_f32(lo as f32)
@@ -146,8 +171,9 @@ pub(crate) fn to_units<R: Real>(count: i64, frac: R, s: &Scales<R>) -> R {
 
 /// An observer state after its correction: NaN never survives a period, and the state
 /// stays within `±limit` counts (per period) of the last count.
+#[inline(always)]
 pub(crate) fn settle<R: Real>(x: R, limit: R) -> R {
-    x.finite_or_zero().clamp_sym(limit)
+    x.clamp_finite(limit)
 }
 
 /// Position and velocity in units from an observer's state relative to the last count.
@@ -223,6 +249,7 @@ impl<R: Real> VelocityEstimator<R> {
     /// Feed the wide count measured this period and the acceleration commanded over the
     /// period that just ended (units/s²; only the Kalman filter uses it, pass zero when it
     /// is unknown). Returns the estimate at the sample instant.
+    #[inline(always)]
     pub fn update(&mut self, count: i64, accel_cmd: R) -> Estimate<R> {
         match self {
             Self::BackwardDifference(e) => e.update(count),
@@ -299,5 +326,71 @@ mod tests {
             VelocityEstimator::<f32>::new(&EstimatorConfig::BackwardDifference, &t, 0),
             Err(ConfigError::NotPositive("period_s"))
         );
+    }
+
+    /// The count conversions as they were written before their fast paths.
+    fn step_counts_general(n: i64, last: i64) -> f32 {
+        let d = n
+            .saturating_sub(last)
+            .clamp(-MAX_STEP_COUNTS, MAX_STEP_COUNTS);
+        d as i32 as f32
+    }
+
+    fn count_to_real_general<R: Real>(n: i64) -> R {
+        let hi = (n >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        let lo = (n & 0xFFFF) as i32;
+        R::from_f32(hi as f32) * R::from_f32(65_536.0) + R::from_f32(lo as f32)
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn count_fast_paths_equal_the_general_formulas(
+            n in proptest::num::i64::ANY, d in -(1i64 << 21)..(1i64 << 21), small in -(1i64 << 25)..(1i64 << 25),
+        ) {
+            // every kind of pair: extremes (overflowing differences), near and far
+            for (a, b) in [(n, n.wrapping_sub(d)), (n, 0), (n, -n), (n, i64::MAX), (small, d)] {
+                proptest::prop_assert_eq!(step_counts::<f32>(a, b), step_counts_general(a, b));
+            }
+            for x in [n, small, d, n >> 20] {
+                proptest::prop_assert_eq!(count_to_real::<f32>(x), count_to_real_general::<f32>(x));
+                proptest::prop_assert_eq!(count_to_real::<f64>(x), count_to_real_general::<f64>(x));
+            }
+        }
+    }
+
+    #[test]
+    fn count_conversions_at_their_edges() {
+        for n in [
+            0,
+            1,
+            -1,
+            (1 << 24) - 1,
+            1 << 24,
+            (1 << 24) + 1,
+            -(1 << 24),
+            -(1 << 24) - 1,
+        ] {
+            assert_eq!(
+                count_to_real::<f32>(n),
+                count_to_real_general::<f32>(n),
+                "{n}"
+            );
+            assert_eq!(count_to_real::<f64>(n), n as f64, "{n}");
+        }
+        let max = MAX_STEP_COUNTS;
+        for (a, b) in [
+            (max, 0),
+            (max + 1, 0),
+            (-max, 0),
+            (-max - 1, 0),
+            (i64::MIN, i64::MAX),
+        ] {
+            assert_eq!(
+                step_counts::<f32>(a, b),
+                step_counts_general(a, b),
+                "{a} {b}"
+            );
+        }
+        assert_eq!(step_counts::<f32>(i64::MIN, i64::MAX), -(max as f32));
     }
 }

@@ -99,6 +99,7 @@ impl<R: Real> Pll<R> {
         (self.alpha, self.beta)
     }
 
+    #[inline(always)]
     pub fn update(&mut self, count: i64) -> Estimate<R> {
         let limit = R::from_f32(MAX_STEP_COUNTS as f32);
         // prediction, re-expressed relative to the new count

@@ -19,43 +19,70 @@ pub enum CounterWidth {
 /// Turns successive raw counter readings into a wide, never-wrapping count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WideCounter {
-    width: CounterWidth,
-    last_raw: u32,
+    /// `32 - width`: the reading is kept in the top bits of a `u32`, so the difference of
+    /// two readings wraps at the counter's width whatever it is (one code path, no
+    /// per-reading dispatch on the width).
+    shift: u32,
+    /// The last reading shifted left by `shift` (a 16-bit timer's upper register bits fall
+    /// off).
+    last: u32,
     total: i64,
+    /// The change of the wide count at the last reading: the counter's signed delta,
+    /// within ±2^31 (half a 32-bit counter's range), so an exact `i32`.
+    step: i32,
 }
 
 impl WideCounter {
     /// Start at wide count `start` with the counter currently reading `raw` (a 16-bit
     /// counter's reading is taken modulo 2^16).
     pub fn new(width: CounterWidth, raw: u32, start: i64) -> Self {
+        let shift = match width {
+            CounterWidth::Bits16 => 16,
+            CounterWidth::Bits32 => 0,
+        };
         Self {
-            width,
-            last_raw: Self::mask(width, raw),
+            shift,
+            last: raw << shift,
             total: start,
-        }
-    }
-
-    fn mask(width: CounterWidth, raw: u32) -> u32 {
-        match width {
-            CounterWidth::Bits16 => raw & 0xFFFF,
-            CounterWidth::Bits32 => raw,
+            step: 0,
         }
     }
 
     /// Take a new raw reading; returns the wide count.
+    #[inline]
     pub fn update(&mut self, raw: u32) -> i64 {
-        let raw = Self::mask(self.width, raw);
         // The signed difference modulo the counter width: a wrap between readings becomes
-        // a small step of the right sign.
-        let delta = match self.width {
-            CounterWidth::Bits16 => {
-                i64::from((raw as u16).wrapping_sub(self.last_raw as u16) as i16)
+        // a small step of the right sign. In the top bits of a u32 the subtraction wraps
+        // at the counter's width; the arithmetic shift back sign-extends it (for 16 bits:
+        // `(raw - last) as u16 as i16`).
+        let shifted = raw << self.shift;
+        let delta = (shifted.wrapping_sub(self.last) as i32) >> self.shift;
+        self.last = shifted;
+        // saturating (a wide count never wraps), the rare case kept off the common path
+        match self.total.checked_add(i64::from(delta)) {
+            Some(t) => {
+                self.total = t;
+                self.step = delta;
             }
-            CounterWidth::Bits32 => i64::from(raw.wrapping_sub(self.last_raw) as i32),
-        };
-        self.last_raw = raw;
-        self.total = self.total.saturating_add(delta);
+            None => self.saturate(delta),
+        }
         self.total
+    }
+
+    /// The wide count beyond `i64` (never on a machine: 2^63 counts of 0.625 µm are
+    /// 5.8e9 km): it stays at the limit, and the step is what it actually moved.
+    #[cold]
+    #[inline(never)]
+    fn saturate(&mut self, delta: i32) {
+        let t = self.total.saturating_add(i64::from(delta));
+        self.step = t.saturating_sub(self.total) as i32;
+        self.total = t;
+    }
+
+    /// The change of the wide count at the last reading (0 before the first): the
+    /// encoder's step over the last period, counts. Exact (`i32` holds any counter delta).
+    pub fn step(&self) -> i32 {
+        self.step
     }
 
     /// The wide count after the last reading.
@@ -88,6 +115,76 @@ mod tests {
     fn thirty_two_bit_wrap() {
         let mut w = WideCounter::new(CounterWidth::Bits32, u32::MAX - 1, 1_000);
         assert_eq!(w.update(2), 1_004);
+        assert_eq!(w.step(), 4);
         assert_eq!(w.update(u32::MAX), 1_001);
+        assert_eq!(w.step(), -3);
+        // the largest delta a 32-bit counter can show, both signs
+        assert_eq!(w.update(u32::MAX - 0x8000_0000), 1_001 - 0x8000_0000);
+        assert_eq!(w.step(), i32::MIN);
+        assert_eq!(w.update(u32::MAX - 1), 1_000);
+        assert_eq!(w.step(), i32::MAX);
+    }
+
+    #[test]
+    fn the_wide_count_saturates_and_its_step_is_what_it_moved() {
+        let mut w = WideCounter::new(CounterWidth::Bits16, 0, i64::MAX - 2);
+        assert_eq!(w.update(5), i64::MAX);
+        assert_eq!(w.step(), 2);
+        assert_eq!(w.update(3), i64::MAX - 2);
+        assert_eq!(w.step(), -2);
+        let mut w = WideCounter::new(CounterWidth::Bits32, 10, i64::MIN + 1);
+        assert_eq!(w.update(0), i64::MIN);
+        assert_eq!(w.step(), -1);
+    }
+
+    /// The wrap extension as it was written with a per-reading dispatch on the width.
+    struct General {
+        width: CounterWidth,
+        last: u32,
+        total: i64,
+    }
+
+    impl General {
+        fn update(&mut self, raw: u32) -> i64 {
+            let raw = match self.width {
+                CounterWidth::Bits16 => raw & 0xFFFF,
+                CounterWidth::Bits32 => raw,
+            };
+            let delta = match self.width {
+                CounterWidth::Bits16 => {
+                    i64::from((raw as u16).wrapping_sub(self.last as u16) as i16)
+                }
+                CounterWidth::Bits32 => i64::from(raw.wrapping_sub(self.last) as i32),
+            };
+            self.last = raw;
+            self.total = self.total.saturating_add(delta);
+            self.total
+        }
+    }
+
+    proptest::proptest! {
+        /// One code path for both widths, the same wide counts (upper register bits of a
+        /// 16-bit timer included), and the step is the count's change.
+        #[test]
+        fn one_path_for_both_widths(
+            start in proptest::num::i64::ANY,
+            first in proptest::num::u32::ANY,
+            raws in proptest::collection::vec(proptest::num::u32::ANY, 1..40),
+            w16 in proptest::bool::ANY,
+        ) {
+            let width = if w16 { CounterWidth::Bits16 } else { CounterWidth::Bits32 };
+            let mut w = WideCounter::new(width, first, start);
+            let mut g = General {
+                width,
+                last: if w16 { first & 0xFFFF } else { first },
+                total: start,
+            };
+            for r in raws {
+                let before = w.count();
+                let n = w.update(r);
+                proptest::prop_assert_eq!(n, g.update(r));
+                proptest::prop_assert_eq!(i64::from(w.step()), n - before);
+            }
+        }
     }
 }

@@ -13,7 +13,7 @@
 use super::{finish, AxisSignals, LawOutput, LawState};
 use crate::config::{limit, non_negative, positive, ConfigError};
 use crate::model::PlantParams;
-use crate::num::shared_root::PowerSet;
+use crate::num::shared_root::{root_powers, PowerSet};
 use crate::{Exponent, Real};
 
 /// Sliding surface (spec 2.2/2.3).
@@ -236,6 +236,30 @@ impl<R: Real> Smc<R> {
     }
 
     pub fn evaluate(&self, st: &LawState<R>, sig: &AxisSignals<R>) -> LawOutput<R> {
+        self.evaluate_with(st.integral, sig, &OwnPowers)
+    }
+
+    /// True when the law's powers are those of the paper's DSMC ([`PaperDsmcPowers`]): a
+    /// terminal surface with q/p = 5/9 and the double-power reaching law with
+    /// β2 = β3 = 1/3.
+    pub(crate) fn has_paper_dsmc_powers(&self) -> bool {
+        let e_ok = matches!(self.surface, Surface::Terminal { e_powers, .. }
+            if e_powers == PowerSet::new(PAPER_DSMC_E_POWERS));
+        let s_ok = matches!(self.reaching, Reaching::DoublePower { s_powers, .. }
+            if s_powers == PowerSet::new(PAPER_DSMC_S_POWERS));
+        e_ok && s_ok
+    }
+
+    /// The law with its integral state `integral`, the powers formed by `powers` (the
+    /// law's own plans, or a plan fixed at compile time that the caller has checked is
+    /// the law's): the one definition of the law, whichever way its powers are formed.
+    #[inline(always)]
+    pub(crate) fn evaluate_with<P: SmcPowers>(
+        &self,
+        integral: R,
+        sig: &AxisSignals<R>,
+        powers: &P,
+    ) -> LawOutput<R> {
         let (e, e_dot) = (sig.e, sig.e_dot);
         let (s, u_surface, e_beta3) = match self.surface {
             Surface::Terminal {
@@ -246,7 +270,7 @@ impl<R: Real> Smc<R> {
                 beta_qp,
                 floor,
             } => {
-                let [e_qp, e_b3] = e_powers.eval(e);
+                let [e_qp, e_b3] = powers.e_powers(&e_powers, e);
                 let abs_e = e.abs();
                 // |e|^(q/p-1) = |e|^(q/p) / |e| above the floor (no second root); the
                 // floored value below it keeps the factor bounded.
@@ -256,7 +280,8 @@ impl<R: Real> Smc<R> {
                     e.pow_abs(qp_minus_one, floor)
                 };
                 (
-                    e_dot + alpha * e + beta * e.sign() * e_qp,
+                    // sig(e)^(q/p): e_qp is 0 where e is, so the sign flip is sign(e)·e_qp
+                    e_dot + alpha * e + beta * e_qp.with_sign_of(e),
                     alpha * e_dot + beta_qp * singular * e_dot,
                     Some(e_b3),
                 )
@@ -267,10 +292,9 @@ impl<R: Real> Smc<R> {
                 beta_over_gamma,
             } => {
                 let [g, two_minus_g] = e_dot_powers.eval(e_dot);
-                let sign = e_dot.sign();
                 (
-                    e + inv_beta * sign * g,
-                    beta_over_gamma * sign * two_minus_g,
+                    e + inv_beta * g.with_sign_of(e_dot),
+                    beta_over_gamma * two_minus_g.with_sign_of(e_dot),
                     None,
                 )
             }
@@ -295,9 +319,9 @@ impl<R: Real> Smc<R> {
                 s_powers,
                 beta3,
             } => {
-                let [s_b1, s_b2] = s_powers.eval(s);
+                let [s_b1, s_b2] = powers.s_powers(&s_powers, s);
                 let e_b3 = e_beta3.unwrap_or_else(|| e.pow_abs(beta3, R::ZERO));
-                s.sign() * (k1 * s_b1 + k2 * s_b2) + k3 * e_b3 * s
+                (k1 * s_b1 + k2 * s_b2).with_sign_of(s) + k3 * e_b3 * s
             }
         };
         let u = self.inv_k
@@ -306,8 +330,63 @@ impl<R: Real> Smc<R> {
                 + self.b * sig.q
                 + u_surface
                 + reach
-                + self.k4 * st.integral);
+                + self.k4 * integral);
         finish(u, e, self.u_max, s)
+    }
+
+    /// The integral limit (the state [`Self::evaluate_with`] integrates).
+    #[inline(always)]
+    pub(crate) fn integral_limit(&self) -> R {
+        self.integral_limit
+    }
+}
+
+/// Exponents of the terminal surface's shared root in the paper's DSMC: `|e|^(q/p)` with
+/// q/p = 5/9 and `|e|^β3` with β3 = 1/3 (both integer powers of `|e|^(1/9)`).
+const PAPER_DSMC_E_POWERS: [Exponent; 2] =
+    [Exponent { num: 5, den: 9 }, Exponent { num: 1, den: 3 }];
+/// Exponents of the reaching law's shared root in the paper's DSMC: `|s|^(2-β2)` and
+/// `|s|^β2` with β2 = 1/3 (integer powers of `|s|^(1/3)`).
+const PAPER_DSMC_S_POWERS: [Exponent; 2] =
+    [Exponent { num: 5, den: 3 }, Exponent { num: 1, den: 3 }];
+
+/// How [`Smc::evaluate_with`] forms the law's fractional powers from their shared roots.
+pub(crate) trait SmcPowers {
+    /// `[|e|^(q/p), |e|^β3]` of a terminal surface; `set` is the law's own plan of them.
+    fn e_powers<R: Real>(&self, set: &PowerSet<2>, e: R) -> [R; 2];
+    /// `[|s|^(2-β2), |s|^β2]` of the double-power reaching law; `set` is the law's plan.
+    fn s_powers<R: Real>(&self, set: &PowerSet<2>, s: R) -> [R; 2];
+}
+
+/// The law's own power plans, whatever its exponents (resolved at run time).
+pub(crate) struct OwnPowers;
+
+impl SmcPowers for OwnPowers {
+    #[inline(always)]
+    fn e_powers<R: Real>(&self, set: &PowerSet<2>, e: R) -> [R; 2] {
+        set.eval(e)
+    }
+    #[inline(always)]
+    fn s_powers<R: Real>(&self, set: &PowerSet<2>, s: R) -> [R; 2] {
+        set.eval(s)
+    }
+}
+
+/// The paper's DSMC exponents with their plan fixed at compile time: one ninth root `r`
+/// of `|e|` gives `|e|^(5/9) = r⁵` and `|e|^(1/3) = r³`, one cube root `c` of `|s|` gives
+/// `|s|^(5/3) = c⁵` and `|s|^(1/3) = c`, the same operations as the law's own plan for
+/// these exponents ([`PowerSet`]), so the results are identical, without the plan's
+/// run-time dispatch. Only for laws whose [`Smc::has_paper_dsmc_powers`] holds.
+pub(crate) struct PaperDsmcPowers;
+
+impl SmcPowers for PaperDsmcPowers {
+    #[inline(always)]
+    fn e_powers<R: Real>(&self, _: &PowerSet<2>, e: R) -> [R; 2] {
+        root_powers::<R, 9, 5, 3>(e)
+    }
+    #[inline(always)]
+    fn s_powers<R: Real>(&self, _: &PowerSet<2>, s: R) -> [R; 2] {
+        root_powers::<R, 3, 5, 1>(s)
     }
 }
 
@@ -377,6 +456,58 @@ mod tests {
             singular_floor: 1e-4,
         };
         assert_eq!(Smc::<f32>::new(&c), Err(ConfigError::BadExponent("q/p")));
+    }
+
+    #[test]
+    fn paper_dsmc_plan_is_recognised() {
+        use crate::presets::gantry::{dsmc_for, GANTRY_X};
+        assert!(Smc::<f32>::new(&PAPER_DSMC)
+            .unwrap()
+            .has_paper_dsmc_powers());
+        assert!(Smc::<f32>::new(&dsmc_for(&GANTRY_X))
+            .unwrap()
+            .has_paper_dsmc_powers());
+        // the exponential reaching law has no reaching powers; other exponents differ
+        assert!(!Smc::<f32>::new(&PAPER_SMC).unwrap().has_paper_dsmc_powers());
+        let mut c = PAPER_DSMC;
+        if let ReachingConfig::DoublePower { beta2, .. } = &mut c.reaching {
+            *beta2 = Exponent { num: 1, den: 9 };
+        }
+        assert!(!Smc::<f32>::new(&c).unwrap().has_paper_dsmc_powers());
+    }
+
+    proptest::proptest! {
+        /// The compile-time plan of the paper's powers gives the law's own plan's result,
+        /// bit for bit, in f32 and in fixed point.
+        #[test]
+        fn paper_plan_is_bit_identical_to_the_own_plan(
+            e in -2.0f32..2.0, e_dot in -50.0f32..50.0, integral in -1.0f32..1.0,
+            q in -100.0f32..100.0, q_dot in -50.0f32..50.0, acc in -10.0f32..10.0,
+            tiny in 0usize..4,
+        ) {
+            use crate::num::fixed::FxQ32;
+            use crate::presets::gantry::{dsmc_for, GANTRY_Y};
+            // errors at and around zero and the singular floor as well
+            let e = [e, 0.0, 1.0e-5 * e, -1.0e-4][tiny];
+            let sig = AxisSignals { e, e_dot, qd_dot: q_dot, qd_ddot: acc, q, q_dot };
+            for cfg in [PAPER_DSMC, dsmc_for(&GANTRY_Y)] {
+                let l = Smc::<f32>::new(&cfg).unwrap();
+                let a = l.evaluate_with(integral, &sig, &PaperDsmcPowers);
+                let b = l.evaluate_with(integral, &sig, &OwnPowers);
+                proptest::prop_assert_eq!(a.u.to_bits(), b.u.to_bits());
+                proptest::prop_assert_eq!(a.s.to_bits(), b.s.to_bits());
+                proptest::prop_assert_eq!(a, l.evaluate(&LawState { integral, ..Default::default() }, &sig));
+                let f = |x: f32| FxQ32::from_f32(x);
+                let lx = Smc::<FxQ32>::new(&cfg).unwrap();
+                let sx = AxisSignals {
+                    e: f(e), e_dot: f(e_dot), qd_dot: f(q_dot), qd_ddot: f(acc), q: f(q), q_dot: f(q_dot),
+                };
+                proptest::prop_assert_eq!(
+                    lx.evaluate_with(f(integral), &sx, &PaperDsmcPowers),
+                    lx.evaluate_with(f(integral), &sx, &OwnPowers)
+                );
+            }
+        }
     }
 
     trait IntoF32 {

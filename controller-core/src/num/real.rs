@@ -81,6 +81,15 @@ pub trait Real:
     /// representable (zero for floats; the type's resolution for fixed point).
     fn div_or(self, d: Self, fallback: Self) -> Self;
 
+    /// `(a / d, b / d)`, each with [`Self::div_or`]'s guard. The default is two
+    /// [`Self::div_or`]; floats multiply by one reciprocal instead (one division: each
+    /// quotient within 1.5 ulp of the divided one; the fallback when `1/d` overflows,
+    /// `|d|` below 2^-128 in `f32`, or the product does), fixed point shares the
+    /// reciprocal (bit-identical to the default).
+    fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+        (a.div_or(d, fallback), b.div_or(d, fallback))
+    }
+
     /// Real cube root, odd: `cbrt(-8) = -2`.
     fn cbrt(self) -> Self;
 
@@ -120,6 +129,18 @@ pub trait Real:
         }
     }
 
+    /// `self` with the sign of `s`: `-self` where `s < 0`, else `self`. For a magnitude
+    /// `self >= 0` that is 0 where `s` is (`|s|^e`, e > 0) this is `sign(s) · self`, with
+    /// one comparison instead of the sign's two and a multiplication (the same value:
+    /// `(β·sign(s))·x` and `β·(-x)` round alike).
+    fn with_sign_of(self, s: Self) -> Self {
+        if s < Self::ZERO {
+            -self
+        } else {
+            self
+        }
+    }
+
     fn min_of(self, o: Self) -> Self {
         if o < self {
             o
@@ -139,6 +160,22 @@ pub trait Real:
     /// Clamp to `[-limit, limit]` (`limit >= 0`).
     fn clamp_sym(self, limit: Self) -> Self {
         self.max_of(-limit).min_of(limit)
+    }
+
+    /// Finite and within `[-limit, limit]`: [`Self::clamp_sym`] and
+    /// [`Self::clamp_finite`] leave such a value unchanged (the test the fast paths use).
+    fn in_range(self, limit: Self) -> bool {
+        self.is_finite() && self >= -limit && self <= limit
+    }
+
+    /// [`Self::finite_or_zero`], then [`Self::clamp_sym`]: a state or an output that must
+    /// stay finite and within `±limit` (`limit >= 0`, possibly infinite).
+    fn clamp_finite(self, limit: Self) -> Self {
+        if self.in_range(limit) {
+            self
+        } else {
+            self.finite_or_zero().clamp_sym(limit)
+        }
     }
 
     /// `sig(x)^e = sign(x) |x|^e`.
@@ -174,13 +211,30 @@ macro_rules! impl_float_real {
             fn to_f64(self) -> f64 {
                 self as f64
             }
+            /// A zero `d` gives an infinite or NaN quotient: one finiteness test covers it.
+            #[inline]
             fn div_or(self, d: Self, fallback: Self) -> Self {
                 let q = self / d;
-                if d == 0.0 || !q.is_finite() {
-                    fallback
-                } else {
+                if q.is_finite() {
                     q
+                } else {
+                    fallback
                 }
+            }
+            /// `a · (1/d)`: a quotient that is not finite (`d` zero or NaN, `1/d`
+            /// overflowing, the product overflowing) is the fallback.
+            #[inline(always)]
+            fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+                let r = 1.0 / d;
+                let q = |x: Self| {
+                    let q = x * r;
+                    if q.is_finite() {
+                        q
+                    } else {
+                        fallback
+                    }
+                };
+                (q(a), q(b))
             }
             fn cbrt(self) -> Self {
                 $cbrt(self)
@@ -195,13 +249,37 @@ macro_rules! impl_float_real {
             fn pow_abs(self, e: Exponent, floor: Self) -> Self {
                 $pow_abs(self, e, floor)
             }
+            #[inline(always)]
             fn sin_cos(self) -> (Self, Self) {
                 $sin_cos(self)
             }
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
             }
+            /// The hardware absolute value (`VABS`, clears the sign bit): `|-0.0| = +0.0`,
+            /// which no law can tell from the default's `-0.0`.
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            /// The in-range case (the common one) first: one `VABS` and one comparison;
+            /// the result is the default's for every input.
+            #[inline(always)]
+            fn clamp_sym(self, limit: Self) -> Self {
+                if <$t>::abs(self) <= limit {
+                    self
+                } else {
+                    self.max_of(-limit).min_of(limit)
+                }
+            }
+            /// `|x| <= limit` and `|x| <= MAX` (NaN fails both): finite and in range.
+            #[inline(always)]
+            fn in_range(self, limit: Self) -> bool {
+                let a = <$t>::abs(self);
+                a <= limit && a <= <$t>::MAX
+            }
             $(
+                #[inline(always)]
                 fn root_abs(self, den: i16) -> Self {
                     $root_abs(self, den)
                 }
@@ -283,6 +361,10 @@ impl Real for LibmF32 {
     fn div_or(self, d: Self, fallback: Self) -> Self {
         LibmF32(self.0.div_or(d.0, fallback.0))
     }
+    fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+        let (x, y) = f32::div2_or(a.0, b.0, d.0, fallback.0);
+        (LibmF32(x), LibmF32(y))
+    }
     fn cbrt(self) -> Self {
         LibmF32(libm::cbrtf(self.0))
     }
@@ -331,6 +413,92 @@ mod tests {
         assert_eq!(1.0f32.div_or(1e-45, 7.0), 7.0);
         assert_eq!(6.0f64.div_or(3.0, 7.0), 2.0);
         assert_eq!(f32::NAN.finite_or_zero(), 0.0);
+    }
+
+    /// Values where the float fast paths could part from the general definitions.
+    const SPECIAL: [f32; 17] = [
+        0.0,
+        -0.0,
+        1.0e-45,
+        -1.0e-45,
+        1.0,
+        -1.0,
+        2.5,
+        -2.5,
+        3.0,
+        -3.0,
+        3.000_000_2,
+        -3.000_000_2,
+        f32::MAX,
+        -f32::MAX,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ];
+
+    /// Same value, NaN equal to NaN, -0.0 distinct from +0.0.
+    fn same(a: f32, b: f32) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
+    #[test]
+    fn float_fast_paths_equal_the_general_definitions() {
+        // the trait's general definitions, written out
+        let clamp_ref = |x: f32, l: f32| x.max_of(-l).min_of(l);
+        let in_range_ref = |x: f32, l: f32| x.is_finite() && x >= -l && x <= l;
+        let mut checked = 0;
+        for x in SPECIAL {
+            for l in [0.0, 1.0, 3.0, f32::MAX, f32::INFINITY] {
+                assert!(same(x.clamp_sym(l), clamp_ref(x, l)), "clamp_sym({x}, {l})");
+                assert_eq!(x.in_range(l), in_range_ref(x, l), "in_range({x}, {l})");
+                let cf = clamp_ref(x.finite_or_zero(), l);
+                assert!(same(x.clamp_finite(l), cf), "clamp_finite({x}, {l})");
+                checked += 1;
+            }
+            // with_sign_of is sign(s)·|x|^e (0 where s is 0)
+            for e in [Exponent { num: 1, den: 3 }, Exponent { num: 5, den: 9 }] {
+                let m = x.pow_abs(e, 0.0);
+                if x.is_finite() {
+                    assert_eq!(m.with_sign_of(x), x.sign() * m, "{x}");
+                    assert_eq!(2.5 * m.with_sign_of(x), 2.5 * x.sign() * m, "{x}");
+                }
+            }
+        }
+        assert_eq!(checked, SPECIAL.len() * 5);
+        // the fast paths keep the general results on either side of the limit
+        assert_eq!(3.000_000_2f32.clamp_sym(3.0), 3.0);
+        assert_eq!(f32::INFINITY.clamp_finite(f32::INFINITY), 0.0);
+        assert!(!f32::INFINITY.in_range(f32::INFINITY));
+    }
+
+    #[test]
+    fn one_reciprocal_for_two_quotients() {
+        // floats: within 1.5 ulp of the divided quotients; the fallback where a quotient
+        // is not finite
+        let mut worst = 0.0f64;
+        let mut d = 1.0e-6f32;
+        while d < 1.0e6 {
+            for a in [1.0f32, -3.7, 1234.5, 1.0e-3, 0.0] {
+                let (q, q2) = f32::div2_or(a, -a, d, 9.0);
+                let exact = a as f64 / d as f64;
+                let ulp = (exact.abs() as f32).max(f32::MIN_POSITIVE) * f32::EPSILON;
+                worst = worst.max((q as f64 - exact).abs() / ulp as f64);
+                assert_eq!(q2, -q);
+            }
+            d *= 1.37;
+        }
+        assert!(worst <= 1.5, "{worst} ulp");
+        assert!(
+            worst > 0.0,
+            "the reciprocal must round differently somewhere"
+        );
+        assert_eq!(f32::div2_or(1.0, 2.0, 0.0, 7.0), (7.0, 7.0));
+        assert_eq!(f32::div2_or(0.0, 2.0, 0.0, 7.0), (7.0, 7.0));
+        assert_eq!(f32::div2_or(1.0, 2.0, f32::NAN, 7.0), (7.0, 7.0));
+        assert_eq!(f32::div2_or(f32::MAX, 1.0, 0.5, 7.0), (7.0, 2.0));
+        // LibmF32 differs from f32 in the powers only
+        let (a, b) = LibmF32::div2_or(LibmF32(3.0), LibmF32(-6.1), LibmF32(7.0), LibmF32(0.0));
+        assert_eq!((a.0, b.0), f32::div2_or(3.0, -6.1, 7.0, 0.0));
     }
 
     #[test]

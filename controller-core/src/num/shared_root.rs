@@ -50,6 +50,7 @@ impl<const N: usize> PowerSet<N> {
     }
 
     /// `[|x|^e_0, …, |x|^e_{N-1}]`.
+    #[inline(always)]
     pub fn eval<R: Real>(&self, x: R) -> [R; N] {
         let a = x.abs();
         let r = if self.needs_root {
@@ -64,9 +65,18 @@ impl<const N: usize> PowerSet<N> {
     }
 }
 
+/// `[r^K0, r^K1]` with `r = |x|^(1/D)`: a two-power plan fixed at compile time, the same
+/// operations as [`PowerSet::eval`] for the plan `[Root(K0), Root(K1)]` with root `1/D`
+/// (so the results are identical).
+#[inline(always)]
+pub fn root_powers<R: Real, const D: i16, const K0: u8, const K1: u8>(x: R) -> [R; 2] {
+    let r = x.abs().root_abs(D);
+    [ipow(r, K0), ipow(r, K1)]
+}
+
 /// `r^k`, `1 <= k <= 15`: the laws' small powers unrolled, larger ones by
 /// square-and-multiply.
-#[inline]
+#[inline(always)]
 fn ipow<R: Real>(r: R, k: u8) -> R {
     match k {
         1 => return r,

@@ -825,8 +825,11 @@ impl<R: Real> Servo<R> {
         // 2. Wide and machine counts.
         let raw = io.read_counters();
         let mut wide = [0i64; AXES];
-        for ((n, c), r) in wide.iter_mut().zip(self.counters.iter_mut()).zip(raw) {
-            *n = c.update(r);
+        // the steps of the wide counts (exact i32 counter deltas) for the encoder checks
+        let mut steps = [0i32; AXES];
+        for i in 0..AXES {
+            wide[i] = self.counters[i].update(raw[i]);
+            steps[i] = self.counters[i].step();
         }
         let mut counts = [0i64; AXES];
         for i in 0..AXES {
@@ -865,7 +868,7 @@ impl<R: Real> Servo<R> {
             | ServoState::Identify
             | ServoState::Stopping => {
                 let prev = self.applied.to_array().map(Real::to_f32);
-                if let Some((f, v)) = self.monitor.check_encoders(&wide, &vel, &prev) {
+                if let Some((f, v)) = self.monitor.check_encoders(&steps, &vel, &prev) {
                     self.trip(f, v, Some(&reference));
                 }
                 if let Some((f, v)) = self
@@ -897,7 +900,8 @@ impl<R: Real> Servo<R> {
                 }
                 let mut u = self.out.u;
                 for i in 0..AXES {
-                    u[i] = u[i].finite_or_zero().clamp_sym(self.full_scale[i]);
+                    // finite_or_zero, then clamp_sym (in-range case first: issue 14)
+                    u[i] = u[i].clamp_finite(self.full_scale[i]);
                 }
                 if identifying && self.state.drives() {
                     u = self.identify_effort(u, &meas, &vel);

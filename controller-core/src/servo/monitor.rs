@@ -225,11 +225,15 @@ struct AxisLimits {
     runaway_speed: f32,
 }
 
-/// Per-axis memory of the checks.
+/// Per-axis memory of the checks. The count history is the previous step: a step between
+/// successive readings is the counter's signed delta, within ±2^31 (half the 32-bit
+/// counter's range; ±2^15 for a 16-bit one), so it is an exact `i32`
+/// ([`crate::estimator::WideCounter::step`]) and the second difference needs no 64-bit
+/// arithmetic.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct AxisWatch {
-    n1: i64,
-    n2: i64,
+    /// The previous step `n[k-1] - n[k-2]`, counts.
+    step1: i32,
     /// Readings since the last reset (the second difference needs two before).
     primed: u8,
     stuck: u32,
@@ -367,69 +371,88 @@ impl Monitor {
         if l.ferror_slope == 0.0 {
             return l.min_ferror;
         }
-        (l.min_ferror + l.ferror_slope * v_ref.abs()).min(l.ferror_max)
+        // `f32::min` is a libm call (`fminf`) on the Cortex-M4; a NaN speed gives the
+        // maximum either way (`ferror_max` is never NaN)
+        let limit = l.min_ferror + l.ferror_slope * v_ref.abs();
+        if limit < l.ferror_max {
+            limit
+        } else {
+            l.ferror_max
+        }
     }
 
-    /// The encoder checks of this period: wide counts, velocity estimates (mm/s) and the
-    /// efforts applied during the period that just ended.
+    /// The encoder checks of this period: the steps of the wide counts over the period
+    /// (`n[k] - n[k-1]`, [`crate::estimator::WideCounter::step`]), velocity estimates
+    /// (mm/s) and the efforts applied during the period that just ended.
     pub fn check_encoders(
         &mut self,
-        counts: &[i64; AXES],
+        steps: &[i32; AXES],
         vel: &[f32; AXES],
         effort: &[f32; AXES],
     ) -> Option<(Fault, f32)> {
+        // written out per axis (each inlines with a constant index); every axis' history
+        // is updated, the first fault in axis order is reported
+        let x = self.check_encoder(0, steps[0], vel[0], effort[0]);
+        let y = self.check_encoder(1, steps[1], vel[1], effort[1]);
+        let z = self.check_encoder(2, steps[2], vel[2], effort[2]);
+        x.or(y).or(z)
+    }
+
+    /// [`Self::check_encoders`] of axis `i`: the first of its jump, stuck and runaway
+    /// faults.
+    #[inline(always)]
+    fn check_encoder(&mut self, i: usize, step: i32, v: f32, effort: f32) -> Option<(Fault, f32)> {
+        let (l, w) = (&self.lim[i], &mut self.watch[i]);
+        let axis = Axis::ALL[i];
         let mut found = None;
-        for i in 0..AXES {
-            let (l, w) = (&self.lim[i], &mut self.watch[i]);
-            let n = counts[i];
-            let axis = Axis::ALL[i];
-            let step = n.saturating_sub(w.n1);
-            if w.primed >= 2 {
-                let d2 = step.saturating_sub(w.n1.saturating_sub(w.n2));
-                let d2f = d2 as f32;
-                if !(d2f.abs() <= l.jump_counts) {
-                    let kind = if step == 0 {
-                        FaultKind::EncoderStuck
-                    } else {
-                        FaultKind::EncoderJump
-                    };
-                    found = found.or(Some((Fault::on(kind, axis), d2f)));
-                }
-            }
-            if w.primed >= 1 {
-                // an effort change that must move the axis, and no count
-                if step != 0 {
-                    w.u_ref = effort[i];
-                    w.stuck = 0;
-                } else if (effort[i] - w.u_ref).abs() >= l.stuck_effort {
-                    w.stuck = w.stuck.saturating_add(1);
+        if w.primed >= 2 {
+            // the second difference of two `i32` steps: in `i32` (one hardware conversion
+            // to f32) unless it overflows (steps of opposite sign beyond ±2^30, physically
+            // impossible), then exactly as a 64-bit value: the same `f32` as the 64-bit
+            // difference of the counts
+            let d2f = match step.checked_sub(w.step1) {
+                Some(d2) => d2 as f32,
+                None => (i64::from(step) - i64::from(w.step1)) as f32,
+            };
+            if !(d2f.abs() <= l.jump_counts) {
+                let kind = if step == 0 {
+                    FaultKind::EncoderStuck
                 } else {
-                    w.stuck = 0;
-                }
-                if w.stuck >= self.stuck_periods {
-                    found = found.or(Some((Fault::on(FaultKind::EncoderStuck, axis), effort[i])));
-                }
-                // velocity growing against the effort
-                let v = vel[i];
-                let against = effort[i].abs() >= l.runaway_effort
-                    && effort[i] * v < 0.0
-                    && v.abs() >= l.runaway_speed;
-                if against {
-                    if w.runaway == 0 {
-                        w.runaway_from = v.abs();
-                    }
-                    w.runaway = w.runaway.saturating_add(1);
-                    if w.runaway >= self.runaway_periods && v.abs() > w.runaway_from {
-                        found = found.or(Some((Fault::on(FaultKind::EncoderRunaway, axis), v)));
-                    }
-                } else {
-                    w.runaway = 0;
-                }
+                    FaultKind::EncoderJump
+                };
+                found = Some((Fault::on(kind, axis), d2f));
             }
-            w.n2 = w.n1;
-            w.n1 = n;
-            w.primed = w.primed.saturating_add(1).min(2);
         }
+        if w.primed >= 1 {
+            // an effort change that must move the axis, and no count
+            if step != 0 {
+                w.u_ref = effort;
+                w.stuck = 0;
+            } else if (effort - w.u_ref).abs() >= l.stuck_effort {
+                w.stuck = w.stuck.saturating_add(1);
+            } else {
+                w.stuck = 0;
+            }
+            if w.stuck >= self.stuck_periods {
+                found = found.or(Some((Fault::on(FaultKind::EncoderStuck, axis), effort)));
+            }
+            // velocity growing against the effort
+            let against =
+                effort.abs() >= l.runaway_effort && effort * v < 0.0 && v.abs() >= l.runaway_speed;
+            if against {
+                if w.runaway == 0 {
+                    w.runaway_from = v.abs();
+                }
+                w.runaway = w.runaway.saturating_add(1);
+                if w.runaway >= self.runaway_periods && v.abs() > w.runaway_from {
+                    found = found.or(Some((Fault::on(FaultKind::EncoderRunaway, axis), v)));
+                }
+            } else {
+                w.runaway = 0;
+            }
+        }
+        w.step1 = step;
+        w.primed = if w.primed >= 2 { 2 } else { w.primed + 1 };
         found
     }
 
@@ -478,5 +501,176 @@ impl Monitor {
     /// The configured maximum speed of `axis`, mm/s.
     pub fn vel_max(&self, axis: usize) -> f32 {
         self.lim[axis].vel_max
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::presets::gantry::{GANTRY_AMPLIFIERS, GANTRY_SAFETY};
+    use proptest::prelude::*;
+
+    /// The encoder checks as they were written on wide `i64` counts (the history two
+    /// counts, 64-bit differences, `i64 -> f32` conversion): the reference the `i32`
+    /// step version must agree with.
+    struct CountsModel {
+        n1: [i64; AXES],
+        n2: [i64; AXES],
+        primed: [u8; AXES],
+        stuck: [u32; AXES],
+        u_ref: [f32; AXES],
+        runaway: [u32; AXES],
+        runaway_from: [f32; AXES],
+    }
+
+    impl CountsModel {
+        fn new() -> Self {
+            Self {
+                n1: [0; AXES],
+                n2: [0; AXES],
+                primed: [0; AXES],
+                stuck: [0; AXES],
+                u_ref: [0.0; AXES],
+                runaway: [0; AXES],
+                runaway_from: [0.0; AXES],
+            }
+        }
+
+        fn check(
+            &mut self,
+            m: &Monitor,
+            counts: &[i64; AXES],
+            vel: &[f32; AXES],
+            effort: &[f32; AXES],
+        ) -> Option<(Fault, f32)> {
+            let mut found = None;
+            for i in 0..AXES {
+                let l = &m.lim[i];
+                let (n, axis) = (counts[i], Axis::ALL[i]);
+                let step = n.saturating_sub(self.n1[i]);
+                if self.primed[i] >= 2 {
+                    let d2 = step.saturating_sub(self.n1[i].saturating_sub(self.n2[i]));
+                    let d2f = d2 as f32;
+                    if !(d2f.abs() <= l.jump_counts) {
+                        let kind = if step == 0 {
+                            FaultKind::EncoderStuck
+                        } else {
+                            FaultKind::EncoderJump
+                        };
+                        found = found.or(Some((Fault::on(kind, axis), d2f)));
+                    }
+                }
+                if self.primed[i] >= 1 {
+                    if step != 0 {
+                        self.u_ref[i] = effort[i];
+                        self.stuck[i] = 0;
+                    } else if (effort[i] - self.u_ref[i]).abs() >= l.stuck_effort {
+                        self.stuck[i] = self.stuck[i].saturating_add(1);
+                    } else {
+                        self.stuck[i] = 0;
+                    }
+                    if self.stuck[i] >= m.stuck_periods {
+                        found =
+                            found.or(Some((Fault::on(FaultKind::EncoderStuck, axis), effort[i])));
+                    }
+                    let v = vel[i];
+                    let against = effort[i].abs() >= l.runaway_effort
+                        && effort[i] * v < 0.0
+                        && v.abs() >= l.runaway_speed;
+                    if against {
+                        if self.runaway[i] == 0 {
+                            self.runaway_from[i] = v.abs();
+                        }
+                        self.runaway[i] = self.runaway[i].saturating_add(1);
+                        if self.runaway[i] >= m.runaway_periods && v.abs() > self.runaway_from[i] {
+                            found = found.or(Some((Fault::on(FaultKind::EncoderRunaway, axis), v)));
+                        }
+                    } else {
+                        self.runaway[i] = 0;
+                    }
+                }
+                self.n2[i] = self.n1[i];
+                self.n1[i] = n;
+                self.primed[i] = self.primed[i].saturating_add(1).min(2);
+            }
+            found
+        }
+    }
+
+    proptest::proptest! {
+        /// Fed the counts of `WideCounter`s (32-bit registers with every delta a counter
+        /// can show, 16-bit ones, long runs of zero steps), the step version reports
+        /// exactly the faults, in the same periods, with the same values as the version
+        /// on 64-bit counts.
+        #[test]
+        fn step_checks_equal_the_checks_on_wide_counts(
+            deltas in proptest::collection::vec(
+                proptest::prop_oneof![
+                    3 => -3i64..=3,
+                    1 => Just(0i64),
+                    1 => -40i64..=40,
+                    1 => proptest::num::i32::ANY.prop_map(i64::from),
+                ],
+                3 * 60,
+            ),
+            efforts in proptest::collection::vec(-400.0f32..400.0, 60),
+            vels in proptest::collection::vec(-600.0f32..600.0, 60),
+            start in proptest::num::i64::ANY,
+        ) {
+            use crate::estimator::{CounterWidth, WideCounter};
+            let full_scale = GANTRY_AMPLIFIERS.map(|a| a.full_scale);
+            let mut m = Monitor::new(
+                &SafetyConfig::with_axes(GANTRY_SAFETY), [1600.0; AXES], full_scale, 1.0e-4,
+            ).unwrap();
+            let mut model = CountsModel::new();
+            let widths = [CounterWidth::Bits32, CounterWidth::Bits16, CounterWidth::Bits32];
+            let mut raw = [0u32; AXES];
+            // far from the origin: the 64-bit counts do not fit i32, their steps do
+            let starts = [start / 4, 0, -start / 4];
+            let mut counters = [0, 1, 2].map(|i| WideCounter::new(widths[i], 0, starts[i]));
+            for k in 0..60 {
+                let mut counts = [0i64; AXES];
+                let mut steps = [0i32; AXES];
+                for i in 0..AXES {
+                    // a 16-bit counter shows deltas within ±2^15 only
+                    let d = if i == 1 { deltas[3 * k + i].clamp(-32_768, 32_767) } else {
+                        deltas[3 * k + i]
+                    };
+                    raw[i] = raw[i].wrapping_add(d as u32);
+                    counts[i] = counters[i].update(raw[i]);
+                    steps[i] = counters[i].step();
+                }
+                let effort = [efforts[k], -efforts[k], 0.5 * efforts[k]];
+                let vel = [vels[k], 0.1 * vels[k], -vels[k]];
+                let a = m.check_encoders(&steps, &vel, &effort);
+                let b = model.check(&m, &counts, &vel, &effort);
+                prop_assert_eq!(a, b, "period {}", k);
+            }
+        }
+    }
+
+    #[test]
+    fn a_jump_and_a_stop_are_found_in_the_period_they_happen() {
+        let full_scale = GANTRY_AMPLIFIERS.map(|a| a.full_scale);
+        let mut m = Monitor::new(
+            &SafetyConfig::with_axes(GANTRY_SAFETY),
+            [1600.0; AXES],
+            full_scale,
+            1.0e-4,
+        )
+        .unwrap();
+        let (v, u) = ([0.0; AXES], [0.0; AXES]);
+        // steady motion at 3 counts per period on X
+        for _ in 0..3 {
+            assert_eq!(m.check_encoders(&[3, 0, 0], &v, &u), None);
+        }
+        // a 40-count jump: second difference 37 counts/period²
+        let f = m.check_encoders(&[40, 0, 0], &v, &u);
+        assert_eq!(f, Some((Fault::on(FaultKind::EncoderJump, Axis::X), 37.0)));
+        // the largest i32 steps of opposite sign: the second difference overflows i32
+        // and is still exact
+        let f = m.check_encoders(&[i32::MIN, 0, 0], &v, &u);
+        let d2 = (i64::from(i32::MIN) - 40) as f32;
+        assert_eq!(f, Some((Fault::on(FaultKind::EncoderJump, Axis::X), d2)));
     }
 }

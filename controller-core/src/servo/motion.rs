@@ -180,15 +180,20 @@ pub fn sample<R: Real>(
             };
             // after the path's duration its point at that time is held
             let held_at = end.filter(|e| k > *e);
-            let mut r = traj.sample(clock.time(held_at.unwrap_or(k)));
-            if held_at.is_some() {
-                r.vel = Vec3::zero();
-                r.acc = Vec3::zero();
-            }
+            let t = clock.time(k);
+            let mut r = match held_at {
+                None => traj.sample(t),
+                Some(e) => {
+                    let mut r = traj.sample(clock.time(e));
+                    r.vel = Vec3::zero();
+                    r.acc = Vec3::zero();
+                    r
+                }
+            };
             if let Some(o) = origin {
                 r.pos = r.pos + o;
             }
-            (r, clock.time(k), held_at.is_some())
+            (r, t, held_at.is_some())
         }
     }
 }

@@ -11,8 +11,11 @@
 //! - [`Law3`]: one 3-axis controller step with one law on every axis, no coupling;
 //! - [`Estimator3`]: the estimator bank as the servo step runs it;
 //! - [`ServoPeriod`]: the whole control period as the board's interrupt runs it
-//!   ([`Servo::period`] with the board's configuration, `presets::board`).
+//!   ([`Servo::period`] with the board's configuration, `presets::board`);
+//! - [`parts`]: the blocks of that period one by one (`servo_part_*`).
 #![no_std]
+
+pub mod parts;
 
 use controller_core::axes::AXES;
 use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, Measured};
@@ -262,7 +265,7 @@ pub struct StubIo {
 impl StubIo {
     /// The board's helix from the origin, as the encoders would count it with the stub's
     /// error, at the board's rate and 1600 counts/mm (Z on its 16-bit timer).
-    fn new() -> Option<Self> {
+    pub(crate) fn new() -> Option<Self> {
         let cfg = servo_config(BOARD_RATE_HZ);
         let traj = BOARD_PATH.path.build().ok()?;
         let p0 = traj.sample(0.0).pos;
@@ -289,7 +292,7 @@ impl StubIo {
         })
     }
 
-    fn boot_registers(&mut self) -> [u32; AXES] {
+    pub(crate) fn boot_registers(&mut self) -> [u32; AXES] {
         self.next = 1;
         self.raw[0]
     }

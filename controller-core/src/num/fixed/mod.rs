@@ -18,7 +18,7 @@
 
 pub mod trig;
 
-use crate::num::powers::{cbrt_raw, div_raw, inv_cbrt_raw};
+use crate::num::powers::{cbrt_raw, div_by_raw, div_raw, inv_cbrt_raw, RawDivisor};
 use crate::{Exponent, Real};
 use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 use fixed::types::{I16F16, I32F32};
@@ -179,6 +179,21 @@ macro_rules! impl_fx {
                     Some(q) if q <= <$raw>::MAX as u64 => Self::from_mag(q, negative),
                     _ => fallback,
                 }
+            }
+
+            /// One reciprocal of `d` for both quotients: exactly two `div_or` calls.
+            fn div2_or(a: Self, b: Self, d: Self, fallback: Self) -> (Self, Self) {
+                let Some(div) = RawDivisor::new(d.mag()) else {
+                    return (fallback, fallback);
+                };
+                let q = |x: Self| {
+                    let negative = (x.to_bits() < 0) != (d.to_bits() < 0);
+                    match div_by_raw(x.mag(), &div, $frac) {
+                        Some(q) if q <= <$raw>::MAX as u64 => Self::from_mag(q, negative),
+                        _ => fallback,
+                    }
+                };
+                (q(a), q(b))
             }
 
             fn cbrt(self) -> Self {
@@ -342,5 +357,32 @@ mod tests {
             "negative exponent floors the base"
         );
         assert_eq!(FxQ16::from_f32(-27.0).cbrt().to_f32(), -3.0);
+    }
+
+    proptest::proptest! {
+        /// One shared reciprocal gives exactly the two guarded divisions (any bits).
+        #[test]
+        fn shared_divisor_is_bit_identical_q32(a: i64, b: i64, d: i64, fb: i64) {
+            let f = FxQ32::from_bits;
+            let (qa, qb) = FxQ32::div2_or(f(a), f(b), f(d), f(fb));
+            proptest::prop_assert_eq!(qa, f(a).div_or(f(d), f(fb)));
+            proptest::prop_assert_eq!(qb, f(b).div_or(f(d), f(fb)));
+        }
+
+        #[test]
+        fn shared_divisor_is_bit_identical_q16(a: i32, b: i32, d: i32, fb: i32) {
+            let f = FxQ16::from_bits;
+            let (qa, qb) = FxQ16::div2_or(f(a), f(b), f(d), f(fb));
+            proptest::prop_assert_eq!(qa, f(a).div_or(f(d), f(fb)));
+            proptest::prop_assert_eq!(qb, f(b).div_or(f(d), f(fb)));
+        }
+
+        /// ... and for the divisors of the coupling (|d|² of a path direction).
+        #[test]
+        fn shared_divisor_is_bit_identical_small(a in -1.0e6f64..1.0e6, d in 1.0e-9f64..1.0e7) {
+            let (x, n2) = (FxQ32::from_f64(a), FxQ32::from_f64(d));
+            let (q, _) = FxQ32::div2_or(x, x, n2, FxQ32::ZERO);
+            proptest::prop_assert_eq!(q, x.div_or(n2, FxQ32::ZERO));
+        }
     }
 }

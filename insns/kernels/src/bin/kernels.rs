@@ -1,4 +1,5 @@
-//! The Cortex-M4 ELF that `cargo insns` runs in the emulator.
+//! The Cortex-M4 ELF (and the Cortex-M3 one, `thumbv7m-none-eabi`) that `cargo insns`
+//! runs in the emulator.
 //!
 //! Every kernel is exported as two C functions, `insns_setup_<name>()` (builds the state
 //! in a static slot; not counted) and `insns_kernel_<name>()` (one counted step). The
@@ -12,9 +13,8 @@
 use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
 use cortex_m_rt::entry;
-use insns_kernels::{replay, Dsmc3, Estimator3, Law3, LawKind, ServoPeriod, REPLAY_IN, REPLAY_OUT};
+use insns_kernels::{replay, Dsmc3, REPLAY_IN, REPLAY_OUT};
 
-use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
 use controller_core::num::fixed::{FxQ16, FxQ32};
 use controller_core::LibmF32;
 
@@ -63,56 +63,104 @@ macro_rules! kernel {
     };
 }
 
-kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
-kernel!(
-    dsmc3_f32_libm,
-    Dsmc3<LibmF32>,
-    Dsmc3::<LibmF32>::setup(),
-    |k| k.step()
-);
-kernel!(dsmc3_fixed, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k
-    .step());
-kernel!(
-    dsmc3_fixed_q16,
-    Dsmc3<FxQ16>,
-    Dsmc3::<FxQ16>::setup(),
-    |k| k.step()
-);
-kernel!(
-    estimator_pll,
-    Estimator3<f32>,
-    Estimator3::<f32>::setup(EstimatorConfig::Pll(PAPER_SIM_PLL)),
-    |k| k.step()
-);
-kernel!(
-    estimator_kalman,
-    Estimator3<f32>,
-    Estimator3::<f32>::setup(EstimatorConfig::Kalman(PAPER_SIM_KALMAN)),
-    |k| k.step()
-);
+/// The Cortex-M4F kernels (`thumbv7em-none-eabihf`): the control period and its parts.
+#[cfg(target_abi = "eabihf")]
+mod cortex_m4 {
+    use super::*;
+    use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
+    use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
+    use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
 
-kernel!(law_pid3, Law3<f32>, Law3::<f32>::setup(LawKind::Pid), |k| k
-    .step());
-kernel!(
-    law_dsmc3,
-    Law3<f32>,
-    Law3::<f32>::setup(LawKind::Dsmc),
-    |k| k.step()
-);
-kernel!(
-    law_dob_smc3,
-    Law3<f32>,
-    Law3::<f32>::setup(LawKind::DobSmc),
-    |k| k.step()
-);
-kernel!(
-    law_adaptive_smc3,
-    Law3<f32>,
-    Law3::<f32>::setup(LawKind::AdaptiveSmc),
-    |k| k.step()
-);
-kernel!(servo_period, ServoPeriod, ServoPeriod::setup(), |k| k
-    .step());
+    kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
+    kernel!(
+        dsmc3_f32_libm,
+        Dsmc3<LibmF32>,
+        Dsmc3::<LibmF32>::setup(),
+        |k| k.step()
+    );
+    kernel!(dsmc3_fixed, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k
+        .step());
+    kernel!(
+        dsmc3_fixed_q16,
+        Dsmc3<FxQ16>,
+        Dsmc3::<FxQ16>::setup(),
+        |k| k.step()
+    );
+    kernel!(
+        estimator_pll,
+        Estimator3<f32>,
+        Estimator3::<f32>::setup(EstimatorConfig::Pll(PAPER_SIM_PLL)),
+        |k| k.step()
+    );
+    kernel!(
+        estimator_kalman,
+        Estimator3<f32>,
+        Estimator3::<f32>::setup(EstimatorConfig::Kalman(PAPER_SIM_KALMAN)),
+        |k| k.step()
+    );
+
+    kernel!(law_pid3, Law3<f32>, Law3::<f32>::setup(LawKind::Pid), |k| k
+        .step());
+    kernel!(
+        law_dsmc3,
+        Law3<f32>,
+        Law3::<f32>::setup(LawKind::Dsmc),
+        |k| k.step()
+    );
+    kernel!(
+        law_dob_smc3,
+        Law3<f32>,
+        Law3::<f32>::setup(LawKind::DobSmc),
+        |k| k.step()
+    );
+    kernel!(
+        law_adaptive_smc3,
+        Law3<f32>,
+        Law3::<f32>::setup(LawKind::AdaptiveSmc),
+        |k| k.step()
+    );
+    kernel!(servo_period, ServoPeriod, ServoPeriod::setup(), |k| k
+        .step());
+    kernel!(
+        servo_part_estimators,
+        PartEstimators,
+        PartEstimators::setup(),
+        |k| k.step()
+    );
+    kernel!(
+        servo_part_reference,
+        PartReference,
+        PartReference::setup(),
+        |k| k.step()
+    );
+    kernel!(
+        servo_part_coupling,
+        PartCoupling,
+        PartCoupling::setup(),
+        |k| k.step()
+    );
+    kernel!(servo_part_laws, PartLaws, PartLaws::setup(), |k| k.step());
+    kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
+        .step());
+}
+
+/// The FPU-less Cortex-M3 kernels (`thumbv7m-none-eabi`, e.g. STM32F1): the 3-axis DSMC
+/// step in soft-float `f32` and in fixed point, names suffixed `_m3`.
+#[cfg(target_abi = "eabi")]
+mod cortex_m3 {
+    use super::*;
+
+    kernel!(dsmc3_f32_m3, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k
+        .step());
+    kernel!(dsmc3_fixed_m3, Dsmc3<FxQ32>, Dsmc3::<FxQ32>::setup(), |k| k
+        .step());
+    kernel!(
+        dsmc3_fixed_q16_m3,
+        Dsmc3<FxQ16>,
+        Dsmc3::<FxQ16>::setup(),
+        |k| k.step()
+    );
+}
 
 /// Replay `n` records from `inp` (REPLAY_IN f32 each) through the Q32.32 controller,
 /// writing REPLAY_OUT raw u64 per record to `out`. Returns the steps run.
