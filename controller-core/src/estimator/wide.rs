@@ -96,6 +96,12 @@ impl WideCounter {
     pub fn count(&self) -> i64 {
         self.total
     }
+
+    /// Move the count's origin: the count becomes `count - shift` (homing re-bases an
+    /// axis); the steps between readings are unchanged.
+    pub fn rebase(&mut self, shift: i64) {
+        self.total = self.total.saturating_sub(shift);
+    }
 }
 
 #[cfg(test)]

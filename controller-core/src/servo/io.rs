@@ -23,9 +23,6 @@ pub struct Inputs {
     /// The previous control period missed its deadline (the board's timer had already
     /// fired again when it ended).
     pub overrun: bool,
-    /// Per axis: the counter register captured at the encoder's index pulse, when one
-    /// came since the last period (homing with `use_index`).
-    pub index: [Option<u32>; AXES],
 }
 
 impl Inputs {
@@ -46,6 +43,13 @@ pub trait ServoIo<R> {
 
     /// Raw encoder counter registers, X, Y, Z (each meaningful in its timer's width).
     fn read_counters(&mut self) -> [u32; AXES];
+
+    /// Per axis: the counter register captured at the encoder's index pulse, when one
+    /// came since the last call (read only while homing on the index; `None` where the
+    /// encoder or the board has no index input).
+    fn read_index(&mut self) -> [Option<u32>; AXES] {
+        [None; AXES]
+    }
 
     /// Drives the axes with the (already saturated) efforts and turns the output stage on
     /// if it is off.

@@ -28,9 +28,9 @@
 //! the encoder check (`EncoderCheck`): the axis must follow a small effort in both
 //! directions, or the reset is refused. Which command is valid when: [`commands::check`].
 //!
-//! Coordinates: the servo works in machine coordinates, the wide encoder counts minus a
-//! per-axis origin that homing sets ([`homing`]); the encoder checks see the raw wide
-//! counts, so re-basing never looks like a jump. Soft limits ([`travel`]) apply to axes
+//! Coordinates: the servo works in machine coordinates, the wide encoder counts whose
+//! origin homing moves ([`homing`], [`WideCounter::rebase`]); the encoder checks see the
+//! steps between readings, so re-basing never looks like a jump. Soft limits ([`travel`]) apply to axes
 //! that are homed (or take no part in homing).
 //!
 //! Nothing here allocates, blocks, formats or panics; every number that reaches an output
@@ -196,9 +196,8 @@ pub struct Servo<R> {
     period_s: f64,
     clock: Clock<R>,
     dt: R,
+    /// Wide counts in machine coordinates (homing moves their origin).
     counters: [WideCounter; AXES],
-    /// Machine counts = wide counts - origin (homing sets it).
-    origin: [i64; AXES],
     count_len: [R; AXES],
     count_len_f32: [f32; AXES],
     counts_per_mm: [f32; AXES],
@@ -222,7 +221,10 @@ pub struct Servo<R> {
     identify_cfg: IdentifyConfig,
     identify: Option<IdentifyRun>,
     identify_outcome: Option<IdentifyOutcome>,
-    homed: [bool; AXES],
+    /// Axes homed since power-up (bit i = axis i); lost with an encoder fault.
+    homed: u8,
+    /// Axes that take no part in homing: referenced where they stand.
+    no_homing: u8,
     /// The host link is lost (a `LinkLost` fault's cause).
     link_down: bool,
     /// Periods the stop reference has been at rest.
@@ -299,12 +301,12 @@ impl<R: Real> Servo<R> {
         );
         let mut snapshot = Snapshot::boot();
         snapshot.model_missing = model_missing;
+        snapshot.homed = commands::axis_mask(cfg.homing.axes.map(|a| !a.enabled));
         Ok(Self {
             period_s,
             clock: Clock::new(cfg.rate_hz),
             dt: R::from_f64(period_s),
             counters,
-            origin: [0; AXES],
             count_len: count_len.map(R::from_f64),
             count_len_f32: count_len.map(|l| l as f32),
             counts_per_mm,
@@ -330,7 +332,8 @@ impl<R: Real> Servo<R> {
             identify_cfg: cfg.identify,
             identify: None,
             identify_outcome: None,
-            homed: [false; AXES],
+            homed: 0,
+            no_homing: commands::axis_mask(cfg.homing.axes.map(|a| !a.enabled)),
             link_down: false,
             rest_periods: 0,
             settle_periods: monitor::periods(
@@ -364,17 +367,12 @@ impl<R: Real> Servo<R> {
         if self.state.drives() {
             return Err(ReconfigureError::OutputsOn);
         }
-        let wide = self.counters.map(|c| c.count());
-        let mut next = Self::new(cfg, [0; AXES], wide).map_err(ReconfigureError::Config)?;
+        let counts = self.counters.map(|c| c.count());
+        let mut next = Self::new(cfg, [0; AXES], counts).map_err(ReconfigureError::Config)?;
         // the counters' register history, so that the next reading extends them as before
         next.counters = self.counters;
-        next.origin = self.origin;
-        let mut machine = wide;
-        for (m, o) in machine.iter_mut().zip(self.origin) {
-            *m -= o;
-        }
-        next.estimators.reset(machine);
         if next.counts_per_mm == self.counts_per_mm && next.homing_cfg == self.homing_cfg {
+            // the same encoders and switches: the origins still hold
             next.homed = self.homed;
         }
         next.faults = self.faults;
@@ -384,6 +382,7 @@ impl<R: Real> Servo<R> {
         let mut snap = self.snapshot;
         snap.model_missing = next.snapshot.model_missing;
         next.snapshot = snap;
+        next.publish_faults();
         *self = next;
         Ok(())
     }
@@ -414,8 +413,12 @@ impl<R: Real> Servo<R> {
 
     /// Per axis: homed (or taking no part in homing), so that its soft limits apply.
     pub fn referenced(&self, axis: usize) -> bool {
-        self.homed.get(axis).copied().unwrap_or(false)
-            || !self.homing_cfg.axes.get(axis).is_some_and(|a| a.enabled)
+        self.referenced_mask() & (1 << axis) != 0
+    }
+
+    /// [`Self::referenced`] of every axis as a bit set.
+    fn referenced_mask(&self) -> u8 {
+        self.homed | self.no_homing
     }
 
     /// Latch a fault the board found outside the servo step (a failed crystal, a
@@ -427,8 +430,7 @@ impl<R: Real> Servo<R> {
             self.state = ServoState::Fault;
             self.identify = None;
         }
-        self.snapshot.fault = self.faults.first();
-        self.snapshot.fault_bits = self.faults.bits();
+        self.publish_faults();
     }
 
     /// Fault injection for the fault matrix (simulator and QEMU test builds): corrupt the
@@ -464,6 +466,8 @@ impl<R: Real> Servo<R> {
     }
 
     /// Begin a controlled stop from `from`, ending in `then`.
+    #[cold]
+    #[inline(never)]
     fn begin_stop(&mut self, from: &RefSample<R>, then: ServoState) {
         self.motion = Motion::stop_from(from, &self.stop_decel);
         self.rest_periods = 0;
@@ -473,6 +477,8 @@ impl<R: Real> Servo<R> {
 
     /// Latch `f`; immediate faults switch the outputs off now, controlled ones start a stop
     /// from the current reference (`None` only for faults of the immediate category).
+    #[cold]
+    #[inline(never)]
     fn trip(&mut self, f: Fault, value: f32, reference: Option<&RefSample<R>>) {
         self.faults.record(FaultRecord {
             fault: f,
@@ -481,10 +487,11 @@ impl<R: Real> Servo<R> {
         });
         if f.kind.is_encoder() {
             // the position is no longer known for sure: home again
-            if let Some(h) = f.axis.and_then(|a| self.homed.get_mut(a.index())) {
-                *h = false;
+            if let Some(a) = f.axis {
+                self.homed &= !(1 << a.index());
             }
         }
+        self.publish_faults();
         let moving = matches!(
             self.state,
             ServoState::Idle | ServoState::Run | ServoState::Jog | ServoState::Homing
@@ -554,6 +561,8 @@ impl<R: Real> Servo<R> {
         self.motion = Motion::Hold(self.position_of(counts));
     }
 
+    #[cold]
+    #[inline(never)]
     fn apply_command(
         &mut self,
         c: &Command,
@@ -562,8 +571,6 @@ impl<R: Real> Servo<R> {
     ) -> Result<(), Refusal> {
         self.snapshot.inputs = *inputs;
         self.snapshot.state = self.state;
-        self.snapshot.fault_bits = self.faults.bits();
-        self.snapshot.homed = commands::axis_mask([0, 1, 2].map(|i| self.referenced(i)));
         commands::check(&self.snapshot, c)?;
         let here = || motion::sample(&self.motion, self.path.as_ref(), &self.clock).0;
         match (*c, self.state) {
@@ -601,6 +608,7 @@ impl<R: Real> Servo<R> {
                     }
                     None => {
                         self.faults.clear();
+                        self.publish_faults();
                         self.state = ServoState::Disabled;
                     }
                 }
@@ -623,11 +631,9 @@ impl<R: Real> Servo<R> {
                 let Some(run) = Homing::start(&self.homing_cfg, &pos) else {
                     return Err(Refusal::NoHoming);
                 };
-                for (i, h) in self.homed.iter_mut().enumerate() {
-                    if self.homing_cfg.axes[i].enabled {
-                        *h = false;
-                    }
-                }
+                // homing again: every homing axis must find its switch anew
+                self.homed = 0;
+                self.snapshot.homed = self.no_homing;
                 self.motion = Motion::Homing {
                     hold: here().pos,
                     run,
@@ -705,6 +711,8 @@ impl<R: Real> Servo<R> {
     }
 
     /// End the identification (aborted by the user when `aborted`), keeping its outcome.
+    #[cold]
+    #[inline(never)]
     fn end_identify(&mut self, aborted: bool) {
         if let Some(mut run) = self.identify.take() {
             if aborted && !run.finished() {
@@ -720,7 +728,14 @@ impl<R: Real> Servo<R> {
 
     /// Advance the jog or homing ramps for this period (before the reference is sampled);
     /// re-bases an axis when homing latched its switch.
-    fn step_manual(&mut self, inputs: &Inputs, counts: &mut [i64; AXES], wide: &[i64; AXES]) {
+    #[cold]
+    #[inline(never)]
+    fn step_manual(
+        &mut self,
+        inputs: &Inputs,
+        index: [Option<u32>; AXES],
+        counts: &mut [i64; AXES],
+    ) {
         let dt = self.period_s as f32;
         let bounds = self.jog_bounds();
         match &mut self.motion {
@@ -731,8 +746,7 @@ impl<R: Real> Servo<R> {
                 let inp = HomingInputs {
                     switch: inputs.limits[axis][side],
                     counts: counts[axis],
-                    index_counts: inputs.index[axis]
-                        .map(|raw| self.counters[axis].extend(raw) - self.origin[axis]),
+                    index_counts: index[axis].map(|raw| self.counters[axis].extend(raw)),
                 };
                 match run.step(&self.homing_cfg, &inp, self.count_len_f32[axis], dt) {
                     HomingEvent::Moving => {
@@ -751,8 +765,8 @@ impl<R: Real> Servo<R> {
                         let axis = axis.min(AXES - 1);
                         let target = libm::roundf(at_mm * self.counts_per_mm[axis]) as i64;
                         let shift = latched_counts - target;
-                        self.origin[axis] += shift;
-                        counts[axis] = wide[axis] - self.origin[axis];
+                        self.counters[axis].rebase(shift);
+                        counts[axis] = self.counters[axis].count();
                         let delta_mm = -(shift as f32) * self.count_len_f32[axis];
                         run.rebased(run.ramp.pos_mm + delta_mm);
                         hold[axis] = R::from_f32(run.ramp.pos_mm);
@@ -760,11 +774,11 @@ impl<R: Real> Servo<R> {
                         d[axis] = R::from_f32(delta_mm);
                         self.controller.shift_reference(d);
                         self.estimators.reset(*counts);
-                        self.homed[axis] = true;
+                        self.homed |= 1 << axis;
                     }
                     HomingEvent::Done => {
                         let i = run.axis().min(AXES - 1);
-                        self.homed[i] = true;
+                        self.homed |= 1 << i;
                         hold[i] = R::from_f32(run.ramp.pos_mm);
                         let h = *hold;
                         self.motion = Motion::Hold(h);
@@ -779,6 +793,7 @@ impl<R: Real> Servo<R> {
             }
             _ => {}
         }
+        self.publish_faults();
     }
 
     /// One control period. See the module documentation for the sequence. Commands that
@@ -786,7 +801,6 @@ impl<R: Real> Servo<R> {
     /// ([`Snapshot::refused`]).
     pub fn period<IO: ServoIo<R>>(&mut self, io: &mut IO, commands: &[Command]) -> &Snapshot {
         self.snapshot.period = self.snapshot.period.wrapping_add(1);
-        self.snapshot.refused = None;
 
         // 1. Safety first: hard inputs and commands decide before anything is computed.
         let inputs = io.read_inputs();
@@ -799,16 +813,11 @@ impl<R: Real> Servo<R> {
             }
         }
         if self.state.drives() {
-            let homing = match &self.motion {
-                Motion::Homing { run, .. } if self.state == ServoState::Homing => Some(*run),
-                _ => None,
+            let tripped = if self.state == ServoState::Homing {
+                self.homing_limit(&inputs)
+            } else {
+                inputs.first_limit()
             };
-            let tripped = (0..AXES).find_map(|i| {
-                (0..2).find_map(|side| {
-                    let masked = homing.is_some_and(|h| h.masks_switch(&self.homing_cfg, i, side));
-                    (inputs.limits[i][side] && !masked).then_some((i, side == 1))
-                })
-            });
             if let Some((i, high)) = tripped {
                 let kind = if high {
                     FaultKind::LimitMax
@@ -824,20 +833,19 @@ impl<R: Real> Servo<R> {
 
         // 2. Wide and machine counts.
         let raw = io.read_counters();
-        let mut wide = [0i64; AXES];
+        let mut counts = [0i64; AXES];
         // the steps of the wide counts (exact i32 counter deltas) for the encoder checks
         let mut steps = [0i32; AXES];
         for i in 0..AXES {
-            wide[i] = self.counters[i].update(raw[i]);
+            counts[i] = self.counters[i].update(raw[i]);
             steps[i] = self.counters[i].step();
         }
-        let mut counts = [0i64; AXES];
-        for i in 0..AXES {
-            counts[i] = wide[i] - self.origin[i];
-        }
-        for c in commands {
-            if let Err(why) = self.apply_command(c, &inputs, &counts) {
-                self.snapshot.refused = Some((*c, why));
+        if !commands.is_empty() {
+            self.snapshot.refused = None;
+            for c in commands {
+                if let Err(why) = self.apply_command(c, &inputs, &counts) {
+                    self.snapshot.refused = Some((*c, why));
+                }
             }
         }
         if !self.state.drives() {
@@ -845,8 +853,13 @@ impl<R: Real> Servo<R> {
         }
 
         // 3. Reference.
-        if self.state.drives() {
-            self.step_manual(&inputs, &mut counts, &wide);
+        if matches!(self.state, ServoState::Jog | ServoState::Homing) {
+            let index = if matches!(self.motion, Motion::Homing { .. }) {
+                io.read_index()
+            } else {
+                [None; AXES]
+            };
+            self.step_manual(&inputs, index, &mut counts);
         }
         let (reference, motion_t, at_rest) =
             motion::sample(&self.motion, self.path.as_ref(), &self.clock);
@@ -879,12 +892,8 @@ impl<R: Real> Servo<R> {
                 }
                 let mut reference = reference;
                 let identifying = self.state == ServoState::Identify;
-                if let (true, Some(run)) = (identifying, &self.identify) {
-                    // the identified axis has no reference: its law sees no error
-                    let i = run.axis.min(AXES - 1);
-                    reference.pos[i] = meas.pos[i];
-                    reference.vel[i] = meas.vel[i];
-                    reference.acc[i] = R::ZERO;
+                if identifying {
+                    self.identify_reference(&mut reference, &meas);
                 }
                 self.controller
                     .evaluate_into(&reference, &meas, &mut self.out);
@@ -906,22 +915,8 @@ impl<R: Real> Servo<R> {
                 if identifying && self.state.drives() {
                     u = self.identify_effort(u, &meas, &vel);
                 }
-                // the axis being homed works beyond its travel, on its switch
-                let homing_axis = match &self.motion {
-                    Motion::Homing { run, .. } => Some(run.axis()),
-                    _ => None,
-                };
-                let referenced = [0, 1, 2].map(|i| self.referenced(i) && homing_axis != Some(i));
-                if self.state.drives() && !identifying {
-                    let r = reference.pos.to_array().map(Real::to_f32);
-                    let checked = [0, 1, 2].map(|i| if referenced[i] { r[i] } else { 0.0 });
-                    if let Some((i, p)) = self.travel.violation(&checked) {
-                        self.trip(
-                            Fault::on(FaultKind::SoftLimit, Axis::ALL[i]),
-                            p,
-                            Some(&reference),
-                        );
-                    }
+                if self.referenced_mask() != 0 && self.state.drives() && !identifying {
+                    self.check_soft_limits(&reference);
                 }
                 if self.state.drives() && !identifying {
                     let tracking = self.out.tracking.to_array().map(Real::to_f32);
@@ -938,13 +933,16 @@ impl<R: Real> Servo<R> {
                                 period: self.snapshot.period,
                                 value: v,
                             });
+                            self.publish_faults();
                             self.state = ServoState::Fault;
                         } else {
                             self.trip(f, v, Some(&reference));
                         }
                     }
                 }
-                self.finish_motion(&reference, at_rest, &vel);
+                if at_rest && matches!(self.state, ServoState::Stopping | ServoState::Jog) {
+                    self.finish_motion(&reference, &vel);
+                }
                 if self.state.drives() {
                     io.write_outputs(&u.to_array());
                     applied = u;
@@ -971,23 +969,13 @@ impl<R: Real> Servo<R> {
         self.estimators.applied(applied);
 
         // 6. Telemetry (plain copies).
-        let homed = commands::axis_mask([0, 1, 2].map(|i| self.referenced(i)));
-        let progress = match (&self.identify, &self.motion) {
-            (Some(run), _) => run.last().progress,
-            (None, Motion::Homing { run, .. }) => {
-                let total = self.homing_cfg.axes.iter().filter(|a| a.enabled).count();
-                run.axes_done().count_ones() as f32 / total.max(1) as f32
-            }
-            _ => 0.0,
-        };
+        if matches!(self.state, ServoState::Homing | ServoState::Identify) {
+            self.snapshot.progress = self.progress();
+        }
         let s = &mut self.snapshot;
         s.motion_t_s = motion_t.to_f32();
         s.state = self.state;
-        s.fault = self.faults.first();
-        s.fault_bits = self.faults.bits();
         s.inputs = inputs;
-        s.homed = homed;
-        s.progress = progress;
         s.pos = meas.pos.to_array().map(Real::to_f32);
         s.vel = vel;
         s.counts = counts;
@@ -1009,6 +997,8 @@ impl<R: Real> Servo<R> {
 
     /// The identified axis' effort this period (the others: their laws' when holding,
     /// else zero); ends the identification when it is finished.
+    #[cold]
+    #[inline(never)]
     fn identify_effort(
         &mut self,
         mut u: Vec3<R>,
@@ -1052,11 +1042,82 @@ impl<R: Real> Servo<R> {
         u
     }
 
+    /// The first active limit switch while homing: the homed axis' switch on its homing
+    /// side is the sensor, not a fault.
+    #[cold]
+    #[inline(never)]
+    fn homing_limit(&self, inputs: &Inputs) -> Option<(usize, bool)> {
+        let Motion::Homing { run, .. } = &self.motion else {
+            return inputs.first_limit();
+        };
+        (0..AXES).find_map(|i| {
+            (0..2).find_map(|side| {
+                let sensor = run.masks_switch(&self.homing_cfg, i, side);
+                (inputs.limits[i][side] && !sensor).then_some((i, side == 1))
+            })
+        })
+    }
+
+    /// Publish the latched faults and the homed axes in the snapshot (they change only
+    /// here and there; copying them every period would cost the control interrupt).
+    fn publish_faults(&mut self) {
+        self.snapshot.fault = self.faults.first();
+        self.snapshot.fault_bits = self.faults.bits();
+        self.snapshot.homed = self.referenced_mask();
+    }
+
+    /// The identified axis has no reference: its law sees no error.
+    #[cold]
+    #[inline(never)]
+    fn identify_reference(&self, reference: &mut RefSample<R>, meas: &Measured<R>) {
+        if let Some(run) = &self.identify {
+            let i = run.axis.min(AXES - 1);
+            reference.pos[i] = meas.pos[i];
+            reference.vel[i] = meas.vel[i];
+            reference.acc[i] = R::ZERO;
+        }
+    }
+
+    /// Progress of homing or identification, 0..=1.
+    #[cold]
+    #[inline(never)]
+    fn progress(&self) -> f32 {
+        match (&self.identify, &self.motion) {
+            (Some(run), _) => run.last().progress,
+            (None, Motion::Homing { run, .. }) => {
+                let total = (!self.no_homing & 0b111).count_ones();
+                run.axes_done().count_ones() as f32 / total.max(1) as f32
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// The soft-limit check of this period's reference: the referenced axes, but not the
+    /// one being homed (it works beyond its travel, on its switch).
+    #[cold]
+    #[inline(never)]
+    fn check_soft_limits(&mut self, reference: &RefSample<R>) {
+        let homing_bit = match &self.motion {
+            Motion::Homing { run, .. } => 1u8 << run.axis(),
+            _ => 0,
+        };
+        let checked = self.referenced_mask() & !homing_bit;
+        if let Some((i, p)) = self.travel.violation_of(&reference.pos, checked) {
+            self.trip(
+                Fault::on(FaultKind::SoftLimit, Axis::ALL[i]),
+                p,
+                Some(reference),
+            );
+        }
+    }
+
     /// End a stop once at rest and settled; end a jog once at rest with nothing
     /// commanded.
-    fn finish_motion(&mut self, reference: &RefSample<R>, at_rest: bool, vel: &[f32; AXES]) {
+    #[cold]
+    #[inline(never)]
+    fn finish_motion(&mut self, reference: &RefSample<R>, vel: &[f32; AXES]) {
         match self.state {
-            ServoState::Stopping if at_rest => {
+            ServoState::Stopping => {
                 self.rest_periods = self.rest_periods.saturating_add(1);
                 let settled = self.rest_periods >= self.settle_periods
                     && vel
@@ -1070,7 +1131,7 @@ impl<R: Real> Servo<R> {
                     }
                 }
             }
-            ServoState::Jog if at_rest => {
+            ServoState::Jog => {
                 self.state = ServoState::Idle;
                 self.motion = Motion::Hold(reference.pos);
             }
@@ -1079,6 +1140,8 @@ impl<R: Real> Servo<R> {
     }
 
     /// One period of the encoder check: the effort on the checked axis (others zero).
+    #[cold]
+    #[inline(never)]
     fn encoder_check(&mut self, counts: &[i64; AXES]) -> Vec3<R> {
         let mut u = Vec3::zero();
         let Some(mut c) = self.check else {
@@ -1116,6 +1179,7 @@ impl<R: Real> Servo<R> {
                     None => {
                         self.check = None;
                         self.faults.clear();
+                        self.publish_faults();
                         self.state = ServoState::Disabled;
                         return u;
                     }

@@ -27,9 +27,9 @@ pub struct Snapshot {
     pub homed: u8,
     /// Axes whose model-based law has no known model (arming is refused).
     pub model_missing: u8,
-    /// A command refused this period, with the reason.
+    /// A command refused in the last period that applied commands, with the reason.
     pub refused: Option<(Command, Refusal)>,
-    /// Progress of homing or identification, 0..=1.
+    /// Progress of the current (or last) homing or identification, 0..=1.
     pub progress: f32,
     /// Measured positions (encoder counts converted to length).
     pub pos: [f32; AXES],
@@ -65,7 +65,6 @@ impl Snapshot {
                 limits: [[false; 2]; AXES],
                 amp_fault: [false; AXES],
                 overrun: false,
-                index: [None; AXES],
             },
             homed: 0,
             model_missing: 0,

@@ -93,6 +93,23 @@ impl TravelConfig {
         Ok(())
     }
 
+    /// [`Self::violation`] of the axes in `mask` (bit i = axis i) of a reference.
+    pub fn violation_of<R: crate::Real>(
+        &self,
+        pos: &crate::Vec3<R>,
+        mask: u8,
+    ) -> Option<(usize, f32)> {
+        (0..AXES).find_map(|i| {
+            if mask & (1 << i) == 0 {
+                return None;
+            }
+            let t = self.axes[i];
+            let p = pos[i].to_f32();
+            let inside = p >= t.min_mm - self.tolerance_mm && p <= t.max_mm + self.tolerance_mm;
+            (!inside).then_some((i, p))
+        })
+    }
+
     /// The first axis (and its position) outside the travel by more than the tolerance.
     pub fn violation(&self, pos_mm: &[f32; AXES]) -> Option<(usize, f32)> {
         (0..AXES).find_map(|i| {

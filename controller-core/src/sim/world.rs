@@ -194,6 +194,8 @@ pub struct World {
     pending: [f64; AXES],
     /// Counts at the previous reading (index crossings).
     last_counts: [i64; AXES],
+    /// The index pulse of the last period, as the counter captured it.
+    index: [Option<u32>; AXES],
 }
 
 /// Faults injected into the simulated machine (fault matrix, tests).
@@ -304,6 +306,7 @@ impl World {
             noise: [0.0; AXES],
             pending: [0.0; AXES],
             last_counts: [0; AXES],
+            index: [None; AXES],
         };
         if cfg.imperfections.command_delay_periods > 1 {
             return Err(ConfigError::OutOfRange(
@@ -372,7 +375,7 @@ impl World {
                 } else {
                     None
                 };
-                inp.index[i] = crossed.map(|m| (m as u32) & self.counter_mask[i]);
+                self.index[i] = crossed.map(|m| (m as u32) & self.counter_mask[i]);
             }
         }
         self.last_counts = counts;
@@ -548,6 +551,10 @@ impl<R: Real> ServoIo<R> for World {
 
     fn read_counters(&mut self) -> [u32; AXES] {
         self.counter_registers()
+    }
+
+    fn read_index(&mut self) -> [Option<u32>; AXES] {
+        self.index
     }
 
     fn write_outputs(&mut self, effort: &[R; AXES]) {
