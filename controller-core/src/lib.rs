@@ -20,6 +20,7 @@
 //! - [`estimator`]: velocity from quantised positions (tracking observer, spec 6).
 //! - [`gantry`]: the complete 3-axis control step the firmware runs every period.
 //! - [`metrics`]: ITSE, IAE, contour error statistics, chattering.
+//! - [`motion`]: the segment planner (blending, look-ahead, jerk-limited feed, hold).
 //! - [`params`]: named parameter presets with their sources.
 //! - Seed methods (patent, XY-table paper): [`physical_plant`] (friction, load, torque
 //!   limit), [`dob_smc`], [`adaptive_smc`], [`variable_gain_ccc`], combined per axis by
@@ -38,6 +39,7 @@ pub mod fixed;
 pub mod gantry;
 pub mod law;
 pub mod metrics;
+pub mod motion;
 pub mod ode;
 pub mod params;
 pub mod physical_plant;

@@ -1,0 +1,402 @@
+//! The executor: the half of the planner that runs in the control interrupt. Each period it
+//! takes one precomputed step (span, σ, σ̇, σ̈) and evaluates the span polynomial into the
+//! reference position, velocity, acceleration and tangent. It never loops over the queue:
+//! the work per call is one polynomial evaluation plus a bounded number of channel pops.
+//!
+//! It also owns the real-time requests, because they must act within one period:
+//! * **hold**: stop along the path with the time-optimal jerk-limited profile, from the
+//!   current speed and acceleration (continuous in position, velocity and acceleration),
+//!   using the braking limits the planner attached to the last step;
+//! * **resume**: continue with the planner's steps, which restart from exactly the stop
+//!   point at zero speed;
+//! * **abort**: the same stop, after which the planner clears the program;
+//! * **underrun** (no step while moving, e.g. the planner task starved): the same stop,
+//!   then continue automatically when steps arrive again.
+//!
+//! After each of these stops the executor starts a new *epoch*: steps of the old epoch
+//! still in the channel are dropped, and the planner, seeing the new epoch in
+//! [`ExecutorStatus`], restarts its profile from the reported stop point.
+
+use super::channel::Source;
+use super::geometry::V3;
+use super::profile::{integrate, stop_jerk};
+use super::span::Span;
+use crate::Vec3;
+
+/// One control period of the planned feed profile.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Step {
+    /// Profile epoch (see the module docs).
+    pub epoch: u16,
+    /// Span the state lies on.
+    pub span_seq: u32,
+    /// Local path parameter on that span (mm).
+    pub sigma_mm: f32,
+    /// Path speed σ̇ (mm/s) and acceleration σ̈ (mm/s²).
+    pub vel_mm_s: f32,
+    pub acc_mm_s2: f32,
+    /// Path acceleration and jerk limits a stop from this state may use.
+    pub stop_acc_mm_s2: f32,
+    pub stop_jerk_mm_s3: f32,
+}
+
+/// Executor state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExecMode {
+    /// At rest with nothing to do.
+    #[default]
+    Idle,
+    /// Following the planner's steps.
+    Running,
+    /// Stopping on its own (hold, abort or underrun).
+    Stopping,
+    /// Stopped by a hold: waits for resume.
+    Held,
+}
+
+/// Why the executor stopped on its own.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StopReason {
+    #[default]
+    None,
+    Hold,
+    Abort,
+    Underrun,
+}
+
+/// What the planner needs to know of the executor; published every period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExecutorStatus {
+    pub epoch: u16,
+    pub path_gen: u16,
+    pub span_seq: u32,
+    pub sigma_mm: f32,
+    pub mode: ExecMode,
+    pub reason: StopReason,
+    /// Reference position of the last sample (mm).
+    pub pos_mm: [f32; 3],
+    /// Tag of the segment being executed.
+    pub tag: u32,
+}
+
+/// The reference for one control period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PathSample {
+    pub pos_mm: Vec3<f32>,
+    pub vel_mm_s: Vec3<f32>,
+    pub acc_mm_s2: Vec3<f32>,
+    /// Unit tangent of the path (direction of motion for positive σ̇), from the span
+    /// polynomial: defined at rest too.
+    pub tangent: Vec3<f32>,
+    /// Speed along the programmed path σ̇ (mm/s) and its derivative.
+    pub path_speed_mm_s: f32,
+    pub path_acc_mm_s2: f32,
+    /// σ̇ / programmed feed of the current segment (0 on rapids and dwells).
+    pub feed_ratio: f32,
+    /// Tag of the current segment.
+    pub tag: u32,
+    pub mode: ExecMode,
+}
+
+/// Steps of an old epoch dropped per period at most.
+const DRAIN_PER_PERIOD: usize = 8;
+/// Spans pulled per period at most (the planner caps span speeds so that at most
+/// `SPANS_PER_PERIOD` spans are crossed per period; the rest is for stale spans).
+const SPAN_PULLS_PER_PERIOD: usize = 8;
+
+/// The interrupt half of the planner.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Executor {
+    period_s: f32,
+    mode: ExecMode,
+    reason: StopReason,
+    epoch: u16,
+    path_gen: u16,
+    span: Span,
+    have_span: bool,
+    sigma: f32,
+    vel: f32,
+    acc: f32,
+    stop_acc: f32,
+    stop_jerk: f32,
+    hold_req: bool,
+    resume_req: bool,
+    abort_req: bool,
+    rest_pos: V3,
+    tangent: V3,
+    /// A step taken from the channel but not used yet.
+    pending: Option<Step>,
+}
+
+impl Executor {
+    /// At rest at `start_mm`; `period_s` is the control period (validated by the planner's
+    /// settings: use `Planner::settings().period_s`).
+    pub fn new(period_s: f32, start_mm: [f32; 3]) -> Self {
+        Self {
+            period_s,
+            mode: ExecMode::Idle,
+            reason: StopReason::None,
+            epoch: 0,
+            path_gen: 0,
+            span: Span {
+                seq: 0,
+                path_gen: 0,
+                tag: 0,
+                len_mm: 0.0,
+                inv_len: 0.0,
+                inv_feed: 0.0,
+                coef: [[0.0; 8]; 3],
+            },
+            have_span: false,
+            sigma: 0.0,
+            vel: 0.0,
+            acc: 0.0,
+            stop_acc: 1.0,
+            stop_jerk: 1.0,
+            hold_req: false,
+            resume_req: false,
+            abort_req: false,
+            rest_pos: start_mm,
+            tangent: [1.0, 0.0, 0.0],
+            pending: None,
+        }
+    }
+
+    /// Feed hold: stop on the path.
+    pub fn hold(&mut self) {
+        self.hold_req = true;
+    }
+
+    /// Resume after a hold (takes effect once the hold stop is complete).
+    pub fn resume(&mut self) {
+        self.resume_req = true;
+        self.hold_req = false;
+    }
+
+    /// Abort: stop on the path; the planner then clears its queue.
+    pub fn abort(&mut self) {
+        self.abort_req = true;
+    }
+
+    pub fn mode(&self) -> ExecMode {
+        self.mode
+    }
+
+    pub fn status(&self) -> ExecutorStatus {
+        ExecutorStatus {
+            epoch: self.epoch,
+            path_gen: self.path_gen,
+            span_seq: self.span.seq,
+            sigma_mm: self.sigma,
+            mode: self.mode,
+            reason: self.reason,
+            pos_mm: self.position(),
+            tag: self.span.tag,
+        }
+    }
+
+    fn position(&self) -> V3 {
+        if self.have_span {
+            self.span.eval(self.sigma).pos
+        } else {
+            self.rest_pos
+        }
+    }
+
+    /// Pulls spans until the current one has sequence number `seq` (bounded); false if it
+    /// is not available yet.
+    fn advance_to(&mut self, spans: &mut impl Source<Span>, seq: u32) -> bool {
+        for _ in 0..SPAN_PULLS_PER_PERIOD {
+            if self.have_span && self.span.seq == seq && self.span.path_gen == self.path_gen {
+                return true;
+            }
+            if self.have_span && self.span.path_gen == self.path_gen && self.span.seq > seq {
+                return false;
+            }
+            match spans.try_recv() {
+                Some(s) if s.path_gen == self.path_gen => {
+                    self.span = s;
+                    self.have_span = true;
+                }
+                Some(_) => {}
+                None => return false,
+            }
+        }
+        self.have_span && self.span.seq == seq
+    }
+
+    /// Moves σ onto the following spans while it is past the end of the current one.
+    fn carry_over(&mut self, spans: &mut impl Source<Span>) {
+        for _ in 0..SPAN_PULLS_PER_PERIOD {
+            if !(self.sigma > self.span.len_mm) {
+                return;
+            }
+            match spans.try_recv() {
+                Some(s) if s.path_gen == self.path_gen => {
+                    self.sigma -= self.span.len_mm;
+                    self.span = s;
+                }
+                Some(_) => {}
+                None => {
+                    // No geometry beyond (cannot happen while the planner keeps the stop
+                    // horizon frozen): end here at rest.
+                    self.sigma = self.span.len_mm;
+                    self.vel = 0.0;
+                    self.acc = 0.0;
+                    return;
+                }
+            }
+        }
+    }
+
+    fn start_stop(&mut self, reason: StopReason) {
+        self.mode = ExecMode::Stopping;
+        self.reason = reason;
+    }
+
+    /// One period of the executor's own jerk-limited stop.
+    fn stop_step(&mut self, spans: &mut impl Source<Span>) {
+        let t = self.period_s;
+        let j = stop_jerk(self.vel, self.acc, self.stop_acc, self.stop_jerk, t);
+        let (ds, v1, a1) = integrate(self.vel, self.acc, j, t);
+        self.sigma += ds.max(0.0);
+        self.vel = v1;
+        self.acc = a1;
+        if self.have_span {
+            self.carry_over(spans);
+        }
+        if self.vel <= 1.0e-5 && self.acc.abs() <= self.stop_jerk * t {
+            self.vel = 0.0;
+            self.acc = 0.0;
+            self.epoch = self.epoch.wrapping_add(1);
+            match self.reason {
+                StopReason::Hold => self.mode = ExecMode::Held,
+                StopReason::Abort => {
+                    self.path_gen = self.path_gen.wrapping_add(1);
+                    self.rest_pos = self.position();
+                    self.have_span = false;
+                    self.abort_req = false;
+                    self.hold_req = false;
+                    self.mode = ExecMode::Idle;
+                }
+                _ => self.mode = ExecMode::Idle,
+            }
+            if self.mode == ExecMode::Held && self.resume_req {
+                self.mode = ExecMode::Idle;
+            }
+        }
+    }
+
+    /// Takes the next step of the current epoch (dropping stale ones, a bounded number).
+    fn next_step(&mut self, steps: &mut impl Source<Step>) -> Option<Step> {
+        if let Some(s) = self.pending.take() {
+            if s.epoch == self.epoch {
+                return Some(s);
+            }
+        }
+        for _ in 0..DRAIN_PER_PERIOD {
+            match steps.try_recv() {
+                Some(s) if s.epoch == self.epoch => return Some(s),
+                Some(_) => {}
+                None => return None,
+            }
+        }
+        None
+    }
+
+    /// One control period: the reference for this period.
+    pub fn sample(
+        &mut self,
+        spans: &mut impl Source<Span>,
+        steps: &mut impl Source<Step>,
+    ) -> PathSample {
+        if self.abort_req && self.mode != ExecMode::Stopping {
+            self.start_stop(StopReason::Abort);
+        } else if self.hold_req && self.mode == ExecMode::Running {
+            self.start_stop(StopReason::Hold);
+        }
+        match self.mode {
+            ExecMode::Stopping => self.stop_step(spans),
+            ExecMode::Held => {
+                if self.resume_req {
+                    self.resume_req = false;
+                    self.mode = ExecMode::Idle;
+                }
+                // Drop stale steps meanwhile; keep the first one of the new epoch.
+                if self.pending.is_none() {
+                    self.pending = self.next_step(steps);
+                }
+            }
+            ExecMode::Idle | ExecMode::Running => {
+                self.resume_req = false;
+                if self.hold_req {
+                    // Hold at rest: do not start; nothing to stop.
+                    self.mode = ExecMode::Idle;
+                } else if let Some(s) = self.next_step(steps) {
+                    if self.advance_to(spans, s.span_seq) {
+                        self.sigma = s.sigma_mm;
+                        self.vel = s.vel_mm_s;
+                        self.acc = s.acc_mm_s2;
+                        self.stop_acc = s.stop_acc_mm_s2;
+                        self.stop_jerk = s.stop_jerk_mm_s3;
+                        self.mode = ExecMode::Running;
+                        self.reason = StopReason::None;
+                    } else {
+                        // Geometry not there yet: keep the step, stop if moving.
+                        self.pending = Some(s);
+                        if self.vel > 0.0 {
+                            self.start_stop(StopReason::Underrun);
+                            self.stop_step(spans);
+                        }
+                    }
+                } else if self.vel > 0.0 || self.acc != 0.0 {
+                    self.start_stop(StopReason::Underrun);
+                    self.stop_step(spans);
+                } else {
+                    self.mode = ExecMode::Idle;
+                }
+            }
+        }
+        self.output()
+    }
+
+    fn output(&mut self) -> PathSample {
+        let mut out = PathSample {
+            mode: self.mode,
+            path_speed_mm_s: self.vel,
+            path_acc_mm_s2: self.acc,
+            ..PathSample::default()
+        };
+        if !self.have_span {
+            out.pos_mm = Vec3::from_array(self.rest_pos);
+            out.tangent = Vec3::from_array(self.tangent);
+            return out;
+        }
+        let p = self.span.eval(self.sigma);
+        let (v, a) = (self.vel, self.acc);
+        let v2 = v * v;
+        let mut vel = [0.0f32; 3];
+        let mut acc = [0.0f32; 3];
+        for i in 0..3 {
+            vel[i] = p.d1[i] * v;
+            acc[i] = p.d2[i] * v2 + p.d1[i] * a;
+        }
+        // Tangent from p' (|p'| ≈ 1); at a reversal cusp p' = 0 and p'' points the new way.
+        let n1 = p.d1[0] * p.d1[0] + p.d1[1] * p.d1[1] + p.d1[2] * p.d1[2];
+        let n2 = p.d2[0] * p.d2[0] + p.d2[1] * p.d2[1] + p.d2[2] * p.d2[2];
+        if n1 > 1.0e-8 {
+            let k = 1.0 / libm::sqrtf(n1);
+            self.tangent = [p.d1[0] * k, p.d1[1] * k, p.d1[2] * k];
+        } else if n2 > 1.0e-8 {
+            let k = 1.0 / libm::sqrtf(n2);
+            self.tangent = [p.d2[0] * k, p.d2[1] * k, p.d2[2] * k];
+        }
+        out.pos_mm = Vec3::from_array(p.pos);
+        out.vel_mm_s = Vec3::from_array(vel);
+        out.acc_mm_s2 = Vec3::from_array(acc);
+        out.tangent = Vec3::from_array(self.tangent);
+        out.feed_ratio = v * self.span.inv_feed;
+        out.tag = self.span.tag;
+        out
+    }
+}
