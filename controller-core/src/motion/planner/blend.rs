@@ -43,10 +43,6 @@ use super::geometry::{norm, sub, Piece, V3};
 const SMOOTH_TANGENT: f32 = 1.0e-6;
 const SMOOTH_CURVATURE_PER_MM: f32 = 1.0e-6;
 
-/// Blends narrower than this (mm) are replaced by an exact stop: their spans would be
-/// shorter than the executor can step through at any useful speed.
-pub(crate) const MIN_BLEND_HALF_WIDTH_MM: f32 = 1.0e-4;
-
 /// `max x²|S₅(x)|` over `|x| ≤ d`, in units of d² (computed numerically, rounded up).
 const M2: f32 = 0.026_66;
 /// `max |x|³|S₅(x)|` in units of d³.
@@ -114,7 +110,11 @@ impl Junction {
         let e = d * r * r * r * (1.0 / 6.0);
         let s = if on_right { -0.5 * r * r } else { 0.5 * r * r };
         let g1 = r * inv_d;
-        let g2 = if on_right { -inv_d * inv_d } else { inv_d * inv_d };
+        let g2 = if on_right {
+            -inv_d * inv_d
+        } else {
+            inv_d * inv_d
+        };
         let mut j = Jet::default();
         for i in 0..3 {
             let du = self.du[i];
@@ -200,6 +200,8 @@ impl DevModel {
 ///    of `b` for itself, or half the budget to overlap with this one.
 /// 3. Overlapping `prev` only if `δ(d) + δ_prev ≤ budget`; otherwise stop where `prev`
 ///    ends (rule 2 applied to `prev` guarantees that leaves half of `a` or half the budget).
+///
+/// A transition narrower than `min_half_width` (the shortest span) becomes an exact stop.
 pub(crate) fn plan_junction(
     a: &Piece,
     b: &Piece,
@@ -207,6 +209,7 @@ pub(crate) fn plan_junction(
     prev: &Junction,
     a_free: f32,
     fit_tol: f32,
+    min_half_width: f32,
 ) -> Junction {
     if a.is_dwell() || b.is_dwell() {
         return stop();
@@ -248,7 +251,7 @@ pub(crate) fn plan_junction(
         let apart = (a.len - prev.d).max(0.0).min(d);
         d = apart.max(model.inverse(budget - prev.dev, d));
     }
-    if d < MIN_BLEND_HALF_WIDTH_MM {
+    if d < min_half_width {
         return stop();
     }
     Junction {
@@ -306,8 +309,11 @@ mod tests {
         for turn in [0.1f32, 10.0, 45.0, 90.0, 170.0, 180.0] {
             let t = turn.to_radians();
             let a = line([0.0, 0.0, 0.0], [10.0, 0.0, 0.0]);
-            let b = line([10.0, 0.0, 0.0], [10.0 + 10.0 * t.cos(), 10.0 * t.sin(), 0.0]);
-            let j = plan_junction(&a, &b, Some(0.01), &Junction::NONE, 10.0, 0.0);
+            let b = line(
+                [10.0, 0.0, 0.0],
+                [10.0 + 10.0 * t.cos(), 10.0 * t.sin(), 0.0],
+            );
+            let j = plan_junction(&a, &b, Some(0.01), &Junction::NONE, 10.0, 0.0, 5e-4);
             assert!(!j.stop && j.d > 0.0, "{turn}: {j:?}");
             assert!(j.dev <= 0.01 * (1.0 + 1e-5));
             let n = 2000;
@@ -332,7 +338,7 @@ mod tests {
     fn derivatives_of_the_correction_match_finite_differences() {
         let a = line([0.0, 0.0, 0.0], [5.0, 0.0, 0.0]);
         let b = line([5.0, 0.0, 0.0], [5.0, 5.0, 1.0]);
-        let j = plan_junction(&a, &b, Some(0.5), &Junction::NONE, 5.0, 0.0);
+        let j = plan_junction(&a, &b, Some(0.5), &Junction::NONE, 5.0, 0.0, 5e-4);
         let h = 1e-3f32;
         for &x in &[-0.9f32, -0.4, -0.1, 0.2, 0.6] {
             let x = x * j.d;
@@ -345,7 +351,10 @@ mod tests {
                 let fd3 = (cp.d2[i] - cm.d2[i]) / (2.0 * h);
                 assert!((fd1 - c.d1[i]).abs() < 1e-3, "d1 {x} {i}");
                 assert!((fd2 - c.d2[i]).abs() < 1e-2, "d2 {x} {i}");
-                assert!((fd3 - c.d3[i]).abs() < 2e-1 * (1.0 + c.d3[i].abs()), "d3 {x} {i}");
+                assert!(
+                    (fd3 - c.d3[i]).abs() < 2e-1 * (1.0 + c.d3[i].abs()),
+                    "d3 {x} {i}"
+                );
             }
         }
     }

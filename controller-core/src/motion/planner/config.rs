@@ -95,6 +95,11 @@ fn positive3(v: [f32; 3], name: &'static str) -> Result<[f32; 3], PlannerConfigE
 }
 
 impl Settings {
+    /// Shortest span the planner cuts (mm): half the shortest segment.
+    pub fn min_span_mm(&self) -> f32 {
+        0.5 * self.min_segment_mm
+    }
+
     pub fn new(c: &PlannerConfig) -> Result<Self, PlannerConfigError> {
         let period_s = positive(c.period_s, "period_s")?;
         if period_s > 0.1 {

@@ -3,19 +3,17 @@
 //! reference position, velocity, acceleration and tangent. It never loops over the queue:
 //! the work per call is one polynomial evaluation plus a bounded number of channel pops.
 //!
-//! It also owns the real-time requests, because they must act within one period:
-//! * **hold**: stop along the path with the time-optimal jerk-limited profile, from the
-//!   current speed and acceleration (continuous in position, velocity and acceleration),
-//!   using the braking limits the planner attached to the last step;
-//! * **resume**: continue with the planner's steps, which restart from exactly the stop
-//!   point at zero speed;
-//! * **abort**: the same stop, after which the planner clears the program;
-//! * **underrun** (no step while moving, e.g. the planner task starved): the same stop,
-//!   then continue automatically when steps arrive again.
+//! Feed hold, resume, abort and the feed override are the planner's business (its
+//! look-ahead respects every span's limits while it stops, see [`super::Planner::hold`]);
+//! they reach the executor as ordinary steps, a few periods later (the steps buffered
+//! between the two halves).
 //!
-//! After each of these stops the executor starts a new *epoch*: steps of the old epoch
-//! still in the channel are dropped, and the planner, seeing the new epoch in
-//! [`ExecutorStatus`], restarts its profile from the reported stop point.
+//! The executor's own logic is for an **underrun** only (no step while moving: the
+//! planner task starved): it stops along the path with the time-optimal jerk-limited
+//! profile from its current speed and acceleration, with the braking limits the planner
+//! attached to the last step, then starts a new *epoch*: steps of the old epoch still in
+//! the channel are dropped, and the planner, seeing the new epoch in [`ExecutorStatus`],
+//! restarts its profile at the reported stop point.
 
 use super::channel::Source;
 use super::geometry::V3;
@@ -28,6 +26,8 @@ use crate::Vec3;
 pub struct Step {
     /// Profile epoch (see the module docs).
     pub epoch: u16,
+    /// Path generation of the span (incremented by every abort).
+    pub path_gen: u16,
     /// Span the state lies on.
     pub span_seq: u32,
     /// Local path parameter on that span (mm).
@@ -48,20 +48,8 @@ pub enum ExecMode {
     Idle,
     /// Following the planner's steps.
     Running,
-    /// Stopping on its own (hold, abort or underrun).
+    /// Stopping on its own after an underrun.
     Stopping,
-    /// Stopped by a hold: waits for resume.
-    Held,
-}
-
-/// Why the executor stopped on its own.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum StopReason {
-    #[default]
-    None,
-    Hold,
-    Abort,
-    Underrun,
 }
 
 /// What the planner needs to know of the executor; published every period.
@@ -72,7 +60,8 @@ pub struct ExecutorStatus {
     pub span_seq: u32,
     pub sigma_mm: f32,
     pub mode: ExecMode,
-    pub reason: StopReason,
+    /// Underruns so far (each one a stop of its own).
+    pub underruns: u32,
     /// Reference position of the last sample (mm).
     pub pos_mm: [f32; 3],
     /// Tag of the segment being executed.
@@ -109,7 +98,7 @@ const SPAN_PULLS_PER_PERIOD: usize = 8;
 pub struct Executor {
     period_s: f32,
     mode: ExecMode,
-    reason: StopReason,
+    underruns: u32,
     epoch: u16,
     path_gen: u16,
     span: Span,
@@ -119,9 +108,6 @@ pub struct Executor {
     acc: f32,
     stop_acc: f32,
     stop_jerk: f32,
-    hold_req: bool,
-    resume_req: bool,
-    abort_req: bool,
     rest_pos: V3,
     tangent: V3,
     /// A step taken from the channel but not used yet.
@@ -135,7 +121,7 @@ impl Executor {
         Self {
             period_s,
             mode: ExecMode::Idle,
-            reason: StopReason::None,
+            underruns: 0,
             epoch: 0,
             path_gen: 0,
             span: Span {
@@ -153,29 +139,10 @@ impl Executor {
             acc: 0.0,
             stop_acc: 1.0,
             stop_jerk: 1.0,
-            hold_req: false,
-            resume_req: false,
-            abort_req: false,
             rest_pos: start_mm,
             tangent: [1.0, 0.0, 0.0],
             pending: None,
         }
-    }
-
-    /// Feed hold: stop on the path.
-    pub fn hold(&mut self) {
-        self.hold_req = true;
-    }
-
-    /// Resume after a hold (takes effect once the hold stop is complete).
-    pub fn resume(&mut self) {
-        self.resume_req = true;
-        self.hold_req = false;
-    }
-
-    /// Abort: stop on the path; the planner then clears its queue.
-    pub fn abort(&mut self) {
-        self.abort_req = true;
     }
 
     pub fn mode(&self) -> ExecMode {
@@ -189,7 +156,7 @@ impl Executor {
             span_seq: self.span.seq,
             sigma_mm: self.sigma,
             mode: self.mode,
-            reason: self.reason,
+            underruns: self.underruns,
             pos_mm: self.position(),
             tag: self.span.tag,
         }
@@ -249,41 +216,39 @@ impl Executor {
         }
     }
 
-    fn start_stop(&mut self, reason: StopReason) {
+    fn start_stop(&mut self) {
         self.mode = ExecMode::Stopping;
-        self.reason = reason;
+        self.underruns = self.underruns.saturating_add(1);
     }
 
     /// One period of the executor's own jerk-limited stop.
     fn stop_step(&mut self, spans: &mut impl Source<Span>) {
         let t = self.period_s;
-        let j = stop_jerk(self.vel, self.acc, self.stop_acc, self.stop_jerk, t);
-        let (ds, v1, a1) = integrate(self.vel, self.acc, j, t);
-        self.sigma += ds.max(0.0);
-        self.vel = v1;
-        self.acc = a1;
-        if self.have_span {
-            self.carry_over(spans);
+        // Braking harder than a ramp-out at the attached jerk could end before zero speed
+        // (the planner was braking in a stronger span): ramp out with the jerk that lands
+        // on zero instead of reversing.
+        let mut jmax = self.stop_jerk;
+        if self.acc < 0.0 && self.vel > 0.0 {
+            jmax = jmax.max(self.acc * self.acc / (2.0 * self.vel));
         }
-        if self.vel <= 1.0e-5 && self.acc.abs() <= self.stop_jerk * t {
+        if self.vel <= 1.0e-5 && self.acc.abs() <= jmax * t {
+            // Landed: this period takes the acceleration to zero (|Δa| ≤ J·T).
             self.vel = 0.0;
             self.acc = 0.0;
             self.epoch = self.epoch.wrapping_add(1);
-            match self.reason {
-                StopReason::Hold => self.mode = ExecMode::Held,
-                StopReason::Abort => {
-                    self.path_gen = self.path_gen.wrapping_add(1);
-                    self.rest_pos = self.position();
-                    self.have_span = false;
-                    self.abort_req = false;
-                    self.hold_req = false;
-                    self.mode = ExecMode::Idle;
-                }
-                _ => self.mode = ExecMode::Idle,
-            }
-            if self.mode == ExecMode::Held && self.resume_req {
-                self.mode = ExecMode::Idle;
-            }
+            self.mode = ExecMode::Idle;
+            return;
+        }
+        let amax = self.stop_acc.max(-self.acc);
+        let j = stop_jerk(self.vel, self.acc, amax, jmax, t);
+        let (ds, v1, a1) = integrate(self.vel, self.acc, j, t);
+        self.sigma += ds.max(0.0);
+        // The speed may cross zero inside the last ramp-out period: rest there, the
+        // remaining acceleration goes next period.
+        self.vel = v1.max(0.0);
+        self.acc = a1;
+        if self.have_span {
+            self.carry_over(spans);
         }
     }
 
@@ -310,29 +275,14 @@ impl Executor {
         spans: &mut impl Source<Span>,
         steps: &mut impl Source<Step>,
     ) -> PathSample {
-        if self.abort_req && self.mode != ExecMode::Stopping {
-            self.start_stop(StopReason::Abort);
-        } else if self.hold_req && self.mode == ExecMode::Running {
-            self.start_stop(StopReason::Hold);
-        }
         match self.mode {
             ExecMode::Stopping => self.stop_step(spans),
-            ExecMode::Held => {
-                if self.resume_req {
-                    self.resume_req = false;
-                    self.mode = ExecMode::Idle;
-                }
-                // Drop stale steps meanwhile; keep the first one of the new epoch.
-                if self.pending.is_none() {
-                    self.pending = self.next_step(steps);
-                }
-            }
             ExecMode::Idle | ExecMode::Running => {
-                self.resume_req = false;
-                if self.hold_req {
-                    // Hold at rest: do not start; nothing to stop.
-                    self.mode = ExecMode::Idle;
-                } else if let Some(s) = self.next_step(steps) {
+                if let Some(s) = self.next_step(steps) {
+                    if s.path_gen != self.path_gen && self.vel == 0.0 {
+                        // A new program after an abort: its spans replace the old ones.
+                        self.path_gen = s.path_gen;
+                    }
                     if self.advance_to(spans, s.span_seq) {
                         self.sigma = s.sigma_mm;
                         self.vel = s.vel_mm_s;
@@ -340,17 +290,16 @@ impl Executor {
                         self.stop_acc = s.stop_acc_mm_s2;
                         self.stop_jerk = s.stop_jerk_mm_s3;
                         self.mode = ExecMode::Running;
-                        self.reason = StopReason::None;
                     } else {
                         // Geometry not there yet: keep the step, stop if moving.
                         self.pending = Some(s);
                         if self.vel > 0.0 {
-                            self.start_stop(StopReason::Underrun);
+                            self.start_stop();
                             self.stop_step(spans);
                         }
                     }
                 } else if self.vel > 0.0 || self.acc != 0.0 {
-                    self.start_stop(StopReason::Underrun);
+                    self.start_stop();
                     self.stop_step(spans);
                 } else {
                     self.mode = ExecMode::Idle;

@@ -68,7 +68,9 @@ pub(crate) struct Helix {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Shape {
     /// Unit direction.
-    Line { u: V3 },
+    Line {
+        u: V3,
+    },
     Helix(Helix),
     /// A pause of zero length.
     Dwell,

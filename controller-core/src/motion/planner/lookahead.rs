@@ -24,23 +24,23 @@
 //! [`Choice::slipped`] reports the (never observed in the tests) case where even maximal
 //! braking fails a check.
 
-use super::profile::{braking_distance, integrate, ramp_down_distance, stop_jerk, track_jerk};
+use super::profile::{braking_distance, integrate, ramp_down_distance, track_jerk};
 
 /// Most constraints kept per period; a longer staircase of ever lower caps is cut by
 /// treating the last kept one as a stop (conservative).
 pub(crate) const MAX_CONSTRAINTS: usize = 16;
 
-/// Braking checks use the acceleration limits reduced by this factor, so that the
-/// discrete per-period jerk can follow a continuous braking profile whose switch to
-/// constant deceleration falls inside a period. (The jerk is not reduced: the ramp into
-/// braking runs at full jerk, and a model with a lower jerk would see that as worse.)
-const CHECK_DERATE: f32 = 1.0e-3;
-
 /// Distance margin of the braking checks when choosing the jerk: 2 nm plus 2e-7 of the
-/// distance (f32 rounding of span lengths and positions). The slip test uses none, so
-/// that rounding on a state that rides the braking curve is no slip.
+/// distance (f32 rounding of span lengths and positions), plus the lag of the discrete
+/// follower (see `feasible`). The slip test allows the same amount the other way, so that
+/// rounding on a state that rides the braking curve is no slip.
 const CHECK_MARGIN_MM: f32 = 2.0e-6;
 const CHECK_MARGIN_REL: f32 = 2.0e-7;
+
+/// How far the last ramp-out period may carry the motion past a stop point (mm) before
+/// the planner snaps it onto the point: the discrete landing cannot hit the point with
+/// zero speed and acceleration at a period boundary exactly.
+const STOP_OVERSHOOT_MM: f32 = 5.0e-6;
 
 /// Bisection steps between the braking and the tracking jerk (resolution J·2⁻¹²).
 const BISECT_STEPS: usize = 12;
@@ -54,6 +54,13 @@ pub(crate) struct SpeedConstraint {
     /// Acceleration and jerk limits for braking toward it.
     pub acc: f32,
     pub jerk: f32,
+    /// Jerk limit beyond the point (the span it starts): an acceleration still positive
+    /// there ramps down at this one.
+    pub jerk_after: f32,
+    /// The limit is the programmed feed × override, not the geometry: after the override
+    /// is lowered it may be out of reach; the look-ahead then brakes as hard as allowed
+    /// toward it instead of counting a slip.
+    pub soft: bool,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -61,6 +68,9 @@ pub(crate) struct AccConstraint {
     pub dist: f32,
     pub acc: f32,
     pub jerk: f32,
+    /// Speed cap where the constraint starts: the period that reaches it already runs at
+    /// the next span's (lower) jerk, so the ramp must end two periods at this speed before.
+    pub v_ref: f32,
 }
 
 /// What the scan found ahead.
@@ -119,29 +129,71 @@ impl Ahead {
 
     /// Whether the state reached by jerk `j` from `(v, a)` can still meet every
     /// constraint.
-    fn feasible(&self, v: f32, a: f32, j: f32, t: f32, margin: f32) -> bool {
+    fn feasible(&self, v: f32, a: f32, j: f32, t: f32, margin: f32, soft: bool) -> bool {
         let (ds, v1, a1) = integrate(v, a, j, t);
-        if v1 < -1.0e-4 {
+        // The last period of a stop may end slightly below zero speed (the planner rests
+        // there and zeroes the acceleration next period); more is a real undershoot.
+        if v1 < -self.jerk * t * t {
             return false;
         }
         let v1 = v1.max(0.0);
-        let k = 1.0 - CHECK_DERATE;
-        for c in self.speed.iter().take(self.n_speed) {
-            let need = braking_distance(v1, a1, c.w, c.acc * k, c.jerk);
+        for c in self
+            .speed
+            .iter()
+            .take(self.n_speed)
+            .filter(|c| soft || !c.soft)
+        {
+            // Speed hysteresis on caps: a state that lands exactly on a cap (peak = w)
+            // must not flip to "needs braking" by rounding in the next period.
+            let w = if c.w > 0.0 {
+                c.w - (1.0e-5 * (1.0 + c.w)).copysign(margin)
+            } else {
+                0.0
+            };
+            let need = braking_distance(v1, a1, w, c.acc, c.jerk);
             let room = c.dist - ds;
-            let m = margin * (1.0 + c.dist.abs() * (CHECK_MARGIN_REL / CHECK_MARGIN_MM));
+            // A continuous braking profile reaches its constant deceleration inside a
+            // period; the per-period jerk only at a period end, which costs up to J·T²/8 of
+            // speed and so v·J·T²/(8A) of distance once per braking: kept in reserve (×2).
+            let lag = v1 * c.jerk * t * t / (4.0 * c.acc.max(1.0));
+            let m = margin * (1.0 + c.dist.abs() * (CHECK_MARGIN_REL / CHECK_MARGIN_MM))
+                + lag.copysign(margin);
             if room <= 0.0 {
-                // Past the point: the speed must already be (and stay) below w.
-                if v1 > c.w * (1.0 + 1.0e-6) + 1.0e-6 || need > 1.0e-6 {
+                // Past the point: the speed must already be (and stay) below w, up to what
+                // the discrete landing cannot resolve: J·T²/8 on a cap (the tracker's
+                // landing error), a few nm of ramp-out past a stop point (snapped back).
+                if c.w > 0.0 {
+                    let tol_v = 0.125 * c.jerk * t * t + 1.0e-6 * c.w;
+                    if v1 > c.w + tol_v || need > 1.0e-6 + tol_v * t {
+                        return false;
+                    }
+                } else if need > room + STOP_OVERSHOOT_MM {
                     return false;
                 }
             } else if need > room - m {
                 return false;
             }
+            // Still accelerating when the point is reached: the rest of the ramp-down (and
+            // the speed's peak) falls into the next span, at its jerk.
+            if a1 > 0.0 && c.jerk_after < c.jerk && c.w > 0.0 {
+                // The period that reaches the point is already limited to the next span's
+                // jerk: count on the stronger ramp only up to two periods at speed w before
+                // it (a fixed distance, so that riding this limit stays consistent).
+                let before = room - 2.0 * c.w * t;
+                if let Some((vc, ac)) = state_at(v1, a1, c.jerk, before) {
+                    let peak = vc + 0.5 * ac * ac / c.jerk_after;
+                    // Same margin logic as the distances: kept when choosing, granted
+                    // when testing for a slip.
+                    let mv = 1.0e-5 * (1.0 + c.w);
+                    if peak > c.w - mv.copysign(margin) {
+                        return false;
+                    }
+                }
+            }
         }
         for c in self.accel.iter().take(self.n_accel) {
             if a1 > c.acc {
-                let need = ramp_down_distance(v1, a1, c.acc, c.jerk);
+                let need = ramp_down_distance(v1, a1, c.acc, c.jerk) + 2.0 * c.v_ref * t;
                 if need > c.dist - ds - margin * (1.0 + c.dist.abs() * 0.1) {
                     return false;
                 }
@@ -149,6 +201,63 @@ impl Ahead {
         }
         true
     }
+}
+
+/// Speed and acceleration where the ramp-down from `(v, a > 0)` at jerk `jmax` has
+/// covered `dist`, if it is still ramping there (`None` when it ends before).
+fn state_at(v: f32, a: f32, jmax: f32, dist: f32) -> Option<(f32, f32)> {
+    if !(dist > 0.0) {
+        return Some((v, a));
+    }
+    let t_end = a / jmax;
+    if ramp_down_distance(v, a, 0.0, jmax) <= dist {
+        return None;
+    }
+    // s(τ) is increasing on [0, t_end] (the speed rises while a > 0): bisection, taking
+    // the upper end so that the acceleration left is never underestimated... (a_c falls
+    // with τ, v_c rises: the peak v_c + a_c²/2J' is evaluated at both ends, larger kept).
+    let (mut lo, mut hi) = (0.0f32, t_end);
+    for _ in 0..24 {
+        let mid = 0.5 * (lo + hi);
+        let s = v * mid + 0.5 * a * mid * mid - jmax * mid * mid * mid * (1.0 / 6.0);
+        if s < dist {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some((v + a * hi - 0.5 * jmax * hi * hi, a - jmax * lo))
+}
+
+/// The strongest deceleration (most negative acceleration) from which the acceleration
+/// can be brought back up to `-acc` at jerk `jmax`, starting at speed `v`, and end three
+/// periods `t` (at the speed then) before a point `avail` mm ahead. The speed falls during
+/// the ramp, which the distance accounts for.
+fn decel_floor(v: f32, acc: f32, jmax: f32, avail: f32, t: f32) -> f32 {
+    let dist = |a1: f32| {
+        let tr = ((-acc - a1) / jmax).max(0.0);
+        let v_end = v + a1 * tr + 0.5 * jmax * tr * tr;
+        v * tr + 0.5 * a1 * tr * tr + jmax * tr * tr * tr * (1.0 / 6.0) + 3.0 * t * v_end.max(0.0)
+    };
+    if !(avail > 0.0) {
+        return -acc;
+    }
+    // Lower end: the strongest deceleration whose ramp back to -acc ends before the speed
+    // does (speed lost in the ramp: (a1² − acc²)/2J ≤ v); the distance is monotone above.
+    let mut lo = -libm::sqrtf(2.0 * jmax * v.max(0.0) + acc * acc);
+    if dist(lo) <= avail {
+        return lo;
+    }
+    let mut hi = -acc;
+    for _ in 0..20 {
+        let mid = 0.5 * (lo + hi);
+        if dist(mid) <= avail {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
 }
 
 /// The jerk for the next period.
@@ -163,34 +272,64 @@ pub(crate) struct Choice {
 pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     let (amax, jmax) = (ahead.acc, ahead.jerk);
     let jt = jmax * t;
-    // Hard bounds: jerk limit, acceleration limit (back inside at full jerk if outside).
+    // Hard bounds: jerk limit, acceleration limit. An acceleration just outside ±amax
+    // (rounding) is brought back within this period; one further out (limits dropped)
+    // moves back at full jerk.
     let mut j_max = ((amax - a) / t).min(jmax);
     let mut j_min = ((-amax - a) / t).max(-jmax);
-    if a > amax {
-        j_max = -jmax;
-        j_min = -jmax;
-    } else if a < -amax {
-        j_min = jmax;
-        j_max = jmax;
+    if j_min > j_max {
+        let j = if a > 0.0 { -jmax } else { jmax };
+        j_min = j;
+        j_max = j;
+    }
+    // Deceleration entering a span with a lower acceleration limit must be reducible to
+    // that limit before it (at the jerk of the spans before, three periods at the speed
+    // then early: the period that crosses runs at the lower limits already). A braking
+    // toward that span's own speed cap ends at zero acceleration there and never meets
+    // this bound.
+    for c in ahead.accel.iter().take(ahead.n_accel) {
+        if c.acc < amax && v > 0.0 {
+            let a_lo = decel_floor(v, c.acc, c.jerk, c.dist - v * t, t);
+            #[cfg(test)]
+            if super::planner::DBG.load(core::sync::atomic::Ordering::Relaxed) {
+                extern crate std;
+                std::println!("DF v {v} a {a} c {c:?} a_lo {a_lo}");
+            }
+            j_min = j_min.max(((a_lo - a) / t).min(j_max));
+        }
+    }
+    // Never brake so hard that ramping the deceleration out at full jerk would reverse
+    // the motion (speed lost in the ramp-out a²/2J ≤ v): the most negative end
+    // acceleration x with v + (a + x)T/2 − x²/2J ≥ 0.
+    let c0 = v + 0.5 * a * t;
+    let disc = 0.25 * jt * jt + 2.0 * jmax * c0;
+    if disc >= 0.0 {
+        let x_lo = 0.5 * jt - libm::sqrtf(disc);
+        j_min = j_min.max(((x_lo - a) / t).min(j_max));
     }
     let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t).clamp(j_min, j_max);
-    if ahead.feasible(v, a, j_hi, t, CHECK_MARGIN_MM) {
+    if ahead.feasible(v, a, j_hi, t, CHECK_MARGIN_MM, true) {
         return Choice {
             jerk: j_hi,
             slipped: false,
         };
     }
-    let j_lo = stop_jerk(v, a, amax, jmax, t).clamp(j_min, j_hi);
-    if !ahead.feasible(v, a, j_lo, t, CHECK_MARGIN_MM) {
+    // The most braking that keeps the speed ≥ 0 at the end of the period (within the
+    // landing tolerance of `feasible`).
+    let j_vzero = -2.0 * (v + a * t - jmax * t * t) / (t * t);
+    let j_lo = j_min.max(j_vzero).min(j_hi);
+    if !ahead.feasible(v, a, j_lo, t, CHECK_MARGIN_MM, true) {
         return Choice {
             jerk: j_lo,
-            slipped: !ahead.feasible(v, a, j_lo, t, 0.0),
+            // Riding the braking curve exactly, f32 rounding can exceed it by a few nm:
+            // that is no slip; nor is a feed limit out of reach after an override change.
+            slipped: !ahead.feasible(v, a, j_lo, t, -CHECK_MARGIN_MM, false),
         };
     }
     let (mut lo, mut hi) = (j_lo, j_hi);
     for _ in 0..BISECT_STEPS {
         let mid = 0.5 * (lo + hi);
-        if ahead.feasible(v, a, mid, t, CHECK_MARGIN_MM) {
+        if ahead.feasible(v, a, mid, t, CHECK_MARGIN_MM, true) {
             lo = mid;
         } else {
             hi = mid;
@@ -217,6 +356,13 @@ mod tests {
     fn accelerates_cruises_and_stops_at_the_end() {
         let (amax, jmax, cap, len) = (2000.0f32, 1.0e5f32, 80.0f32, 20.0f32);
         let (mut s, mut v, mut a) = (0.0f32, 0.0f32, 0.0f32);
+        let (mut cs, mut cv, mut ca) = (0.0f32, 0.0f32, 0.0f32);
+        let kahan = |sum: f32, add: f32, c: &mut f32| {
+            let y = add - *c;
+            let t = sum + y;
+            *c = (t - sum) - y;
+            t
+        };
         let mut vmax_seen = 0.0f32;
         for _ in 0..200_000 {
             let mut ah = Ahead::new(cap, amax, jmax);
@@ -225,13 +371,18 @@ mod tests {
                 w: 0.0,
                 acc: amax,
                 jerk: jmax,
+                jerk_after: jmax,
+                soft: false,
             });
             let c = choose_jerk(&ah, v, a, T);
             assert!(!c.slipped, "slip at s {s} v {v} a {a}");
-            let (ds, v1, a1) = integrate(v, a, c.jerk, T);
-            s += ds;
-            v = v1.max(0.0);
-            a = a1;
+            // Increments added with Kahan compensation, as the planner does: a plain f32
+            // running sum drifts off the braking curve the state rides.
+            let (ds, _, _) = integrate(v, a, c.jerk, T);
+            let dv = a * T + 0.5 * c.jerk * T * T;
+            s = kahan(s, ds, &mut cs);
+            v = kahan(v, dv, &mut cv).max(0.0);
+            a = kahan(a, c.jerk * T, &mut ca);
             vmax_seen = vmax_seen.max(v);
             assert!(a.abs() <= amax * (1.0 + 1e-5));
             if v < 1e-4 && len - s < 1e-3 && s > 1.0 {
@@ -240,5 +391,47 @@ mod tests {
         }
         assert!(s <= len + 1e-4 && s > len - 2e-3, "stopped at {s}");
         assert!(vmax_seen <= cap * (1.0 + 1e-5) && vmax_seen > cap * 0.999);
+    }
+}
+
+#[cfg(test)]
+mod debug_la {
+    extern crate std;
+    use super::*;
+    #[test]
+    #[ignore]
+    fn dbg_case() {
+        let mut ah = Ahead::new(80.0, 2000.0, 100000.0);
+        for (v, a, dist) in [
+            (1.0094318f32, 416.2256f32, 0.0053596497f32),
+            (1.0505544, 406.2256, 0.005256653),
+            (1.090677, 396.2256, 0.0051498413),
+            (1.1297995, 386.2256, 0.0050373077),
+        ] {
+            ah.n_speed = 0;
+            ah.n_accel = 0;
+            ah.push_speed(SpeedConstraint {
+                dist,
+                w: 1.9925041,
+                acc: 2000.0,
+                jerk: 100000.0,
+                jerk_after: 25000.002,
+                soft: false,
+            });
+            ah.push_accel(AccConstraint {
+                dist,
+                acc: 500.00592,
+                jerk: 100000.0,
+                v_ref: 2.0,
+            });
+            for j in [-100000.0f32] {
+                let (ds, v1, a1) = integrate(v, a, j, 1e-4);
+                let room = dist - ds;
+                let before = room - 2.0 * 1.9925041 * 1e-4;
+                let sa = state_at(v1, a1, 100000.0, before);
+                let peak = sa.map(|(vc, ac)| vc + 0.5 * ac * ac / 25000.002);
+                std::println!("v {v} a {a} j {j}: feasible {} v1 {v1} a1 {a1} room {room} state_at {sa:?} peak {peak:?} ramp {}", ah.feasible(v, a, j, 1e-4, CHECK_MARGIN_MM, true), ramp_down_distance(v1, a1, 0.0, 100000.0));
+            }
+        }
     }
 }

@@ -11,16 +11,17 @@
 //!   [`Step`] (span, σ, σ̇, σ̈) per control period with the look-ahead.
 //! * [`Executor`] (control interrupt): [`Executor::sample`] takes one step and evaluates
 //!   its span into the reference [`PathSample`] (position, velocity, acceleration,
-//!   tangent, feed ratio, tag) in a bounded, loop-free amount of work; it also runs feed
-//!   hold and abort itself so that they act within one period.
+//!   tangent, feed ratio, tag) in a bounded, loop-free amount of work. Feed hold, resume,
+//!   abort and override act in the planner's look-ahead (so that every span's limits hold
+//!   while stopping); the executor stops by itself only when steps run out (underrun).
 //!
 //! **Protocol.** Spans and steps flow planner → executor through two single-producer,
 //! single-consumer queues ([`channel::Sink`]/[`channel::Source`]; `heapless::spsc` on the
 //! board, lock-free). The executor publishes an [`ExecutorStatus`] (a small `Copy` value,
 //! e.g. in an RTIC resource locked only to copy it) that the planner reads with
 //! [`Planner::sync`] before each `produce`: it tells which spans may be dropped and, after
-//! the executor stopped on its own (hold, abort, underrun), the new epoch and the exact
-//! stop point from which the planner restarts the profile. Steps of an old epoch are
+//! the executor stopped on its own (underrun), the new epoch and the exact stop point from
+//! which the planner restarts the profile. Steps of an old epoch are
 //! dropped by the executor, so neither side ever waits for the other.
 //!
 //! [`MotionPlanner`] wires both halves for a single thread (host-sim, tests).
@@ -39,8 +40,8 @@ pub mod segment;
 pub mod span;
 
 pub use config::{PlannerConfig, PlannerConfigError, Settings, GANTRY_PLANNER};
-pub use executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step, StopReason};
+pub use executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step};
 pub use pipeline::MotionPlanner;
-pub use planner::{Planner, PlannerStatus, FEED_OVERRIDE_MAX, FEED_OVERRIDE_MIN};
+pub use planner::{Planner, PlannerState, PlannerStatus, FEED_OVERRIDE_MAX, FEED_OVERRIDE_MIN};
 pub use segment::{Blend, Feed, Motion, Plane, Segment, SegmentError, MAX_ARC_PIECES};
 pub use span::{Span, SpanPoint};

@@ -6,7 +6,7 @@ use heapless::Deque;
 
 use super::config::{PlannerConfig, PlannerConfigError};
 use super::executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step};
-use super::planner::{Planner, PlannerStatus};
+use super::planner::{Planner, PlannerState, PlannerStatus};
 use super::segment::{Segment, SegmentError};
 use super::span::Span;
 
@@ -56,19 +56,19 @@ impl<const N: usize, const S: usize, const C: usize, const B: usize> MotionPlann
         self.planner.produce(&mut self.spans, &mut self.steps, B);
     }
 
+    /// Feed hold (see [`Planner::hold`]).
     pub fn hold(&mut self) {
-        self.executor.hold();
+        self.planner.hold();
     }
 
     pub fn resume(&mut self) {
-        self.executor.resume();
+        self.planner.resume();
     }
 
     /// Stop on the path, then clear the queue; new segments start where it stopped
     /// ([`MotionPlanner::end_position_mm`] once [`MotionPlanner::is_idle`]).
     pub fn abort(&mut self) {
         self.planner.abort();
-        self.executor.abort();
     }
 
     pub fn set_feed_override(&mut self, ratio: f32) -> Result<(), PlannerConfigError> {
@@ -95,8 +95,13 @@ impl<const N: usize, const S: usize, const C: usize, const B: usize> MotionPlann
         self.executor.status()
     }
 
-    /// At rest with no motion pending.
+    /// At rest with no motion pending (the program ended, or held, or aborted).
     pub fn is_idle(&self) -> bool {
-        self.executor.mode() == ExecMode::Idle && self.steps.is_empty()
+        self.executor.mode() == ExecMode::Idle
+            && self.steps.is_empty()
+            && matches!(
+                self.planner.status().state,
+                PlannerState::Idle | PlannerState::Held
+            )
     }
 }

@@ -58,21 +58,30 @@ pub fn braking_distance(v: f32, a: f32, w: f32, amax: f32, jmax: f32) -> f32 {
     if !(v > w) {
         return 0.0;
     }
-    // Already braking: deceleration beyond this constraint's limit is not counted on.
-    let a = a.max(-amax);
-    let half_a2_j = 0.5 * a * a / jmax;
-    if v - half_a2_j >= w {
-        // On a braking profile that started from rest at `virt`: subtract what it covered.
-        let virt = v + half_a2_j;
-        let tv = -a / jmax;
-        let covered = virt * tv - jmax * tv * tv * tv * (1.0 / 6.0);
-        (rest_to_rest_distance(virt, w, amax, jmax) - covered).max(0.0)
-    } else {
+    // Already braking (deceleration m ≥ 0); deceleration beyond this constraint's limit is
+    // not counted on. Each phase's distance is summed directly (no difference of large
+    // terms), so f32 keeps the result to a few ulps: the look-ahead rides this curve.
+    let m = (-a).min(amax);
+    let j = jmax;
+    if v - 0.5 * m * m / j < w {
         // Braking harder than needed: the speed passes `w` while the deceleration ramps out.
-        let disc = (a * a - 2.0 * jmax * (v - w)).max(0.0);
-        let t = ((-a - libm::sqrtf(disc)) / jmax).max(0.0);
-        (v * t + 0.5 * a * t * t + jmax * t * t * t * (1.0 / 6.0)).max(0.0)
+        let disc = (m * m - 2.0 * j * (v - w)).max(0.0);
+        let t = ((m - libm::sqrtf(disc)) / j).max(0.0);
+        return (v * t - 0.5 * m * t * t + j * t * t * t * (1.0 / 6.0)).max(0.0);
     }
+    // Peak deceleration of ramp-in (from m), possible hold, ramp-out ending at w.
+    let ap2 = j * (v - w) + 0.5 * m * m;
+    let (ap, hold) = if ap2 <= amax * amax {
+        (libm::sqrtf(ap2), 0.0)
+    } else {
+        let v1 = v - 0.5 * (amax * amax - m * m) / j;
+        let v3 = w + 0.5 * amax * amax / j;
+        (amax, ((v1 - v3) * (v1 + v3) / (2.0 * amax)).max(0.0))
+    };
+    let t1 = ((ap - m) / j).max(0.0);
+    let ramp_in = v * t1 - 0.5 * m * t1 * t1 - j * t1 * t1 * t1 * (1.0 / 6.0);
+    let ramp_out = w * ap / j + ap * ap * ap / (6.0 * j * j);
+    (ramp_in.max(0.0) + hold + ramp_out).max(0.0)
 }
 
 /// Distance covered while the acceleration ramps down from `a` to `a_to` (< `a`) at jerk
@@ -131,10 +140,21 @@ pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> 
             (-2.0 * c / t).max(0.0)
         }
     };
-    let x = x.clamp(a - jt, a + jt);
-    // Inside ±amax; from outside (limits just dropped) move back at full jerk.
-    let x = x.min(amax.max(a - jt)).max((-amax).min(a + jt));
-    (x - a) / t
+    // The jerk itself is clamped (not the end acceleration): (x − a)/T loses the jerk's
+    // precision when |a| ≫ J·T, and a braking profile ridden at slightly less than J
+    // falls behind its own model.
+    let j = if x.is_finite() {
+        (x - a) / t
+    } else if x > 0.0 {
+        jmax
+    } else {
+        -jmax
+    };
+    let j = j.clamp(-jmax, jmax);
+    // End acceleration within ±amax; from outside (limits just dropped) back at full jerk.
+    let j_up = if a <= amax { (amax - a) / t } else { -jmax };
+    let j_dn = if a >= -amax { (-amax - a) / t } else { jmax };
+    j.min(j_up.max(-jmax)).max(j_dn.min(jmax))
 }
 
 /// The jerk of the time-optimal stop (target speed zero) for the next period.
@@ -185,7 +205,10 @@ mod tests {
             assert!(amx <= amax.max(a0.abs()) * (1.0 + 1e-5), "|a| {amx}");
             assert!(jmx <= jmax * (1.0 + 1e-4), "|j| {jmx}");
             // The discrete stop follows the continuous one within a period's travel.
-            assert!((s - d).abs() <= v0 * T + 1e-4, "({v0},{a0}): sim {s} vs {d}");
+            assert!(
+                (s - d).abs() <= v0 * T + 1e-4,
+                "({v0},{a0}): sim {s} vs {d}"
+            );
         }
     }
 

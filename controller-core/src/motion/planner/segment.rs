@@ -259,7 +259,16 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
             let end = finite3(end_mm, "end_mm")?;
             let center = finite3(center_mm, "center_mm")?;
             out.attr.feed = feed_ok(feed_mm_s)?;
-            out.n = arc_pieces(start, end, center, plane, clockwise, turns, s, &mut out.pieces)?;
+            out.n = arc_pieces(
+                start,
+                end,
+                center,
+                plane,
+                clockwise,
+                turns,
+                s,
+                &mut out.pieces,
+            )?;
         }
         Motion::Dwell { duration_s } => {
             if !duration_s.is_finite() {
@@ -443,18 +452,37 @@ mod tests {
             Some(SegmentError::FeedNotPositive)
         );
         assert_eq!(
-            e(Segment::arc([1.0, 0.0, 0.0], o, Plane::XY, false, 0, 5.0, 0)),
+            e(Segment::arc(
+                [1.0, 0.0, 0.0],
+                o,
+                Plane::XY,
+                false,
+                0,
+                5.0,
+                0
+            )),
             Some(SegmentError::ArcZeroRadius)
         );
         assert!(matches!(
-            e(Segment::arc([0.0, 2.0, 0.0], [1.0, 0.0, 0.0], Plane::XY, false, 0, 5.0, 0)),
+            e(Segment::arc(
+                [0.0, 2.0, 0.0],
+                [1.0, 0.0, 0.0],
+                Plane::XY,
+                false,
+                0,
+                5.0,
+                0
+            )),
             Some(SegmentError::ArcRadiusMismatch { .. })
         ));
         assert_eq!(
             e(Segment::line([1.0, 0.0, 0.0], 5.0, 0).with_blend(Blend::Tolerance(-1.0))),
             Some(SegmentError::NegativeTolerance)
         );
-        assert_eq!(e(Segment::dwell(-1.0, 0)), Some(SegmentError::NegativeDwell));
+        assert_eq!(
+            e(Segment::dwell(-1.0, 0)),
+            Some(SegmentError::NegativeDwell)
+        );
         // A zero-length line is accepted and yields no piece.
         assert_eq!(prepare(&Segment::line(o, 5.0, 0), o, &s).unwrap().n, 0);
     }
