@@ -794,10 +794,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         // reach, found where a stop with the limits so far ends before the next weaker span.
         let mut stop_limits: Option<(f32, f32)> = None;
         let hold = self.hold_point;
-        // Constraints beyond the hold's stop point are dominated by it, except within the
-        // A³/8J² by which braking to a low speed can need more room than braking to zero.
-        let hold_reach = floor_a * floor_a * floor_a / (8.0 * floor_j * floor_j) + SNAP_MM;
-        let mut scan_end = f32::INFINITY;
+        // The hold's stop point only adds a constraint: those near it still count (braking
+        // to a low speed can need more room than braking to zero), so the scan goes on.
         if let Some(h) = hold.filter(|h| h.seq == slot.span.seq) {
             let d = (h.sigma - self.gen.sigma) + self.gen.comp;
             ahead.push_speed(SpeedConstraint {
@@ -809,11 +807,9 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 soft: false,
             });
             stop_dist = d;
-            scan_end = d + hold_reach;
-            prev_stop = false;
         }
         let mut k = idx + 1;
-        while stop_dist.is_infinite() || dist <= scan_end {
+        loop {
             if prev_stop {
                 ahead.push_speed(SpeedConstraint {
                     dist,
@@ -902,8 +898,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                     jerk_after: jerk_run,
                     soft: false,
                 });
-                stop_dist = dist + h.sigma;
-                scan_end = stop_dist + hold_reach;
+                stop_dist = stop_dist.min(dist + h.sigma);
             }
             prev_stop = s.stop_after || s.dwell_periods > 0;
             dist += s.span.len_mm;
@@ -1137,22 +1132,44 @@ mod debug_tests2 {
     #[test]
     #[ignore]
     fn debug_arc() {
-        use crate::motion::planner::{Blend, Feed, Motion, MotionPlanner};
+        use crate::motion::planner::{Blend, MotionPlanner, Plane};
+        // (is_arc, plane, cw, r, a0, sweep, rise, line d, feed, blend, turns)
+        let chain: &[(bool, u8, bool, f32, f32, f32, f32, [f32; 3], f32, u8, u32)] = &[
+            (true, 2, false, 11.360899, 3.519785, 1.3160155, -0.10908752, [0.0; 3], 53.274113, 4, 0),
+            (false, 0, false, 0.0, 0.0, 0.0, 0.0, [-5.7864695, 0.0, 0.0], 125.662834, 2, 0),
+            (true, 2, false, 5.1139636, 1.9139053, 4.9446173, -2.2757826, [0.0; 3], 286.28256, 1, 0),
+            (false, 0, false, 0.0, 0.0, 0.0, 0.0, [7.900921, 7.292434, 2.8074138], 35.977303, 4, 0),
+            (false, 0, false, 0.0, 0.0, 0.0, 0.0, [0.0, 11.933206, 0.0], 332.36047, 0, 0),
+        ];
         let mut mp: MotionPlanner<64, 256, 128, 32> = MotionPlanner::new(&GANTRY_PLANNER, [0.0; 3]).unwrap();
-        let a = 0.1f32.to_radians();
-        let p1 = [7.1776953 * libm::cosf(a), 7.1776953 * libm::sinf(a), 0.0];
-        let p2 = [p1[0], p1[1] + 10.373275, 0.0];
-        mp.push(&Segment::line(p1, 198.05367, 1).with_blend(Blend::Tolerance(0.002))).unwrap();
-        mp.push(&Segment { motion: Motion::Line { end_mm: p2, feed: Feed::Rapid }, blend: Blend::ExactStop, tag: 2 }).unwrap();
-        mp.plan();
-        for s in mp.planner().spans.iter() {
-            println!("span {} piece {} s0 {} len {} lim {:?} stop {}", s.span.seq, s.piece_id, s.sigma0, s.span.len_mm, s.lim, s.stop_after);
+        let mut pos = [0.0f32; 3];
+        for (k, &(is_arc, plane, cw, r, a0, sweep, rise, d, feed, blend, turns)) in chain.iter().enumerate() {
+            let eps = [0.0f32, 0.002, 0.01, 0.01, 0.05, 0.2, 1.0][blend as usize];
+            let blend = if blend == 0 { Blend::ExactStop } else { Blend::Tolerance(eps) };
+            if is_arc {
+                let plane = [Plane::XY, Plane::ZX, Plane::YZ][plane as usize];
+                let (i1, i2, n) = match plane { Plane::XY => (0, 1, 2), Plane::ZX => (2, 0, 1), Plane::YZ => (1, 2, 0) };
+                let mut center = pos;
+                center[i1] -= r * libm::cosf(a0);
+                center[i2] -= r * libm::sinf(a0);
+                let a1 = if cw { a0 - sweep } else { a0 + sweep };
+                let mut end = center;
+                end[i1] += r * libm::cosf(a1);
+                end[i2] += r * libm::sinf(a1);
+                end[n] = pos[n] + rise;
+                mp.push(&Segment::arc(end, center, plane, cw, turns, feed, k as u32 + 1).with_blend(blend)).unwrap();
+                pos = end;
+            } else {
+                let end = [pos[0] + d[0], pos[1] + d[1], pos[2] + d[2]];
+                mp.push(&Segment::line(end, feed, k as u32 + 1).with_blend(blend)).unwrap();
+                pos = end;
+            }
         }
+        mp.plan();
         for n in 0..100000 {
-            if n == 0 { mp.hold(); }
-            if n == 2641 { mp.resume(); }
-            if n == 3307 { mp.set_feed_override(0.57966006).unwrap(); }
-            DBG.store(mp.planner_status().slips == 0 && n > 3300, core::sync::atomic::Ordering::Relaxed);
+            if n == 13886 { mp.hold(); }
+            if n == 13888 { mp.resume(); }
+            DBG.store(mp.planner_status().slips == 0 && n > 13800, core::sync::atomic::Ordering::Relaxed);
             let x = mp.tick();
             if mp.planner_status().slips > 0 {
                 println!("slip at {n}: {:?}", x);
