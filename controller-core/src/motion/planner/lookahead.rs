@@ -30,12 +30,12 @@ use super::profile::{braking_distance, integrate, ramp_down_distance, track_jerk
 /// treating the last kept one as a stop (conservative).
 pub(crate) const MAX_CONSTRAINTS: usize = 16;
 
-/// Distance margin of the braking checks when choosing the jerk: 2 nm plus 2e-7 of the
+/// Distance margin of the braking checks when choosing the jerk: 2 nm plus 2e-6 of the
 /// distance (f32 rounding of span lengths and positions), plus the lag of the discrete
 /// follower (see `feasible`). The slip test allows the same amount the other way, so that
 /// rounding on a state that rides the braking curve is no slip.
 const CHECK_MARGIN_MM: f32 = 2.0e-6;
-const CHECK_MARGIN_REL: f32 = 2.0e-7;
+const CHECK_MARGIN_REL: f32 = 2.0e-6;
 
 /// How far the last ramp-out period may carry the motion past a stop point (mm) before
 /// the planner snaps it onto the point: the discrete landing cannot hit the point with
@@ -85,6 +85,8 @@ pub(crate) struct Ahead {
     /// Limits of the spans the next period can touch.
     pub acc: f32,
     pub jerk: f32,
+    /// Lowest jerk limit of the spans a ramp-out of the current deceleration can reach.
+    pub jerk_rampout: f32,
 }
 
 impl Ahead {
@@ -97,6 +99,7 @@ impl Ahead {
             cap,
             acc,
             jerk,
+            jerk_rampout: jerk,
         }
     }
 
@@ -298,13 +301,14 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
             j_min = j_min.max(((a_lo - a) / t).min(j_max));
         }
     }
-    // Never brake so hard that ramping the deceleration out at full jerk would reverse
-    // the motion (speed lost in the ramp-out a²/2J ≤ v): the most negative end
-    // acceleration x with v + (a + x)T/2 − x²/2J ≥ 0.
+    // Never brake so hard that ramping the deceleration out (at the lowest jerk of the
+    // spans the ramp-out reaches) would reverse the motion (speed lost a²/2J ≤ v): the
+    // most negative end acceleration x with v + (a + x)T/2 − x²/2J ≥ 0.
+    let jr = ahead.jerk_rampout.min(jmax);
     let c0 = v + 0.5 * a * t;
-    let disc = 0.25 * jt * jt + 2.0 * jmax * c0;
+    let disc = 0.25 * jr * t * jr * t + 2.0 * jr * c0;
     if disc >= 0.0 {
-        let x_lo = 0.5 * jt - libm::sqrtf(disc);
+        let x_lo = 0.5 * jr * t - libm::sqrtf(disc);
         j_min = j_min.max(((x_lo - a) / t).min(j_max));
     }
     let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t).clamp(j_min, j_max);

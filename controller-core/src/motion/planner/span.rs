@@ -275,20 +275,13 @@ pub(crate) fn path_limits(b: &DerivBounds, h: f32, v_design: f32, s: &Settings) 
         acc = s.acc_max[0].max(s.acc_max[1]).max(s.acc_max[2]);
     }
     let acc = acc.max(a_req);
-    let mut jerk = f32::INFINITY;
-    for i in 0..3 {
-        if b.p1[i] > 0.0 {
-            let used = b.p3[i] * vel * vel * vel + 3.0 * b.p2[i] * vel * acc;
-            jerk = jerk.min((s.jerk_max[i] - used) / b.p1[i]);
-        }
-    }
-    if !jerk.is_finite() {
-        jerk = s.jerk_max[0].max(s.jerk_max[1]).max(s.jerk_max[2]);
-    }
+    // The path jerk is the same on every span (the floor, which V and A above leave free):
+    // braking models and the discrete follower then agree on how fast an acceleration can
+    // be ramped out wherever the ramp ends, which per-span jerk limits would break.
     PathLimits {
         vel,
         acc,
-        jerk: jerk.max(j_req),
+        jerk: j_req,
     }
 }
 
@@ -347,7 +340,7 @@ mod tests {
         let l = path_limits(&b, 10.0, f32::INFINITY, &s);
         assert!((l.vel - 250.0 / 0.8).abs() < 1e-2, "{l:?}");
         assert!((l.acc - 2000.0 / 0.8).abs() < 1e-2);
-        assert!((l.jerk - 1e5 / 0.8).abs() < 1.0);
+        assert_eq!(l.jerk, s.jerk_floor);
         let _ = u;
     }
 }
