@@ -112,7 +112,7 @@ fn reversal_turns_back_within_tolerance() {
     // Furthest point along +x: within ε of the corner, never beyond it.
     let xmax = s.iter().map(|x| x.pos_mm.x).fold(f32::MIN, f32::max);
     assert!(
-        xmax <= 10.0 + 1e-5 && xmax >= 10.0 - 0.01,
+        (10.0 - 0.01..=10.0 + 1e-5).contains(&xmax),
         "turn-around at x = {xmax}"
     );
     // Off-axis motion: none.

@@ -54,9 +54,6 @@ pub(crate) struct SpeedConstraint {
     /// Acceleration and jerk limits for braking toward it.
     pub acc: f32,
     pub jerk: f32,
-    /// Jerk limit beyond the point (the span it starts): an acceleration still positive
-    /// there ramps down at this one.
-    pub jerk_after: f32,
     /// The limit is the programmed feed × override, not the geometry: after the override
     /// is lowered it may be out of reach; the look-ahead then brakes as hard as allowed
     /// toward it instead of counting a slip.
@@ -85,8 +82,6 @@ pub(crate) struct Ahead {
     /// Limits of the spans the next period can touch.
     pub acc: f32,
     pub jerk: f32,
-    /// Lowest jerk limit of the spans a ramp-out of the current deceleration can reach.
-    pub jerk_rampout: f32,
 }
 
 impl Ahead {
@@ -99,7 +94,6 @@ impl Ahead {
             cap,
             acc,
             jerk,
-            jerk_rampout: jerk,
         }
     }
 
@@ -176,23 +170,6 @@ impl Ahead {
             } else if need > room - m {
                 return false;
             }
-            // Still accelerating when the point is reached: the rest of the ramp-down (and
-            // the speed's peak) falls into the next span, at its jerk.
-            if a1 > 0.0 && c.jerk_after < c.jerk && c.w > 0.0 {
-                // The period that reaches the point is already limited to the next span's
-                // jerk: count on the stronger ramp only up to two periods at speed w before
-                // it (a fixed distance, so that riding this limit stays consistent).
-                let before = room - 2.0 * c.w * t;
-                if let Some((vc, ac)) = state_at(v1, a1, c.jerk, before) {
-                    let peak = vc + 0.5 * ac * ac / c.jerk_after;
-                    // Same margin logic as the distances: kept when choosing, granted
-                    // when testing for a slip.
-                    let mv = 1.0e-5 * (1.0 + c.w);
-                    if peak > c.w - mv.copysign(margin) {
-                        return false;
-                    }
-                }
-            }
         }
         for c in self.accel.iter().take(self.n_accel) {
             if a1 > c.acc {
@@ -204,32 +181,6 @@ impl Ahead {
         }
         true
     }
-}
-
-/// Speed and acceleration where the ramp-down from `(v, a > 0)` at jerk `jmax` has
-/// covered `dist`, if it is still ramping there (`None` when it ends before).
-fn state_at(v: f32, a: f32, jmax: f32, dist: f32) -> Option<(f32, f32)> {
-    if !(dist > 0.0) {
-        return Some((v, a));
-    }
-    let t_end = a / jmax;
-    if ramp_down_distance(v, a, 0.0, jmax) <= dist {
-        return None;
-    }
-    // s(τ) is increasing on [0, t_end] (the speed rises while a > 0): bisection, taking
-    // the upper end so that the acceleration left is never underestimated... (a_c falls
-    // with τ, v_c rises: the peak v_c + a_c²/2J' is evaluated at both ends, larger kept).
-    let (mut lo, mut hi) = (0.0f32, t_end);
-    for _ in 0..24 {
-        let mid = 0.5 * (lo + hi);
-        let s = v * mid + 0.5 * a * mid * mid - jmax * mid * mid * mid * (1.0 / 6.0);
-        if s < dist {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    Some((v + a * hi - 0.5 * jmax * hi * hi, a - jmax * lo))
 }
 
 /// The strongest deceleration (most negative acceleration) from which the acceleration
@@ -293,25 +244,22 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     for c in ahead.accel.iter().take(ahead.n_accel) {
         if c.acc < amax && v > 0.0 {
             let a_lo = decel_floor(v, c.acc, c.jerk, c.dist - v * t, t);
-            #[cfg(test)]
-            if super::planner::DBG.load(core::sync::atomic::Ordering::Relaxed) {
-                extern crate std;
-                std::println!("DF v {v} a {a} c {c:?} a_lo {a_lo}");
-            }
             j_min = j_min.max(((a_lo - a) / t).min(j_max));
         }
     }
-    // Never brake so hard that ramping the deceleration out (at the lowest jerk of the
-    // spans the ramp-out reaches) would reverse the motion (speed lost a²/2J ≤ v): the
-    // most negative end acceleration x with v + (a + x)T/2 − x²/2J ≥ 0.
-    let jr = ahead.jerk_rampout.min(jmax);
+    // Never brake so hard that ramping the deceleration out at full jerk would reverse
+    // the motion (speed lost a²/2J ≤ v): the most negative end acceleration x with
+    // v + (a + x)T/2 − x²/2J ≥ 0.
     let c0 = v + 0.5 * a * t;
-    let disc = 0.25 * jr * t * jr * t + 2.0 * jr * c0;
+    let disc = 0.25 * jt * jt + 2.0 * jmax * c0;
     if disc >= 0.0 {
-        let x_lo = 0.5 * jr * t - libm::sqrtf(disc);
+        let x_lo = 0.5 * jt - libm::sqrtf(disc);
         j_min = j_min.max(((x_lo - a) / t).min(j_max));
     }
-    let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t).clamp(j_min, j_max);
+    // (max/min rather than clamp: no panic path even for a non-finite input.)
+    let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t)
+        .max(j_min)
+        .min(j_max);
     if ahead.feasible(v, a, j_hi, t, CHECK_MARGIN_MM, true) {
         return Choice {
             jerk: j_hi,
@@ -375,7 +323,6 @@ mod tests {
                 w: 0.0,
                 acc: amax,
                 jerk: jmax,
-                jerk_after: jmax,
                 soft: false,
             });
             let c = choose_jerk(&ah, v, a, T);
@@ -395,47 +342,5 @@ mod tests {
         }
         assert!(s <= len + 1e-4 && s > len - 2e-3, "stopped at {s}");
         assert!(vmax_seen <= cap * (1.0 + 1e-5) && vmax_seen > cap * 0.999);
-    }
-}
-
-#[cfg(test)]
-mod debug_la {
-    extern crate std;
-    use super::*;
-    #[test]
-    #[ignore]
-    fn dbg_case() {
-        let mut ah = Ahead::new(80.0, 2000.0, 100000.0);
-        for (v, a, dist) in [
-            (1.0094318f32, 416.2256f32, 0.0053596497f32),
-            (1.0505544, 406.2256, 0.005256653),
-            (1.090677, 396.2256, 0.0051498413),
-            (1.1297995, 386.2256, 0.0050373077),
-        ] {
-            ah.n_speed = 0;
-            ah.n_accel = 0;
-            ah.push_speed(SpeedConstraint {
-                dist,
-                w: 1.9925041,
-                acc: 2000.0,
-                jerk: 100000.0,
-                jerk_after: 25000.002,
-                soft: false,
-            });
-            ah.push_accel(AccConstraint {
-                dist,
-                acc: 500.00592,
-                jerk: 100000.0,
-                v_ref: 2.0,
-            });
-            for j in [-100000.0f32] {
-                let (ds, v1, a1) = integrate(v, a, j, 1e-4);
-                let room = dist - ds;
-                let before = room - 2.0 * 1.9925041 * 1e-4;
-                let sa = state_at(v1, a1, 100000.0, before);
-                let peak = sa.map(|(vc, ac)| vc + 0.5 * ac * ac / 25000.002);
-                std::println!("v {v} a {a} j {j}: feasible {} v1 {v1} a1 {a1} room {room} state_at {sa:?} peak {peak:?} ramp {}", ah.feasible(v, a, j, 1e-4, CHECK_MARGIN_MM, true), ramp_down_distance(v1, a1, 0.0, 100000.0));
-            }
-        }
     }
 }

@@ -774,15 +774,6 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             + 2.0 * v_next * t
             + 1.0e-3;
         let touch = v_next * t + 1.0e-6;
-        // Reach of a ramp-out of the current deceleration at the current span's jerk, less
-        // two periods: a braking that ends exactly at a span (its speed cap) does not
-        // count that span; a stop that ramps out inside it does.
-        let rampout = if a < 0.0 {
-            let tr = -a / slot.lim.jerk.max(1.0);
-            v * tr + 0.5 * a * tr * tr + slot.lim.jerk * tr * tr * tr * (1.0 / 6.0) - 2.0 * v * t
-        } else {
-            0.0
-        };
 
         let cap0 = self.cap(&slot);
         let mut ahead = Ahead::new(cap0, slot.lim.acc, slot.lim.jerk);
@@ -812,7 +803,6 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 w: 0.0,
                 acc: acc_run,
                 jerk: jerk_run,
-                jerk_after: jerk_run,
                 soft: false,
             });
             stop_dist = d;
@@ -825,7 +815,6 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                     w: 0.0,
                     acc: acc_run,
                     jerk: jerk_run,
-                    jerk_after: jerk_run,
                     soft: false,
                 });
                 stop_dist = stop_dist.min(dist);
@@ -841,7 +830,6 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                     w: 0.0,
                     acc: acc_run,
                     jerk: jerk_run,
-                    jerk_after: jerk_run,
                     soft: false,
                 });
                 stop_dist = stop_dist.min(dist);
@@ -861,16 +849,12 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 ahead.acc = ahead.acc.min(s.lim.acc);
                 ahead.jerk = ahead.jerk.min(s.lim.jerk);
             }
-            if dist < rampout {
-                ahead.jerk_rampout = ahead.jerk_rampout.min(s.lim.jerk);
-            }
             if cap_k < cap_min {
                 let c = SpeedConstraint {
                     dist,
                     w: cap_k,
                     acc: acc_run,
                     jerk: jerk_run,
-                    jerk_after: s.lim.jerk,
                     soft: cap_k < s.lim.vel,
                 };
                 if !ahead.push_speed(c) {
@@ -907,7 +891,6 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                     w: 0.0,
                     acc: acc_run,
                     jerk: jerk_run,
-                    jerk_after: jerk_run,
                     soft: false,
                 });
                 stop_dist = stop_dist.min(dist + h.sigma);
@@ -937,28 +920,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             self.gen.acc_comp = 0.0;
         } else {
             let choice = choose_jerk(&ahead, v, a, t);
-            #[cfg(test)]
-            if DBG.load(core::sync::atomic::Ordering::Relaxed) {
-                extern crate std;
-                let c = if ahead.n_speed > 0 { ahead.speed[0] } else { SpeedConstraint::default() };
-                let dd = braking_distance(v, a, c.w, c.acc, c.jerk);
-                std::println!("STEP seq {} sig {} v {v} a {a} j {} c.dist {} w {} acc {} jerk {} D {dd} slack {} n {} all {:?}", self.gen.seq, self.gen.sigma, choice.jerk, c.dist, c.w, c.acc, c.jerk, c.dist - dd, ahead.n_speed, &ahead.speed[..ahead.n_speed]);
-            }
             if choice.slipped {
                 self.slips = self.slips.saturating_add(1);
-                #[cfg(test)]
-                {
-                    extern crate std;
-                    std::println!(
-                        "SLIP v {v} a {a} j {} cap {} acc {} jerk {} speed {:?} accel {:?}",
-                        choice.jerk,
-                        ahead.cap,
-                        ahead.acc,
-                        ahead.jerk,
-                        &ahead.speed[..ahead.n_speed],
-                        &ahead.accel[..ahead.n_accel]
-                    );
-                }
             }
             // Increments computed apart from the state, then added with compensation.
             let j = choice.jerk;
@@ -1083,142 +1046,10 @@ fn kahan(sum: f32, add: f32, comp: &mut f32) -> f32 {
     t
 }
 
-#[cfg(test)]
-pub(crate) static DBG: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
-
 fn constant_coef(p: V3) -> [[f32; 8]; 3] {
     let mut c = [[0.0f32; 8]; 3];
     for i in 0..3 {
         c[i][0] = p[i];
     }
     c
-}
-
-#[cfg(test)]
-mod debug_tests {
-    extern crate std;
-    use super::*;
-    use crate::motion::planner::GANTRY_PLANNER;
-    use std::println;
-
-    #[test]
-    #[ignore]
-    fn print_square_spans() {
-        let mut p: Planner<16, 64> = Planner::new(&GANTRY_PLANNER, [0.0; 3]).unwrap();
-        for (k, e) in [[10.0, 0.0, 0.0], [10.0, 10.0, 0.0], [0.0, 10.0, 0.0]]
-            .iter()
-            .enumerate()
-        {
-            p.push(&Segment::line(*e, 50.0, k as u32 + 1)).unwrap();
-        }
-        p.fill_spans();
-        for e in p.pieces.iter() {
-            println!(
-                "piece len {} jin {:?} jout {:?} closed {} cursor {}",
-                e.piece.len, e.j_in, e.j_out, e.closed, e.cursor
-            );
-        }
-        for s in p.spans.iter() {
-            println!(
-                "seq {} piece {} s0 {} len {} lim {:?} stop {} c {:?}",
-                s.span.seq,
-                s.piece_id,
-                s.sigma0,
-                s.span.len_mm,
-                s.lim,
-                s.stop_after,
-                s.span.coef[0]
-            );
-        }
-    }
-}
-
-#[cfg(test)]
-mod debug_tests2 {
-    extern crate std;
-    use super::*;
-    use crate::motion::planner::{Executor, GANTRY_PLANNER};
-    use heapless::Deque;
-    use std::println;
-
-    #[test]
-    #[ignore]
-    fn debug_arc() {
-        use crate::motion::planner::{Blend, MotionPlanner, Plane};
-        // (is_arc, plane, cw, r, a0, sweep, rise, line d, feed, blend, turns)
-        let chain: &[(bool, u8, bool, f32, f32, f32, f32, [f32; 3], f32, u8, u32)] = &[
-            (false, 0, false, 0.0, 0.0, 0.0, 0.0, [-5.249266, -11.692104, 10.179155], 179.82198, 2, 0),
-            (false, 0, false, 0.0, 0.0, 0.0, 0.0, [0.0, -11.799785, 6.607241], 164.35042, 0, 0),
-        ];
-        let mut mp: MotionPlanner<64, 256, 128, 32> = MotionPlanner::new(&GANTRY_PLANNER, [0.0; 3]).unwrap();
-        let mut pos = [0.0f32; 3];
-        for (k, &(is_arc, plane, cw, r, a0, sweep, rise, d, feed, blend, turns)) in chain.iter().enumerate() {
-            let eps = [0.0f32, 0.002, 0.01, 0.01, 0.05, 0.2, 1.0][blend as usize];
-            let blend = if blend == 0 { Blend::ExactStop } else { Blend::Tolerance(eps) };
-            if is_arc {
-                let plane = [Plane::XY, Plane::ZX, Plane::YZ][plane as usize];
-                let (i1, i2, n) = match plane { Plane::XY => (0, 1, 2), Plane::ZX => (2, 0, 1), Plane::YZ => (1, 2, 0) };
-                let mut center = pos;
-                center[i1] -= r * libm::cosf(a0);
-                center[i2] -= r * libm::sinf(a0);
-                let a1 = if cw { a0 - sweep } else { a0 + sweep };
-                let mut end = center;
-                end[i1] += r * libm::cosf(a1);
-                end[i2] += r * libm::sinf(a1);
-                end[n] = pos[n] + rise;
-                mp.push(&Segment::arc(end, center, plane, cw, turns, feed, k as u32 + 1).with_blend(blend)).unwrap();
-                pos = end;
-            } else {
-                let end = [pos[0] + d[0], pos[1] + d[1], pos[2] + d[2]];
-                mp.push(&Segment::line(end, feed, k as u32 + 1).with_blend(blend)).unwrap();
-                pos = end;
-            }
-        }
-        mp.plan();
-        for n in 0..100000 {
-            DBG.store(mp.planner_status().slips == 0, core::sync::atomic::Ordering::Relaxed);
-            let x = mp.tick();
-            if mp.planner_status().slips > 0 {
-                println!("slip at {n}: {:?}", x);
-                break;
-            }
-        }
-    }
-
-    #[test]
-    #[ignore]
-    fn debug_chords() {
-        let r = 20.0f32;
-        let dphi = 0.05 / r;
-        let mut p: Planner<64, 256> = Planner::new(&GANTRY_PLANNER, [r, 0.0, 0.0]).unwrap();
-        let mut ex = Executor::new(1e-4, [r, 0.0, 0.0]);
-        let mut sp: Deque<Span, 128> = Deque::new();
-        let mut st: Deque<Step, 32> = Deque::new();
-        let mut k = 1;
-        for n in 0..30000 {
-            while k <= 5000 {
-                let phi = dphi * k as f32;
-                if p.push(&Segment::line([r * phi.cos(), r * phi.sin(), 0.0], 50.0, k))
-                    .is_err()
-                {
-                    break;
-                }
-                k += 1;
-            }
-            let s = ex.status();
-            p.sync(&s);
-            let before = p.slips;
-            p.produce(&mut sp, &mut st, 32);
-            let out = ex.sample(&mut sp, &mut st);
-            if n % 1000 == 0 || (p.slips != before && n < 20000) {
-                let idx = (p.gen.seq - p.spans.front().unwrap().span.seq) as usize;
-                let ring_end: f32 =
-                    p.spans.iter().skip(idx).map(|s| s.span.len_mm).sum::<f32>() - p.gen.sigma;
-                let sent_ahead = p.sent_end - p.gen.seq;
-                let cur = p.spans.get(idx).unwrap();
-                println!("{n} v {} a {} slips {} ring {} idx {} ring_end {ring_end} sent_ahead {sent_ahead} pieces {} ch {} lim {:?} exv {}",
-                    p.gen.vel, p.gen.acc, p.slips, p.spans.len(), idx, p.pieces.len(), sp.len(), cur.lim, out.path_speed_mm_s);
-            }
-        }
-    }
 }

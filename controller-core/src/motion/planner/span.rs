@@ -21,10 +21,13 @@
 //! j_i = p_i''' σ̇³ + 3 p_i'' σ̇ σ̈ + p_i' σ⃛ ≤ P3 V³ + 3 P2 V A + P1 J ≤ jmax_i
 //! ```
 //!
-//! V is the largest speed that leaves at least the configured tangential share of every
-//! axis' acceleration and jerk to A and J; A and J then take everything that is left. On
-//! a straight span P2 = P3 = 0 and A, J are the full projected axis limits. The limits
-//! hold for the polynomial that is actually executed, whatever the fit error.
+//! V is the largest speed that still leaves the floor `acc_floor`/`jerk_floor` (the
+//! configured tangential share of the weakest axis, over the largest tangent component)
+//! to A and J, capped at twice the programmed feed (the override's maximum) so that slow
+//! spans give the rest to A. A then takes everything V leaves; J is the floor on every
+//! span (one path jerk: see [`path_limits`]). On a straight span P2 = P3 = 0 and A is the
+//! full projected axis limit. The limits hold for the polynomial that is actually
+//! executed, whatever the fit error.
 
 use super::blend::Jet;
 use super::config::Settings;
