@@ -30,6 +30,19 @@ fn corner(
         "turn {turn_deg}: limits {rv} {ra} {rj}"
     );
     assert_eq!(mp.planner_status().slips, 0, "turn {turn_deg}");
+    // Both lines reach the programmed feed (10 mm is ample at 50 mm/s): nothing of the
+    // corner's lower speed limit outlives it.
+    for tag in [1, 2] {
+        let vmax = s
+            .iter()
+            .filter(|x| x.tag == tag)
+            .map(|x| x.path_speed_mm_s)
+            .fold(0.0f32, f32::max);
+        assert!(
+            vmax >= 0.999 * feed,
+            "turn {turn_deg}: line {tag} peaks at {vmax}"
+        );
+    }
     let last = s.last().unwrap().pos_mm.to_array();
     for i in 0..3 {
         assert!(

@@ -35,6 +35,7 @@
 //! [`plan_junction`]). A reversal (Δu = −2u) gets `d = 3ε`: the path reverses `d/3 ≤ ε`
 //! before the corner, with speed going smoothly through zero.
 
+use super::fmath::F32Ext;
 use super::geometry::{norm, sub, Piece, V3};
 
 /// Tangent and curvature jumps below these are treated as smooth (no blend, no stop):
@@ -102,9 +103,9 @@ impl Junction {
         if !(d > 0.0) {
             return Jet::default();
         }
-        let x = x.clamp(-d, d);
+        let x = x.clampf(-d, d);
         let on_right = x > 0.0 || (x == 0.0 && right);
-        let r = ((d - x.abs()) / d).clamp(0.0, 1.0);
+        let r = ((d - x.abs()) / d).clampf(0.0, 1.0);
         let inv_d = 1.0 / d;
         // Hat kernel (tangent term).
         let e = d * r * r * r * (1.0 / 6.0);
@@ -240,16 +241,16 @@ pub(crate) fn plan_junction(
             0.0
         },
     };
-    let cap = a.len.min(b.len).min(a_free.max(0.0));
+    let cap = a.len.mn(b.len).mn(a_free.mx(0.0));
     let mut d = model.inverse(budget, cap);
     // Rule 2.
     if d > 0.5 * b.len {
-        d = (0.5 * b.len).max(model.inverse(0.5 * budget, d));
+        d = (0.5 * b.len).mx(model.inverse(0.5 * budget, d));
     }
     // Rule 3.
     if d + prev.d > a.len && model.dev(d) + prev.dev > budget {
-        let apart = (a.len - prev.d).max(0.0).min(d);
-        d = apart.max(model.inverse(budget - prev.dev, d));
+        let apart = (a.len - prev.d).mx(0.0).mn(d);
+        d = apart.mx(model.inverse(budget - prev.dev, d));
     }
     if d < min_half_width {
         return stop();

@@ -17,6 +17,15 @@ pub trait Sink<T> {
 /// Receiving end of a bounded channel.
 pub trait Source<T> {
     fn try_recv(&mut self) -> Option<T>;
+    /// The oldest item, left in the channel (the executor samples its current span in
+    /// place: no copy per period).
+    fn peek(&self) -> Option<&T>;
+    /// Drops the oldest item.
+    fn drop_front(&mut self) {
+        let _ = self.try_recv();
+    }
+    /// Items waiting.
+    fn waiting(&self) -> usize;
 }
 
 impl<T, const N: usize> Sink<T> for Deque<T, N> {
@@ -32,6 +41,12 @@ impl<T, const N: usize> Source<T> for Deque<T, N> {
     fn try_recv(&mut self) -> Option<T> {
         self.pop_front()
     }
+    fn peek(&self) -> Option<&T> {
+        self.front()
+    }
+    fn waiting(&self) -> usize {
+        self.len()
+    }
 }
 
 impl<T> Sink<T> for Producer<'_, T> {
@@ -46,5 +61,11 @@ impl<T> Sink<T> for Producer<'_, T> {
 impl<T> Source<T> for Consumer<'_, T> {
     fn try_recv(&mut self) -> Option<T> {
         self.dequeue()
+    }
+    fn peek(&self) -> Option<&T> {
+        Consumer::peek(self)
+    }
+    fn waiting(&self) -> usize {
+        self.len()
     }
 }

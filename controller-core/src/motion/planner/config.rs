@@ -3,6 +3,8 @@
 
 /// Machine limits and planning parameters. Units in the names; every value is checked by
 /// [`Settings::new`].
+use super::fmath::F32Ext;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
@@ -123,8 +125,8 @@ impl Settings {
         if min_segment_mm > 1.0 {
             return Err(PlannerConfigError::OutOfRange("min_segment_mm"));
         }
-        let amin = acc_max[0].min(acc_max[1]).min(acc_max[2]);
-        let jmin = jerk_max[0].min(jerk_max[1]).min(jerk_max[2]);
+        let amin = acc_max[0].mn(acc_max[1]).mn(acc_max[2]);
+        let jmin = jerk_max[0].mn(jerk_max[1]).mn(jerk_max[2]);
         Ok(Self {
             period_s,
             vel_max,

@@ -16,6 +16,7 @@
 //! restarts its profile at the reported stop point.
 
 use super::channel::Source;
+use super::fmath::{self, F32Ext};
 use super::geometry::V3;
 use super::profile::{integrate, stop_jerk};
 use super::span::Span;
@@ -94,6 +95,9 @@ const DRAIN_PER_PERIOD: usize = 8;
 const SPAN_PULLS_PER_PERIOD: usize = 8;
 
 /// The interrupt half of the planner.
+///
+/// The span being sampled stays at the front of the span channel (sampled in place, no
+/// copy): the executor drops a span from the channel only when it has passed it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Executor {
     period_s: f32,
@@ -101,17 +105,26 @@ pub struct Executor {
     underruns: u32,
     epoch: u16,
     path_gen: u16,
-    span: Span,
-    have_span: bool,
+    /// The front of the span channel is the current span (sequence number `seq`).
+    on_span: bool,
+    seq: u32,
+    tag: u32,
     sigma: f32,
     vel: f32,
     acc: f32,
     stop_acc: f32,
     stop_jerk: f32,
-    rest_pos: V3,
+    /// Position of the last sample (the rest position before the first span).
+    pos: V3,
     tangent: V3,
     /// A step taken from the channel but not used yet.
     pending: Option<Step>,
+}
+
+/// `a` comes before `b` in the wrapping sequence order.
+#[inline]
+fn seq_before(a: u32, b: u32) -> bool {
+    (a.wrapping_sub(b) as i32) < 0
 }
 
 impl Executor {
@@ -124,22 +137,15 @@ impl Executor {
             underruns: 0,
             epoch: 0,
             path_gen: 0,
-            span: Span {
-                seq: 0,
-                path_gen: 0,
-                tag: 0,
-                len_mm: 0.0,
-                inv_len: 0.0,
-                inv_feed: 0.0,
-                coef: [[0.0; 8]; 3],
-            },
-            have_span: false,
+            on_span: false,
+            seq: 0,
+            tag: 0,
             sigma: 0.0,
             vel: 0.0,
             acc: 0.0,
             stop_acc: 1.0,
             stop_jerk: 1.0,
-            rest_pos: start_mm,
+            pos: start_mm,
             tangent: [1.0, 0.0, 0.0],
             pending: None,
         }
@@ -153,61 +159,69 @@ impl Executor {
         ExecutorStatus {
             epoch: self.epoch,
             path_gen: self.path_gen,
-            span_seq: self.span.seq,
+            span_seq: self.seq,
             sigma_mm: self.sigma,
             mode: self.mode,
             underruns: self.underruns,
-            pos_mm: self.position(),
-            tag: self.span.tag,
+            pos_mm: self.pos,
+            tag: self.tag,
         }
     }
 
-    fn position(&self) -> V3 {
-        if self.have_span {
-            self.span.eval(self.sigma).pos
-        } else {
-            self.rest_pos
-        }
-    }
-
-    /// Pulls spans until the current one has sequence number `seq` (bounded); false if it
-    /// is not available yet.
+    /// Drops passed (and stale) spans until the front is span `seq` (bounded); false if
+    /// it is not available yet.
     fn advance_to(&mut self, spans: &mut impl Source<Span>, seq: u32) -> bool {
+        if self.on_span && self.seq == seq {
+            return true;
+        }
         for _ in 0..SPAN_PULLS_PER_PERIOD {
-            if self.have_span && self.span.seq == seq && self.span.path_gen == self.path_gen {
+            let Some(f) = spans.peek() else {
+                return false;
+            };
+            if f.path_gen == self.path_gen && f.seq == seq {
+                self.on_span = true;
+                self.seq = seq;
+                self.tag = f.tag;
                 return true;
             }
-            if self.have_span && self.span.path_gen == self.path_gen && self.span.seq > seq {
+            if f.path_gen == self.path_gen && !seq_before(f.seq, seq) {
+                // The front lies beyond: not ours (cannot happen with a consistent planner).
                 return false;
             }
-            match spans.try_recv() {
-                Some(s) if s.path_gen == self.path_gen => {
-                    self.span = s;
-                    self.have_span = true;
-                }
-                Some(_) => {}
-                None => return false,
-            }
+            spans.drop_front();
+            self.on_span = false;
         }
-        self.have_span && self.span.seq == seq
+        false
     }
 
     /// Moves σ onto the following spans while it is past the end of the current one.
     fn carry_over(&mut self, spans: &mut impl Source<Span>) {
         for _ in 0..SPAN_PULLS_PER_PERIOD {
-            if !(self.sigma > self.span.len_mm) {
+            let Some(len) = spans.peek().map(|f| f.len_mm) else {
+                return;
+            };
+            if !(self.sigma > len) {
                 return;
             }
-            match spans.try_recv() {
-                Some(s) if s.path_gen == self.path_gen => {
-                    self.sigma -= self.span.len_mm;
-                    self.span = s;
+            if spans.waiting() < 2 {
+                // No geometry beyond (cannot happen while the planner keeps the stop
+                // horizon frozen): end here at rest.
+                self.sigma = len;
+                self.vel = 0.0;
+                self.acc = 0.0;
+                return;
+            }
+            spans.drop_front();
+            match spans.peek() {
+                Some(f) if f.path_gen == self.path_gen => {
+                    self.sigma -= len;
+                    self.seq = f.seq;
+                    self.tag = f.tag;
                 }
-                Some(_) => {}
-                None => {
-                    // No geometry beyond (cannot happen while the planner keeps the stop
-                    // horizon frozen): end here at rest.
-                    self.sigma = self.span.len_mm;
+                _ => {
+                    // A new program's span: the old path ended; rest where the last
+                    // sample was.
+                    self.on_span = false;
                     self.vel = 0.0;
                     self.acc = 0.0;
                     return;
@@ -229,7 +243,7 @@ impl Executor {
         // on zero instead of reversing.
         let mut jmax = self.stop_jerk;
         if self.acc < 0.0 && self.vel > 0.0 {
-            jmax = jmax.max(self.acc * self.acc / (2.0 * self.vel));
+            jmax = jmax.mx(self.acc * self.acc / (2.0 * self.vel));
         }
         if self.vel <= 1.0e-5 && self.acc.abs() <= jmax * t {
             // Landed: this period takes the acceleration to zero (|Δa| ≤ J·T).
@@ -239,15 +253,15 @@ impl Executor {
             self.mode = ExecMode::Idle;
             return;
         }
-        let amax = self.stop_acc.max(-self.acc);
+        let amax = self.stop_acc.mx(-self.acc);
         let j = stop_jerk(self.vel, self.acc, amax, jmax, t);
         let (ds, v1, a1) = integrate(self.vel, self.acc, j, t);
-        self.sigma += ds.max(0.0);
+        self.sigma += ds.mx(0.0);
         // The speed may cross zero inside the last ramp-out period: rest there, the
         // remaining acceleration goes next period.
-        self.vel = v1.max(0.0);
+        self.vel = v1.mx(0.0);
         self.acc = a1;
-        if self.have_span {
+        if self.on_span {
             self.carry_over(spans);
         }
     }
@@ -282,6 +296,7 @@ impl Executor {
                     if s.path_gen != self.path_gen && self.vel == 0.0 {
                         // A new program after an abort: its spans replace the old ones.
                         self.path_gen = s.path_gen;
+                        self.on_span = false;
                     }
                     if self.advance_to(spans, s.span_seq) {
                         self.sigma = s.sigma_mm;
@@ -306,22 +321,23 @@ impl Executor {
                 }
             }
         }
-        self.output()
+        self.output(spans)
     }
 
-    fn output(&mut self) -> PathSample {
+    fn output(&mut self, spans: &impl Source<Span>) -> PathSample {
         let mut out = PathSample {
             mode: self.mode,
             path_speed_mm_s: self.vel,
             path_acc_mm_s2: self.acc,
             ..PathSample::default()
         };
-        if !self.have_span {
-            out.pos_mm = Vec3::from_array(self.rest_pos);
+        let span = if self.on_span { spans.peek() } else { None };
+        let Some(span) = span else {
+            out.pos_mm = Vec3::from_array(self.pos);
             out.tangent = Vec3::from_array(self.tangent);
             return out;
-        }
-        let p = self.span.eval(self.sigma);
+        };
+        let p = span.eval(self.sigma);
         let (v, a) = (self.vel, self.acc);
         let v2 = v * v;
         let mut vel = [0.0f32; 3];
@@ -332,20 +348,23 @@ impl Executor {
         }
         // Tangent from p' (|p'| ≈ 1); at a reversal cusp p' = 0 and p'' points the new way.
         let n1 = p.d1[0] * p.d1[0] + p.d1[1] * p.d1[1] + p.d1[2] * p.d1[2];
-        let n2 = p.d2[0] * p.d2[0] + p.d2[1] * p.d2[1] + p.d2[2] * p.d2[2];
         if n1 > 1.0e-8 {
-            let k = 1.0 / libm::sqrtf(n1);
+            let k = fmath::rsqrt(n1);
             self.tangent = [p.d1[0] * k, p.d1[1] * k, p.d1[2] * k];
-        } else if n2 > 1.0e-8 {
-            let k = 1.0 / libm::sqrtf(n2);
-            self.tangent = [p.d2[0] * k, p.d2[1] * k, p.d2[2] * k];
+        } else {
+            let n2 = p.d2[0] * p.d2[0] + p.d2[1] * p.d2[1] + p.d2[2] * p.d2[2];
+            if n2 > 1.0e-8 {
+                let k = fmath::rsqrt(n2);
+                self.tangent = [p.d2[0] * k, p.d2[1] * k, p.d2[2] * k];
+            }
         }
+        self.pos = p.pos;
         out.pos_mm = Vec3::from_array(p.pos);
         out.vel_mm_s = Vec3::from_array(vel);
         out.acc_mm_s2 = Vec3::from_array(acc);
         out.tangent = Vec3::from_array(self.tangent);
-        out.feed_ratio = v * self.span.inv_feed;
-        out.tag = self.span.tag;
+        out.feed_ratio = v * span.inv_feed;
+        out.tag = span.tag;
         out
     }
 }

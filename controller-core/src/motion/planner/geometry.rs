@@ -13,6 +13,7 @@
 //! programmed end point (LinuxCNC does the same). σ is then proportional to the angle and
 //! equal to the arc length up to the relative radius mismatch.
 
+use super::fmath::{self, F32Ext};
 use super::segment::Plane;
 
 /// Three f32 components (x, y, z).
@@ -36,7 +37,7 @@ pub(crate) fn dot(a: V3, b: V3) -> f32 {
 }
 #[inline]
 pub(crate) fn norm(a: V3) -> f32 {
-    libm::sqrtf(dot(a, a))
+    fmath::sqrt(dot(a, a))
 }
 /// First, second and third derivative of a piece with respect to σ.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -113,12 +114,16 @@ impl Piece {
                 let ds = s1 - s0;
                 let dpsi = h.omega * ds;
                 let psim = h.angle(s0) + 0.5 * dpsi;
-                let k = 2.0 * h.radius(s0) * libm::sinf(0.5 * dpsi);
-                let (sm, cm) = (libm::sinf(psim), libm::cosf(psim));
-                let psib = h.angle(s1);
+                let k = 2.0 * h.radius(s0) * fmath::sin_cos(0.5 * dpsi).0;
+                let (sm, cm) = fmath::sin_cos(psim);
                 let dr = h.rho * ds;
-                let a = -k * sm + dr * libm::cosf(psib);
-                let b = k * cm + dr * libm::sinf(psib);
+                let (sb, cb) = if dr != 0.0 {
+                    fmath::sin_cos(h.angle(s1))
+                } else {
+                    (0.0, 0.0)
+                };
+                let a = -k * sm + dr * cb;
+                let b = k * cm + dr * sb;
                 h.axes(a, b, h.eta * ds)
             }
         }
@@ -143,7 +148,7 @@ impl Piece {
             Shape::Dwell => Derivs::default(),
             Shape::Helix(h) => {
                 let psi = h.angle(s);
-                let (sn, cs) = (libm::sinf(psi), libm::cosf(psi));
+                let (sn, cs) = fmath::sin_cos(psi);
                 let (r, w, rho) = (h.radius(s), h.omega, h.rho);
                 let d1 = h.axes(rho * cs - r * w * sn, rho * sn + r * w * cs, h.eta);
                 let d2 = h.axes(
@@ -168,7 +173,7 @@ impl Piece {
         match self.shape {
             Shape::Line { .. } | Shape::Dwell => 0.0,
             Shape::Helix(h) => {
-                let r_max = h.r0.abs().max(h.radius(self.len).abs()) + (h.rho * self.len).abs();
+                let r_max = h.r0.abs().mx(h.radius(self.len).abs()) + (h.rho * self.len).abs();
                 let w = h.omega.abs();
                 3.0 * h.rho.abs() * w * w + r_max * w * w * w
             }
@@ -188,7 +193,7 @@ impl Piece {
     /// parameter's f32 resolution below 4 nm).
     pub fn max_span_len(&self) -> f32 {
         match self.shape {
-            Shape::Helix(h) if h.omega != 0.0 => (0.5 / h.omega.abs()).min(MAX_LINE_SPAN_MM),
+            Shape::Helix(h) if h.omega != 0.0 => (0.5 / h.omega.abs()).mn(MAX_LINE_SPAN_MM),
             _ => MAX_LINE_SPAN_MM,
         }
     }
@@ -215,7 +220,7 @@ mod tests {
     fn helix() -> Piece {
         // Quarter turn CCW in XY of radius 10 about (1, 2), rising 3 mm, start angle 0.3.
         let (r, sweep, h) = (10.0f32, core::f32::consts::FRAC_PI_2, 3.0f32);
-        let len = libm::sqrtf((r * sweep) * (r * sweep) + h * h);
+        let len = fmath::sqrt((r * sweep) * (r * sweep) + h * h);
         let hx = Helix {
             i1: 0,
             i2: 1,

@@ -24,10 +24,11 @@
 //! [`Choice::slipped`] reports the (never observed in the tests) case where even maximal
 //! braking fails a check.
 
+use super::fmath::{self, F32Ext};
 use super::profile::{braking_distance, integrate, ramp_down_distance, track_jerk};
 
-/// Most constraints kept per period; a longer staircase of ever lower caps is cut by
-/// treating the last kept one as a stop (conservative).
+/// Most constraints of each kind kept per period; further ones tighten the last one
+/// (conservative).
 pub(crate) const MAX_CONSTRAINTS: usize = 16;
 
 /// Distance margin of the braking checks when choosing the jerk: 2 nm plus 2e-6 of the
@@ -65,9 +66,6 @@ pub(crate) struct AccConstraint {
     pub dist: f32,
     pub acc: f32,
     pub jerk: f32,
-    /// Speed cap where the constraint starts: the period that reaches it already runs at
-    /// the next span's (lower) jerk, so the ramp must end two periods at this speed before.
-    pub v_ref: f32,
 }
 
 /// What the scan found ahead.
@@ -97,30 +95,29 @@ impl Ahead {
         }
     }
 
-    /// Adds a speed constraint; returns false when full (the caller then ends the scan
-    /// with a stop at this point, which is conservative).
-    pub fn push_speed(&mut self, c: SpeedConstraint) -> bool {
-        if self.n_speed + 1 >= MAX_CONSTRAINTS && c.w > 0.0 {
-            // Keep the last slot for a stop.
-            if let Some(slot) = self.speed.get_mut(self.n_speed) {
-                *slot = SpeedConstraint { w: 0.0, ..c };
-                self.n_speed += 1;
-            }
-            return false;
-        }
+    /// Adds a speed constraint (in order of distance). When full, the last one is
+    /// tightened instead: the lower limit at the nearer point (conservative).
+    pub fn push_speed(&mut self, c: SpeedConstraint) {
         if let Some(slot) = self.speed.get_mut(self.n_speed) {
             *slot = c;
             self.n_speed += 1;
-            true
-        } else {
-            false
+        } else if let Some(last) = self.speed.last_mut() {
+            last.w = last.w.mn(c.w);
+            last.acc = last.acc.mn(c.acc);
+            last.jerk = last.jerk.mn(c.jerk);
+            last.soft = last.soft && c.soft;
         }
     }
 
+    /// Adds an acceleration constraint (in order of distance); when full, the last one
+    /// is tightened (the lower limit at the nearer point).
     pub fn push_accel(&mut self, c: AccConstraint) {
         if let Some(slot) = self.accel.get_mut(self.n_accel) {
             *slot = c;
             self.n_accel += 1;
+        } else if let Some(last) = self.accel.last_mut() {
+            last.acc = last.acc.mn(c.acc);
+            last.jerk = last.jerk.mn(c.jerk);
         }
     }
 
@@ -133,7 +130,7 @@ impl Ahead {
         if v1 < -self.jerk * t * t {
             return false;
         }
-        let v1 = v1.max(0.0);
+        let v1 = v1.mx(0.0);
         for c in self
             .speed
             .iter()
@@ -152,7 +149,7 @@ impl Ahead {
             // A continuous braking profile reaches its constant deceleration inside a
             // period; the per-period jerk only at a period end, which costs up to J·T²/8 of
             // speed and so v·J·T²/(8A) of distance once per braking: kept in reserve (×2).
-            let lag = v1 * c.jerk * t * t / (4.0 * c.acc.max(1.0));
+            let lag = v1 * c.jerk * t * t / (4.0 * c.acc.mx(1.0));
             let m = margin * (1.0 + c.dist.abs() * (CHECK_MARGIN_REL / CHECK_MARGIN_MM))
                 + lag.copysign(margin);
             if room <= 0.0 {
@@ -173,7 +170,10 @@ impl Ahead {
         }
         for c in self.accel.iter().take(self.n_accel) {
             if a1 > c.acc {
-                let need = ramp_down_distance(v1, a1, c.acc, c.jerk) + 2.0 * c.v_ref * t;
+                // Plus two periods at the speed the ramp ends with (at most v + a²/2J): the
+                // period that reaches the span already runs under its limit.
+                let v_end = v1 + 0.5 * a1 * a1 / c.jerk.mx(1.0);
+                let need = ramp_down_distance(v1, a1, c.acc, c.jerk) + 2.0 * v_end * t;
                 if need > c.dist - ds - margin * (1.0 + c.dist.abs() * 0.1) {
                     return false;
                 }
@@ -189,16 +189,16 @@ impl Ahead {
 /// the ramp, which the distance accounts for.
 fn decel_floor(v: f32, acc: f32, jmax: f32, avail: f32, t: f32) -> f32 {
     let dist = |a1: f32| {
-        let tr = ((-acc - a1) / jmax).max(0.0);
+        let tr = ((-acc - a1) / jmax).mx(0.0);
         let v_end = v + a1 * tr + 0.5 * jmax * tr * tr;
-        v * tr + 0.5 * a1 * tr * tr + jmax * tr * tr * tr * (1.0 / 6.0) + 3.0 * t * v_end.max(0.0)
+        v * tr + 0.5 * a1 * tr * tr + jmax * tr * tr * tr * (1.0 / 6.0) + 3.0 * t * v_end.mx(0.0)
     };
     if !(avail > 0.0) {
         return -acc;
     }
     // Lower end: the strongest deceleration whose ramp back to -acc ends before the speed
     // does (speed lost in the ramp: (a1² − acc²)/2J ≤ v); the distance is monotone above.
-    let mut lo = -libm::sqrtf(2.0 * jmax * v.max(0.0) + acc * acc);
+    let mut lo = -fmath::sqrt(2.0 * jmax * v.mx(0.0) + acc * acc);
     if dist(lo) <= avail {
         return lo;
     }
@@ -229,8 +229,8 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     // Hard bounds: jerk limit, acceleration limit. An acceleration just outside ±amax
     // (rounding) is brought back within this period; one further out (limits dropped)
     // moves back at full jerk.
-    let mut j_max = ((amax - a) / t).min(jmax);
-    let mut j_min = ((-amax - a) / t).max(-jmax);
+    let mut j_max = ((amax - a) / t).mn(jmax);
+    let mut j_min = ((-amax - a) / t).mx(-jmax);
     if j_min > j_max {
         let j = if a > 0.0 { -jmax } else { jmax };
         j_min = j;
@@ -244,7 +244,7 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     for c in ahead.accel.iter().take(ahead.n_accel) {
         if c.acc < amax && v > 0.0 {
             let a_lo = decel_floor(v, c.acc, c.jerk, c.dist - v * t, t);
-            j_min = j_min.max(((a_lo - a) / t).min(j_max));
+            j_min = j_min.mx(((a_lo - a) / t).mn(j_max));
         }
     }
     // Never brake so hard that ramping the deceleration out at full jerk would reverse
@@ -253,13 +253,13 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     let c0 = v + 0.5 * a * t;
     let disc = 0.25 * jt * jt + 2.0 * jmax * c0;
     if disc >= 0.0 {
-        let x_lo = 0.5 * jt - libm::sqrtf(disc);
-        j_min = j_min.max(((x_lo - a) / t).min(j_max));
+        let x_lo = 0.5 * jt - fmath::sqrt(disc);
+        j_min = j_min.mx(((x_lo - a) / t).mn(j_max));
     }
     // (max/min rather than clamp: no panic path even for a non-finite input.)
     let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t)
-        .max(j_min)
-        .min(j_max);
+        .mx(j_min)
+        .mn(j_max);
     if ahead.feasible(v, a, j_hi, t, CHECK_MARGIN_MM, true) {
         return Choice {
             jerk: j_hi,
@@ -269,7 +269,7 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     // The most braking that keeps the speed ≥ 0 at the end of the period (within the
     // landing tolerance of `feasible`).
     let j_vzero = -2.0 * (v + a * t - jmax * t * t) / (t * t);
-    let j_lo = j_min.max(j_vzero).min(j_hi);
+    let j_lo = j_min.mx(j_vzero).mn(j_hi);
     if !ahead.feasible(v, a, j_lo, t, CHECK_MARGIN_MM, true) {
         return Choice {
             jerk: j_lo,
@@ -286,7 +286,7 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
         } else {
             hi = mid;
         }
-        if hi - lo < 1.0e-6 * jt.max(1.0) {
+        if hi - lo < 1.0e-6 * jt.mx(1.0) {
             break;
         }
     }
@@ -332,9 +332,9 @@ mod tests {
             let (ds, _, _) = integrate(v, a, c.jerk, T);
             let dv = a * T + 0.5 * c.jerk * T * T;
             s = kahan(s, ds, &mut cs);
-            v = kahan(v, dv, &mut cv).max(0.0);
+            v = kahan(v, dv, &mut cv).mx(0.0);
             a = kahan(a, c.jerk * T, &mut ca);
-            vmax_seen = vmax_seen.max(v);
+            vmax_seen = vmax_seen.mx(v);
             assert!(a.abs() <= amax * (1.0 + 1e-5));
             if v < 1e-4 && len - s < 1e-3 && s > 1.0 {
                 break;

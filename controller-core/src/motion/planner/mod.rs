@@ -30,12 +30,16 @@ mod blend;
 pub mod channel;
 pub mod config;
 mod executor;
+pub mod fmath;
 mod geometry;
 mod lookahead;
+mod mintree;
 mod pipeline;
 #[allow(clippy::module_inception)]
 mod planner;
 pub mod profile;
+mod ring;
+mod scan;
 pub mod segment;
 pub mod span;
 

@@ -46,6 +46,11 @@ impl<const N: usize, const S: usize, const C: usize, const B: usize> MotionPlann
     /// One control period: plan ahead, then sample the reference.
     pub fn tick(&mut self) -> PathSample {
         self.plan();
+        self.sample()
+    }
+
+    /// The interrupt part of [`MotionPlanner::tick`] alone: one executor sample.
+    pub fn sample(&mut self) -> PathSample {
         self.executor.sample(&mut self.spans, &mut self.steps)
     }
 

@@ -14,6 +14,7 @@
 //! not yet handed over are regenerated with the new blend, whose width is limited to the
 //! part of the segment not yet handed over.
 
+use super::fmath::F32Ext;
 use heapless::Deque;
 
 use super::blend::{plan_junction, Jet, Junction};
@@ -21,10 +22,14 @@ use super::channel::Sink;
 use super::config::{PlannerConfig, PlannerConfigError, Settings};
 use super::executor::{ExecMode, ExecutorStatus, Step};
 use super::geometry::{Piece, V3};
-use super::lookahead::{choose_jerk, AccConstraint, Ahead, SpeedConstraint};
+use super::lookahead::{choose_jerk, Ahead};
 use super::profile::{braking_distance, integrate};
+use super::ring::{to_cum, SpanRing, SpanSlot};
+use super::scan::{ScanCache, ScanInput};
 use super::segment::{prepare, PieceAttr, Segment, SegmentError};
-use super::span::{derivative_bounds, fit, offset_at, path_limits, PathLimits, Span, FIT_TOL_MM};
+use super::span::{
+    derivative_bounds, fit, offset_at, path_limits, PathLimits, Span, FIT_TOL_MM, SPANS_PER_PERIOD,
+};
 
 /// Feed override range (1 % to 200 %).
 pub const FEED_OVERRIDE_MIN: f32 = 0.01;
@@ -37,6 +42,11 @@ const SNAP_SPEED_MM_S: f32 = 2.0e-3;
 
 /// Halvings of a span whose fit misses the exact curve by more than [`FIT_TOL_MM`].
 const MAX_FIT_HALVINGS: usize = 12;
+
+/// A look-ahead scan reaches this factor (and [`SCAN_MARGIN_MM`]) beyond what the current
+/// state needs, so that it serves the following periods too.
+const SCAN_MARGIN: f32 = 1.25;
+const SCAN_MARGIN_MM: f32 = 0.5;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct PieceEntry {
@@ -51,21 +61,6 @@ struct PieceEntry {
     cursor: f32,
     /// Every span of the piece exists (tentative ones if not `closed`).
     done: bool,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct SpanSlot {
-    span: Span,
-    piece_id: u32,
-    /// Piece-local σ at the span start.
-    sigma0: f32,
-    lim: PathLimits,
-    feed: f32,
-    rapid: bool,
-    /// The machine stops at the end of this span (exact-stop junction).
-    stop_after: bool,
-    dwell_periods: u32,
-    sent: bool,
 }
 
 /// Profile state of the look-ahead (the newest generated step).
@@ -153,7 +148,7 @@ pub struct Planner<const N: usize, const S: usize> {
     set: Settings,
     pieces: Deque<PieceEntry, N>,
     front_piece_id: u32,
-    spans: Deque<SpanSlot, S>,
+    spans: SpanRing<S>,
     next_seq: u32,
     /// Spans with a lower sequence number have been handed to the executor.
     sent_end: u32,
@@ -166,6 +161,9 @@ pub struct Planner<const N: usize, const S: usize> {
     exec_mode: ExecMode,
     end_pos: V3,
     slips: u32,
+    /// The look-ahead's scan (reused while it covers the state) and its constraints.
+    scan: ScanCache,
+    ahead: Ahead,
 }
 
 impl<const N: usize, const S: usize> Planner<N, S> {
@@ -181,7 +179,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             set,
             pieces: Deque::new(),
             front_piece_id: 0,
-            spans: Deque::new(),
+            spans: SpanRing::new(),
             next_seq: 1,
             sent_end: 1,
             gen: GenState::at(1, 0.0),
@@ -193,6 +191,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             exec_mode: ExecMode::Idle,
             end_pos: start_mm,
             slips: 0,
+            scan: ScanCache::new(),
+            ahead: Ahead::new(0.0, 0.0, 0.0),
         })
     }
 
@@ -260,6 +260,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         if self.run == RunState::Run {
             self.run = RunState::Hold;
             self.hold_point = None;
+            self.scan.valid = false;
         }
     }
 
@@ -269,6 +270,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         if self.run == RunState::Hold {
             self.run = RunState::Run;
             self.hold_point = None;
+            self.scan.valid = false;
         }
     }
 
@@ -282,6 +284,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             return Err(PlannerConfigError::OutOfRange("feed_override"));
         }
         self.feed_override = ratio;
+        self.spans.set_override(ratio);
+        self.scan.valid = false;
         Ok(())
     }
 
@@ -296,6 +300,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             self.hold_point = None;
         }
         self.run = RunState::Abort;
+        self.scan.valid = false;
     }
 
     /// Queues one segment. On error nothing changes. A line shorter than
@@ -329,14 +334,13 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 last.j_out = j;
                 last.closed = true;
                 j_in = j;
-                if last.done && j.stop {
-                    // The whole piece is already with the executor: the stop goes on its
-                    // last span.
-                    if let Some(slot) = self.spans.back_mut() {
-                        if slot.piece_id == last_id {
-                            slot.stop_after = true;
-                        }
-                    }
+                if last.done
+                    && j.stop
+                    && matches!(self.spans.back(), Some(slot) if slot.piece_id == last_id)
+                {
+                    // The whole piece is already cut (and with the executor): the stop goes
+                    // on its last span.
+                    self.spans.set_stop_back();
                 }
             }
         }
@@ -430,6 +434,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                     GenState::at(front_seq, 0.0)
                 };
             self.hold_point = None;
+            self.scan.valid = false;
         }
     }
 
@@ -497,7 +502,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let lmin = self.set.min_span_mm();
         let len = e.piece.len;
         let mut b_in = if e.j_in.d > 0.0 {
-            e.j_in.d.min(len)
+            e.j_in.d.mn(len)
         } else {
             0.0
         };
@@ -505,7 +510,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             b_in = len;
         }
         let mut b_out = if e.closed && e.j_out.d > 0.0 {
-            (len - e.j_out.d).max(0.0)
+            (len - e.j_out.d).mx(0.0)
         } else {
             len
         };
@@ -540,7 +545,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         };
         if in_active {
             if let Some(prev) = k.checked_sub(1).and_then(|i| self.pieces.get(i)) {
-                let x = s.min(e.j_in.d);
+                let x = s.mn(e.j_in.d);
                 j.add(&e.j_in.correction(&prev.piece, &e.piece, x, right));
             }
         }
@@ -552,7 +557,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         };
         if out_active && e.closed {
             if let Some(next) = self.pieces.get(k + 1) {
-                let x = (s - len).clamp(-e.j_out.d, 0.0);
+                let x = (s - len).clampf(-e.j_out.d, 0.0);
                 j.add(&e.j_out.correction(&e.piece, &next.piece, x, right));
             }
         }
@@ -591,6 +596,9 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 stop_after: true,
                 dwell_periods: e.attr.dwell_periods,
                 sent: false,
+                cum: 0,
+                next_cap: None,
+                prev_cap: None,
             });
             if let Some(m) = self.pieces.get_mut(k) {
                 m.cursor = len;
@@ -606,7 +614,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         }
         let lmin = self.set.min_span_mm();
         let (b_in, b_out) = self.breakpoints(&e);
-        let mut sb = len.min(sa + e.piece.max_span_len());
+        let mut sb = len.mn(sa + e.piece.max_span_len());
         if len - sb < lmin {
             sb = len;
         }
@@ -634,7 +642,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 let exact = self.jet(k, sa + u * h, sa, true).p;
                 let got = offset_at(&coef, u);
                 for i in 0..3 {
-                    worst = worst.max((got[i] + j0.p[i] - exact[i]).abs());
+                    worst = worst.mx((got[i] + j0.p[i] - exact[i]).abs());
                 }
             }
             if worst <= FIT_TOL_MM {
@@ -672,6 +680,9 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             stop_after: at_end && e.closed && e.j_out.stop,
             dwell_periods: 0,
             sent: false,
+            cum: 0,
+            next_cap: None,
+            prev_cap: None,
         });
         if let Some(m) = self.pieces.get_mut(k) {
             m.cursor = sb;
@@ -680,17 +691,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
     }
 
     fn push_slot(&mut self, slot: SpanSlot) {
-        if self.spans.push_back(slot).is_ok() {
+        if self.spans.push_back(slot) {
             self.next_seq = self.next_seq.wrapping_add(1);
-        }
-    }
-
-    /// Speed cap of a span under the current feed override.
-    fn cap(&self, s: &SpanSlot) -> f32 {
-        if s.rapid {
-            s.lim.vel * self.feed_override.min(1.0)
-        } else {
-            s.lim.vel.min(s.feed * self.feed_override)
         }
     }
 
@@ -705,13 +707,13 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let target = front_seq.wrapping_add(idx as u32);
         while self.sent_end <= target {
             let i = self.sent_end.wrapping_sub(front_seq) as usize;
-            let Some(slot) = self.spans.get_mut(i) else {
+            let Some(slot) = self.spans.get(i) else {
                 return false;
             };
             if out.try_send(slot.span).is_err() {
                 return false;
             }
-            slot.sent = true;
+            self.spans.mark_sent(i);
             self.sent_end = self.sent_end.wrapping_add(1);
         }
         true
@@ -739,15 +741,16 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             }
         }
         // Dwell spans: wait, then move on.
-        let slot = *self.spans.get(idx)?;
+        let slot = self.spans.get(idx)?;
         if slot.dwell_periods > 0 || (slot.span.len_mm == 0.0 && slot.stop_after) {
+            let (periods, lim) = (slot.dwell_periods, slot.lim);
             if !self.gen.dwell_started {
                 self.gen.dwell_started = true;
-                self.gen.dwell_left = slot.dwell_periods;
+                self.gen.dwell_left = periods;
             }
             if self.gen.dwell_left > 0 {
                 self.gen.dwell_left -= 1;
-                return Some(self.step_here(slot.lim.acc, slot.lim.jerk));
+                return Some(self.step_here(lim.acc, lim.jerk));
             }
             if idx + 1 < self.spans.len() && self.ensure_sent(idx + 1, out) {
                 idx += 1;
@@ -756,170 +759,138 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 return None;
             }
         }
-        let slot = *self.spans.get(idx)?;
         let (v, a) = (self.gen.vel, self.gen.acc);
+        let cur = self.spans.get(idx)?;
+        let ovr = self.feed_override;
+        let (len0, lim0, cum0, stop0) = (cur.span.len_mm, cur.lim, cur.cum, cur.stops());
+        let cap0 = cur.cap(ovr);
         let floor_a = self.set.acc_floor;
         let floor_j = self.set.jerk_floor;
-        let v_next = v + a.max(0.0) * t + 0.5 * slot.lim.jerk * t * t;
+        // One path jerk for every span (see `span::path_limits`).
+        let jerk = lim0.jerk;
+        let v_next = v + a.mx(0.0) * t + 0.5 * jerk * t * t;
         // Scan as far as any braking could need: to a stop at the floor limits, plus the
         // most that braking to a low speed w instead of zero can add (it ends with a
         // ramp-out at w: (v+w)τ/2 − w²/2A grows until w = Aτ/2, by A³/8J² at most).
-        let horizon = braking_distance(
-            v_next,
-            a.max(0.0) + slot.lim.jerk * t,
-            0.0,
-            floor_a,
-            floor_j,
-        ) + floor_a * floor_a * floor_a / (8.0 * floor_j * floor_j)
+        let horizon = braking_distance(v_next, a.mx(0.0) + jerk * t, 0.0, floor_a, floor_j)
+            + floor_a * floor_a * floor_a / (8.0 * floor_j * floor_j)
             + 2.0 * v_next * t
             + 1.0e-3;
-        let touch = v_next * t + 1.0e-6;
-
-        let cap0 = self.cap(&slot);
-        let mut ahead = Ahead::new(cap0, slot.lim.acc, slot.lim.jerk);
-        // Distances from the compensated σ: on a long span f32 σ alone is only good to its
-        // ulp (1.9e-6 mm at 20 mm), which would make the constraints jitter.
-        let mut dist = (slot.span.len_mm - self.gen.sigma) + self.gen.comp;
-        // The current span's own cap and acceleration limit do not dominate later ones:
-        // the motion can speed up in a following span with higher limits (and a lower
-        // jerk there changes what the current state can still meet).
-        let (mut cap_min, mut acc_run, mut jerk_run, mut acc_seen) =
-            (f32::INFINITY, slot.lim.acc, slot.lim.jerk, f32::INFINITY);
-        // Last acceleration constraint (distance, limit) and the lowest jerk since it.
-        let mut last_acc: Option<(f32, f32)> = None;
-        let mut jerk_since = f32::INFINITY;
-        let mut prev_stop = slot.stop_after;
-        let mut stop_dist = f32::INFINITY;
-        // Limits for the executor's own stop (hold, underrun): the weakest span it can
-        // reach, found where a stop with the limits so far ends before the next weaker span.
-        let mut stop_limits: Option<(f32, f32)> = None;
-        let hold = self.hold_point;
-        // The hold's stop point only adds a constraint: those near it still count (braking
-        // to a low speed can need more room than braking to zero), so the scan goes on.
-        if let Some(h) = hold.filter(|h| h.seq == slot.span.seq) {
-            let d = (h.sigma - self.gen.sigma) + self.gen.comp;
-            ahead.push_speed(SpeedConstraint {
-                dist: d,
-                w: 0.0,
-                acc: acc_run,
-                jerk: jerk_run,
-                soft: false,
-            });
-            stop_dist = d;
-        }
-        let mut k = idx + 1;
-        loop {
-            if prev_stop {
-                ahead.push_speed(SpeedConstraint {
-                    dist,
-                    w: 0.0,
-                    acc: acc_run,
-                    jerk: jerk_run,
-                    soft: false,
-                });
-                stop_dist = stop_dist.min(dist);
-                break;
-            }
-            if dist > horizon {
-                break;
-            }
-            if k >= self.spans.len() || !self.ensure_sent(k, out) {
-                // End of the known (or handed over) path: stop there.
-                ahead.push_speed(SpeedConstraint {
-                    dist,
-                    w: 0.0,
-                    acc: acc_run,
-                    jerk: jerk_run,
-                    soft: false,
-                });
-                stop_dist = stop_dist.min(dist);
-                break;
-            }
-            let Some(s) = self.spans.get(k).copied() else {
-                break;
+        // Acceleration limits matter up to the most the acceleration can reach next period
+        // and within the distance a ramp from there needs (plus two periods at the speed
+        // it ends with).
+        let a1max = a.abs() + jerk * t;
+        let reach = |a1: f32| {
+            let tau = a1 / jerk;
+            v_next * tau + 0.5 * a1 * tau * tau + 3.0 * t * (v_next + 0.5 * a1 * tau) + 1.0e-3
+        };
+        // Position on the path (fixed point) plus the Kahan compensation of σ: on a long
+        // span f32 σ alone is only good to its ulp (1.9e-6 mm at 20 mm), which would make
+        // the constraints jitter.
+        let pos = cum0.wrapping_add(to_cum(self.gen.sigma));
+        let comp = self.gen.comp;
+        let steady = self.run == RunState::Run && self.hold_point.is_none();
+        if !(steady
+            && self.scan.covers(
+                pos,
+                cum0,
+                v_next,
+                horizon,
+                a1max,
+                reach(a1max),
+                (cap0, lim0.acc),
+                self.next_seq,
+            ))
+        {
+            // Scan a margin further than needed now, so that the scan lasts.
+            let horizon_s = horizon * SCAN_MARGIN + SCAN_MARGIN_MM;
+            let acc_below = if steady {
+                a1max + (SCAN_MARGIN - 1.0) * lim0.acc
+            } else {
+                a1max
             };
-            let cap_k = self.cap(&s);
-            if stop_limits.is_none()
-                && (s.lim.acc < acc_run || s.lim.jerk < jerk_run)
-                && braking_distance(v_next, a, 0.0, acc_run, jerk_run) + v_next * t < dist
-            {
-                stop_limits = Some((acc_run, jerk_run));
+            let reach_s = reach(acc_below) * SCAN_MARGIN + SCAN_MARGIN_MM;
+            // The spans the scan may rely on: those starting within the horizon. They are
+            // handed over (frozen) first; if the channel is full, the known path ends
+            // there.
+            let last = self.spans.len() - 1;
+            let rel = to_cum(self.gen.sigma).wrapping_add(to_cum(horizon_s));
+            let mut scan_last = if stop0 {
+                idx
+            } else {
+                self.spans.last_starting_within(idx, rel)
+            };
+            let mut end_stop = false;
+            let mut channel_full = false;
+            if !self.ensure_sent(scan_last, out) {
+                let sent = self.sent_end.wrapping_sub(front_seq) as usize;
+                scan_last = sent.saturating_sub(1).max(idx);
+                end_stop = true;
+                channel_full = true;
+            } else if scan_last == last {
+                let end = self.spans.get(last).map(|s| s.cum_end()).unwrap_or(cum0);
+                end_stop = end.wrapping_sub(pos) <= to_cum(horizon_s);
             }
-            if dist < touch {
-                ahead.acc = ahead.acc.min(s.lim.acc);
-                ahead.jerk = ahead.jerk.min(s.lim.jerk);
+            let input = ScanInput {
+                idx,
+                sigma_cum: to_cum(self.gen.sigma),
+                scan_last,
+                end_stop,
+                horizon_end: pos.wrapping_add(to_cum(horizon_s)),
+                cap0,
+                ovr,
+                hold: self.hold_point.map(|h| (h.seq, h.sigma)),
+                acc_below,
+                acc_end: pos.wrapping_add(to_cum(reach_s)),
+                next_seq: self.next_seq,
+                stop_from: (
+                    if steady { v_next * SCAN_MARGIN } else { v_next },
+                    a.mx(0.0) + jerk * t,
+                ),
+                jerk,
+                period_s: t,
+            };
+            self.scan.scan(&self.spans, &input);
+            if channel_full || !steady {
+                // Good for this period only.
+                self.scan.valid = false;
             }
-            if cap_k < cap_min {
-                let c = SpeedConstraint {
-                    dist,
-                    w: cap_k,
-                    acc: acc_run,
-                    jerk: jerk_run,
-                    soft: cap_k < s.lim.vel,
-                };
-                if !ahead.push_speed(c) {
-                    stop_dist = dist;
-                    break;
-                }
-            }
-            if s.lim.acc < acc_seen {
-                // Implied by the previous acceleration constraint when the rest of the
-                // reduction fits between the two at the spans' jerk and the running cap.
-                let implied = last_acc.is_some_and(|(d_p, a_p)| {
-                    cap_min.min(cap_k) * (a_p - s.lim.acc) / jerk_since.max(1.0) <= dist - d_p
-                });
-                if !implied {
-                    ahead.push_accel(AccConstraint {
-                        dist,
-                        acc: s.lim.acc,
-                        jerk: jerk_run,
-                        v_ref: cap_k,
-                    });
-                }
-                acc_seen = s.lim.acc;
-                last_acc = Some((dist, s.lim.acc));
-                jerk_since = f32::INFINITY;
-            }
-            jerk_since = jerk_since.min(s.lim.jerk);
-            cap_min = cap_min.min(cap_k);
-            acc_run = acc_run.min(s.lim.acc);
-            jerk_run = jerk_run.min(s.lim.jerk);
-            if let Some(h) = hold.filter(|h| h.seq == s.span.seq) {
-                // The hold's stop point lies on this span.
-                ahead.push_speed(SpeedConstraint {
-                    dist: dist + h.sigma,
-                    w: 0.0,
-                    acc: acc_run,
-                    jerk: jerk_run,
-                    soft: false,
-                });
-                stop_dist = stop_dist.min(dist + h.sigma);
-            }
-            prev_stop = s.stop_after || s.dwell_periods > 0;
-            dist += s.span.len_mm;
-            k += 1;
         }
-        let (stop_acc, stop_jerk) = stop_limits.unwrap_or((acc_run, jerk_run));
-        let (stop_acc, stop_jerk) = (stop_acc.max(floor_a), stop_jerk.max(floor_j));
+        let (stop_dist, at_path_end) = self.scan.fill(&mut self.ahead, pos, cum0, comp, jerk);
+        // The spans the next period can touch bound its acceleration.
+        let touch = to_cum(v_next * t + 1.0e-6);
+        let mut acc_touch = lim0.acc;
+        for k in idx + 1..idx + 1 + SPANS_PER_PERIOD + 2 {
+            match self.spans.get(k) {
+                Some(s) if s.cum.wrapping_sub(pos) < touch => acc_touch = acc_touch.mn(s.lim.acc),
+                _ => break,
+            }
+        }
+        self.ahead.cap = cap0;
+        self.ahead.acc = acc_touch;
+        self.ahead.jerk = jerk;
+        let (stop_acc, stop_jerk) = (self.scan.stop_acc.mx(floor_a), jerk.mx(floor_j));
 
         // At rest on a stop point with nothing to wait for: idle.
-        if v == 0.0 && a == 0.0 && stop_dist <= SNAP_MM && k >= self.spans.len() {
-            self.gen.sigma = slot.span.len_mm;
+        if v == 0.0 && a == 0.0 && stop_dist <= SNAP_MM && at_path_end {
+            self.gen.sigma = len0;
             return None;
         }
 
         // Land on a stop point reached at (almost) zero speed: this period brings the
         // acceleration to zero (|Δa| ≤ J·T, so the jerk stays within the limit) and ends
         // the asymptotic creep of the discrete braking.
-        if stop_dist <= SNAP_MM + v * t && v <= SNAP_SPEED_MM_S && a.abs() <= ahead.jerk * t {
-            self.gen.sigma += stop_dist.max(0.0);
+        if stop_dist <= SNAP_MM + v * t && v <= SNAP_SPEED_MM_S && a.abs() <= jerk * t {
+            self.gen.sigma += stop_dist.mx(0.0);
             self.gen.comp = 0.0;
             self.gen.vel = 0.0;
             self.gen.acc = 0.0;
             self.gen.vel_comp = 0.0;
             self.gen.acc_comp = 0.0;
         } else {
-            let choice = choose_jerk(&ahead, v, a, t);
+            let choice = choose_jerk(&self.ahead, v, a, t);
+            #[cfg(test)]
+            self.cross_check(idx, pos, v, a, horizon, choice.jerk);
             if choice.slipped {
                 self.slips = self.slips.saturating_add(1);
             }
@@ -986,15 +957,15 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let (mut acc_run, mut jerk_run) = (f32::INFINITY, f32::INFINITY);
         let mut k = idx;
         while let Some(s) = self.spans.get(k) {
-            acc_run = acc_run.min(s.lim.acc);
-            jerk_run = jerk_run.min(s.lim.jerk);
+            acc_run = acc_run.mn(s.lim.acc);
+            jerk_run = jerk_run.mn(s.lim.jerk);
             let d = braking_distance(v, a, 0.0, acc_run, jerk_run) + 2.0 * v * t + 1.0e-5;
             let end = start + s.span.len_mm;
             if d <= end || s.stop_after || k + 1 >= self.spans.len() {
                 let lo = if k == idx { self.gen.sigma } else { 0.0 };
                 self.hold_point = Some(HoldPoint {
                     seq: s.span.seq,
-                    sigma: (d - start).clamp(lo, s.span.len_mm.max(lo)),
+                    sigma: (d - start).clampf(lo, s.span.len_mm.mx(lo)),
                 });
                 return;
             }
@@ -1021,6 +992,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.end_pos = pos;
         self.run = RunState::Run;
         self.hold_point = None;
+        self.scan.valid = false;
     }
 
     fn step_here(&self, acc: f32, jerk: f32) -> Step {
@@ -1031,8 +1003,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             sigma_mm: self.gen.sigma,
             vel_mm_s: 0.0,
             acc_mm_s2: 0.0,
-            stop_acc_mm_s2: acc.max(self.set.acc_floor),
-            stop_jerk_mm_s3: jerk.max(self.set.jerk_floor),
+            stop_acc_mm_s2: acc.mx(self.set.acc_floor),
+            stop_jerk_mm_s3: jerk.mx(self.set.jerk_floor),
         }
     }
 }
@@ -1052,4 +1024,186 @@ fn constant_coef(p: V3) -> [[f32; 8]; 3] {
         c[i][0] = p[i];
     }
     c
+}
+
+/// Test-only check of the scan cache: every period, a fresh scan (no margins, no reuse)
+/// must lead to the same jerk as the cached one.
+#[cfg(test)]
+pub(crate) mod cache_check {
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+    pub static ON: AtomicBool = AtomicBool::new(false);
+    pub static CHECKS: AtomicU32 = AtomicU32::new(0);
+    pub static MISMATCHES: AtomicU32 = AtomicU32::new(0);
+    pub fn on() -> bool {
+        ON.load(Ordering::Relaxed)
+    }
+}
+
+#[cfg(test)]
+impl<const N: usize, const S: usize> Planner<N, S> {
+    fn cross_check(&self, idx: usize, pos: i64, v: f32, a: f32, horizon: f32, j: f32) {
+        use core::sync::atomic::Ordering::Relaxed;
+        if !(cache_check::on() && self.run == RunState::Run && self.hold_point.is_none()) {
+            return;
+        }
+        let t = self.set.period_s;
+        let Some(cur) = self.spans.get(idx) else {
+            return;
+        };
+        let jerk = cur.lim.jerk;
+        let a1max = a.abs() + jerk * t;
+        let v_next = v + a.mx(0.0) * t + 0.5 * jerk * t * t;
+        let tau = a1max / jerk;
+        let reach = v_next * tau
+            + 0.5 * a1max * tau * tau
+            + 3.0 * t * (v_next + 0.5 * a1max * tau)
+            + 1.0e-3;
+        let front = self.spans.front().map(|f| f.span.seq).unwrap_or(0);
+        let sent_last = (self.sent_end.wrapping_sub(front) as usize).saturating_sub(1);
+        let mut scan_last = if cur.stops() {
+            idx
+        } else {
+            self.spans
+                .last_starting_within(idx, to_cum(self.gen.sigma).wrapping_add(to_cum(horizon)))
+        };
+        let mut end_stop = false;
+        if scan_last > sent_last {
+            scan_last = sent_last.max(idx);
+            end_stop = true;
+        } else if scan_last + 1 == self.spans.len() {
+            let end = self.spans.get(scan_last).map(|s| s.cum_end()).unwrap_or(0);
+            end_stop = end.wrapping_sub(pos) <= to_cum(horizon);
+        }
+        let input = ScanInput {
+            idx,
+            sigma_cum: to_cum(self.gen.sigma),
+            scan_last,
+            end_stop,
+            horizon_end: pos.wrapping_add(to_cum(horizon)),
+            cap0: cur.cap(self.feed_override),
+            ovr: self.feed_override,
+            hold: None,
+            acc_below: a1max,
+            acc_end: pos.wrapping_add(to_cum(reach)),
+            next_seq: self.next_seq,
+            stop_from: (v_next, a.mx(0.0) + jerk * t),
+            jerk,
+            period_s: t,
+        };
+        let mut fresh = ScanCache::new();
+        fresh.scan(&self.spans, &input);
+        let mut ahead = self.ahead;
+        fresh.fill(&mut ahead, pos, cur.cum, self.gen.comp, jerk);
+        let jf = choose_jerk(&ahead, v, a, t).jerk;
+        cache_check::CHECKS.fetch_add(1, Relaxed);
+        if (jf - j).abs() > 1.0e-3 * jerk {
+            let n = cache_check::MISMATCHES.fetch_add(1, Relaxed);
+            if n < 5 {
+                extern crate std;
+                std::println!(
+                    "cache mismatch: seq {} v {v} a {a} j cached {j} fresh {jf}\n cached {:?} {:?}\n fresh {:?} {:?}",
+                    self.gen.seq,
+                    &self.ahead.speed[..self.ahead.n_speed],
+                    &self.ahead.accel[..self.ahead.n_accel],
+                    &ahead.speed[..ahead.n_speed],
+                    &ahead.accel[..ahead.n_accel]
+                );
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod cache_tests {
+    extern crate std;
+    use super::*;
+    use crate::motion::planner::{Blend, Executor, Plane, GANTRY_PLANNER};
+    use core::sync::atomic::Ordering::Relaxed;
+    use heapless::spsc::Queue;
+    use std::vec::Vec;
+
+    fn run(segs: &[Segment], start: [f32; 3], starve: Option<(usize, usize)>, periods: usize) {
+        let cfg = GANTRY_PLANNER;
+        let mut spans_q: Queue<Span, 129> = Queue::new();
+        let mut steps_q: Queue<Step, 33> = Queue::new();
+        let (mut span_tx, mut span_rx) = spans_q.split();
+        let (mut step_tx, mut step_rx) = steps_q.split();
+        let mut planner: Planner<64, 256> = Planner::new(&cfg, start).unwrap();
+        let mut exec = Executor::new(cfg.period_s, start);
+        let mut next = 0;
+        for n in 0..periods {
+            while next < segs.len() && planner.push(&segs[next]).is_ok() {
+                next += 1;
+            }
+            if !starve.is_some_and(|(a, b)| (a..b).contains(&n)) {
+                planner.sync(&exec.status());
+                planner.produce(&mut span_tx, &mut step_tx, 32);
+            }
+            exec.sample(&mut span_rx, &mut step_rx);
+        }
+    }
+
+    /// The cached look-ahead decides exactly like a fresh scan every period.
+    #[test]
+    fn scan_cache_decides_like_a_fresh_scan() {
+        cache_check::ON.store(true, Relaxed);
+        let pts = [
+            [0.0f32, 0.0, 0.0],
+            [20.0, 0.0, 0.0],
+            [20.0, 20.0, 0.0],
+            [0.0, 20.0, 5.0],
+            [0.0, 0.0, 0.0],
+        ];
+        let square: Vec<Segment> = pts
+            .windows(2)
+            .enumerate()
+            .map(|(k, w)| Segment::line(w[1], 80.0, k as u32 + 1))
+            .collect();
+        run(&square, [0.0; 3], None, 40_000);
+        run(&square, [0.0; 3], Some((2000, 3500)), 40_000);
+        // Chords of a circle, a spiral of shrinking arcs, exact stops, rapids.
+        let chords: Vec<Segment> = (1..2000u32)
+            .map(|k| {
+                let phi = 0.05 / 20.0 * k as f32;
+                Segment::line(
+                    [20.0 * libm::cosf(phi), 20.0 * libm::sinf(phi), 0.0],
+                    150.0,
+                    k,
+                )
+            })
+            .collect();
+        run(&chords, [20.0, 0.0, 0.0], None, 30_000);
+        let mut spiral = Vec::new();
+        let mut r = 20.0f32;
+        let mut p = [20.0f32, 0.0, 0.0];
+        for k in 0..40u32 {
+            let phi = (k + 1) as f32 * 0.7;
+            r *= 0.93;
+            let e = [r * libm::cosf(phi), r * libm::sinf(phi), 0.02 * k as f32];
+            let c = [0.0, 0.0, p[2]];
+            let rr = libm::hypotf(p[0], p[1]);
+            let e2 = [e[0] * rr / r, e[1] * rr / r, e[2]];
+            spiral.push(
+                Segment::arc(e2, c, Plane::XY, false, 0, 120.0, k)
+                    .with_blend(Blend::Tolerance(0.02)),
+            );
+            p = e2;
+        }
+        run(&spiral, [20.0, 0.0, 0.0], None, 60_000);
+        let mixed = [
+            Segment::line([10.0, 0.0, 0.0], 60.0, 1).with_blend(Blend::ExactStop),
+            Segment::rapid([10.0, 30.0, 5.0], 2),
+            Segment::line([0.0, 30.0, 5.0], 100.0, 3),
+            Segment::dwell(0.01, 4),
+            Segment::line([0.0, 0.0, 0.0], 100.0, 5),
+        ];
+        run(&mixed, [0.0; 3], None, 60_000);
+        cache_check::ON.store(false, Relaxed);
+        let (c, m) = (
+            cache_check::CHECKS.load(Relaxed),
+            cache_check::MISMATCHES.load(Relaxed),
+        );
+        assert!(c > 100_000, "{c} checks");
+        assert_eq!(m, 0, "{m} of {c} periods decided differently");
+    }
 }

@@ -12,6 +12,8 @@
 //! division by zero and no NaN can come out; callers pass validated, positive limits.
 
 /// Smallest limit used as a divisor (mm/s² or mm/s³); validated limits are far above.
+use super::fmath::{self, F32Ext};
+
 const TINY: f32 = 1.0e-12;
 
 /// Exact motion over `t` seconds under constant jerk `j` from speed `v` and acceleration
@@ -30,13 +32,13 @@ pub fn rest_to_rest_distance(v: f32, w: f32, amax: f32, jmax: f32) -> f32 {
     if !(dv > 0.0) {
         return 0.0;
     }
-    let (amax, jmax) = (amax.max(TINY), jmax.max(TINY));
+    let (amax, jmax) = (amax.mx(TINY), jmax.mx(TINY));
     if dv * jmax >= amax * amax {
         // Reaches amax: two ramps of amax/jmax plus a constant-deceleration phase.
         0.5 * (v + w) * (dv / amax + amax / jmax)
     } else {
         // Triangular acceleration: peak sqrt(jmax dv), total time 2 sqrt(dv/jmax).
-        (v + w) * libm::sqrtf(dv / jmax)
+        (v + w) * fmath::sqrt(dv / jmax)
     }
 }
 
@@ -44,7 +46,7 @@ pub fn rest_to_rest_distance(v: f32, w: f32, amax: f32, jmax: f32) -> f32 {
 /// below `w` for good (the acceleration back at zero or the speed below `w` while it
 /// ramps back). Zero when the speed never exceeds `w` again.
 pub fn braking_distance(v: f32, a: f32, w: f32, amax: f32, jmax: f32) -> f32 {
-    let (amax, jmax) = (amax.max(TINY), jmax.max(TINY));
+    let (amax, jmax) = (amax.mx(TINY), jmax.mx(TINY));
     if a > 0.0 {
         // Bring the acceleration down first; the speed still rises to its peak.
         let t0 = a / jmax;
@@ -53,7 +55,7 @@ pub fn braking_distance(v: f32, a: f32, w: f32, amax: f32, jmax: f32) -> f32 {
             return 0.0;
         }
         let d0 = v * t0 + 0.5 * a * t0 * t0 - jmax * t0 * t0 * t0 * (1.0 / 6.0);
-        return d0.max(0.0) + rest_to_rest_distance(peak, w, amax, jmax);
+        return d0.mx(0.0) + rest_to_rest_distance(peak, w, amax, jmax);
     }
     if !(v > w) {
         return 0.0;
@@ -61,27 +63,27 @@ pub fn braking_distance(v: f32, a: f32, w: f32, amax: f32, jmax: f32) -> f32 {
     // Already braking (deceleration m ≥ 0); deceleration beyond this constraint's limit is
     // not counted on. Each phase's distance is summed directly (no difference of large
     // terms), so f32 keeps the result to a few ulps: the look-ahead rides this curve.
-    let m = (-a).min(amax);
+    let m = (-a).mn(amax);
     let j = jmax;
     if v - 0.5 * m * m / j < w {
         // Braking harder than needed: the speed passes `w` while the deceleration ramps out.
-        let disc = (m * m - 2.0 * j * (v - w)).max(0.0);
-        let t = ((m - libm::sqrtf(disc)) / j).max(0.0);
-        return (v * t - 0.5 * m * t * t + j * t * t * t * (1.0 / 6.0)).max(0.0);
+        let disc = (m * m - 2.0 * j * (v - w)).mx(0.0);
+        let t = ((m - fmath::sqrt(disc)) / j).mx(0.0);
+        return (v * t - 0.5 * m * t * t + j * t * t * t * (1.0 / 6.0)).mx(0.0);
     }
     // Peak deceleration of ramp-in (from m), possible hold, ramp-out ending at w.
     let ap2 = j * (v - w) + 0.5 * m * m;
     let (ap, hold) = if ap2 <= amax * amax {
-        (libm::sqrtf(ap2), 0.0)
+        (fmath::sqrt(ap2), 0.0)
     } else {
         let v1 = v - 0.5 * (amax * amax - m * m) / j;
         let v3 = w + 0.5 * amax * amax / j;
-        (amax, ((v1 - v3) * (v1 + v3) / (2.0 * amax)).max(0.0))
+        (amax, ((v1 - v3) * (v1 + v3) / (2.0 * amax)).mx(0.0))
     };
-    let t1 = ((ap - m) / j).max(0.0);
+    let t1 = ((ap - m) / j).mx(0.0);
     let ramp_in = v * t1 - 0.5 * m * t1 * t1 - j * t1 * t1 * t1 * (1.0 / 6.0);
     let ramp_out = w * ap / j + ap * ap * ap / (6.0 * j * j);
-    (ramp_in.max(0.0) + hold + ramp_out).max(0.0)
+    (ramp_in.mx(0.0) + hold + ramp_out).mx(0.0)
 }
 
 /// Distance covered while the acceleration ramps down from `a` to `a_to` (< `a`) at jerk
@@ -90,8 +92,8 @@ pub fn ramp_down_distance(v: f32, a: f32, a_to: f32, jmax: f32) -> f32 {
     if !(a > a_to) {
         return 0.0;
     }
-    let t = (a - a_to) / jmax.max(TINY);
-    (v * t + 0.5 * a * t * t - jmax * t * t * t * (1.0 / 6.0)).max(0.0)
+    let t = (a - a_to) / jmax.mx(TINY);
+    (v * t + 0.5 * a * t * t - jmax * t * t * t * (1.0 / 6.0)).mx(0.0)
 }
 
 /// The jerk for the next period that approaches speed `target` as fast as `amax`/`jmax`
@@ -106,7 +108,7 @@ pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> 
     if !(t > 0.0) {
         return 0.0;
     }
-    let (amax, jmax) = (amax.max(TINY), jmax.max(TINY));
+    let (amax, jmax) = (amax.mx(TINY), jmax.mx(TINY));
     let jt = jmax * t;
     let projected = v + 0.5 * a * a.abs() / jmax;
     let x = if projected <= target {
@@ -115,14 +117,14 @@ pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> 
         // No real root: the speed is above the target while the acceleration is so
         // negative that the trough lies below it anyway; raise it as fast as allowed.
         let root = if disc >= 0.0 {
-            -0.5 * jt + libm::sqrtf(disc)
+            -0.5 * jt + fmath::sqrt(disc)
         } else {
             f32::INFINITY
         };
         if root > 0.0 {
             root
         } else {
-            (2.0 * c / t).min(0.0)
+            (2.0 * c / t).mn(0.0)
         }
     } else {
         let c = v + 0.5 * a * t - target;
@@ -130,14 +132,14 @@ pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> 
         // No real root: below the target while accelerating so hard that the peak
         // overshoots anyway; lower the acceleration as fast as allowed.
         let root = if disc >= 0.0 {
-            0.5 * jt - libm::sqrtf(disc)
+            0.5 * jt - fmath::sqrt(disc)
         } else {
             f32::NEG_INFINITY
         };
         if root < 0.0 {
             root
         } else {
-            (-2.0 * c / t).max(0.0)
+            (-2.0 * c / t).mx(0.0)
         }
     };
     // The jerk itself is clamped (not the end acceleration): (x − a)/T loses the jerk's
@@ -150,11 +152,11 @@ pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> 
     } else {
         -jmax
     };
-    let j = j.clamp(-jmax, jmax);
+    let j = j.clampf(-jmax, jmax);
     // End acceleration within ±amax; from outside (limits just dropped) back at full jerk.
     let j_up = if a <= amax { (amax - a) / t } else { -jmax };
     let j_dn = if a >= -amax { (-amax - a) / t } else { jmax };
-    j.min(j_up.max(-jmax)).max(j_dn.min(jmax))
+    j.mn(j_up.mx(-jmax)).mx(j_dn.mn(jmax))
 }
 
 /// The jerk of the time-optimal stop (target speed zero) for the next period.
@@ -180,10 +182,10 @@ mod tests {
             let j = stop_jerk(v, a, amax, jmax, T);
             let (ds, v1, a1) = integrate(v, a, j, T);
             s += ds;
-            v = v1.max(0.0);
+            v = v1.mx(0.0);
             a = a1;
-            amx = amx.max(a.abs());
-            jmx = jmx.max(j.abs());
+            amx = amx.mx(a.abs());
+            jmx = jmx.mx(j.abs());
         }
         (s, amx, jmx, usize::MAX)
     }
@@ -202,7 +204,7 @@ mod tests {
             let d = braking_distance(v0, a0, 0.0, amax, jmax);
             let (s, amx, jmx, n) = simulate_stop(v0, a0, amax, jmax);
             assert!(n < usize::MAX, "stop did not finish from ({v0}, {a0})");
-            assert!(amx <= amax.max(a0.abs()) * (1.0 + 1e-5), "|a| {amx}");
+            assert!(amx <= amax.mx(a0.abs()) * (1.0 + 1e-5), "|a| {amx}");
             assert!(jmx <= jmax * (1.0 + 1e-4), "|j| {jmx}");
             // The discrete stop follows the continuous one within a period's travel.
             assert!(
@@ -236,8 +238,8 @@ mod tests {
                 v = v1;
                 a = a1;
                 assert!(a.abs() <= amax * (1.0 + 1e-5));
-                peak = peak.max(v);
-                trough = trough.min(v);
+                peak = peak.mx(v);
+                trough = trough.mn(v);
             }
             assert!((v - target).abs() < 1e-3, "{v0}->{target}: ended at {v}");
             assert!(a.abs() < 1.0, "a {a}");

@@ -3,6 +3,7 @@
 //! it never touches planner state, so a rejected segment changes nothing.
 
 use super::config::Settings;
+use super::fmath::{self, F32Ext};
 use super::geometry::{norm, plane_axes, sub, Helix, Piece, Shape, V3};
 use core::f32::consts::TAU;
 
@@ -278,7 +279,7 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
                 return Err(SegmentError::NegativeDwell);
             }
             // Saturating conversion; 1e9 periods is over a day at 10 kHz.
-            let periods = (duration_s / s.period_s + 0.5).min(1.0e9);
+            let periods = (duration_s / s.period_s + 0.5).mn(1.0e9);
             out.attr.dwell_periods = periods as u32;
             out.attr.tol_after = None;
             out.pieces[0] = Piece {
@@ -307,8 +308,8 @@ fn arc_pieces(
     let (i1, i2, n) = plane_axes(plane);
     let (a0, b0) = (start[i1] - center[i1], start[i2] - center[i2]);
     let (a1, b1) = (end[i1] - center[i1], end[i2] - center[i2]);
-    let r0 = libm::hypotf(a0, b0);
-    let r1 = libm::hypotf(a1, b1);
+    let r0 = fmath::hypot(a0, b0);
+    let r1 = fmath::hypot(a1, b1);
     if !(r0 >= s.min_segment_mm) || !(r1 >= s.min_segment_mm) {
         return Err(SegmentError::ArcZeroRadius);
     }
@@ -330,7 +331,7 @@ fn arc_pieces(
     } else if d <= -core::f32::consts::PI {
         d += TAU;
     }
-    let full = libm::hypotf(a1 - a0, b1 - b0) < s.min_segment_mm;
+    let full = fmath::hypot(a1 - a0, b1 - b0) < s.min_segment_mm;
     let sweep = if clockwise {
         let base = if full || d >= 0.0 { d - TAU } else { d };
         base - TAU * turns as f32
@@ -340,12 +341,12 @@ fn arc_pieces(
     };
     let rise = end[n] - start[n];
     let r_mean = 0.5 * (r0 + r1);
-    let len = libm::hypotf(r_mean * sweep, rise);
+    let len = fmath::hypot(r_mean * sweep, rise);
     if !(len >= s.min_segment_mm) {
         return Err(SegmentError::ArcZeroRadius);
     }
     // Pieces of at most one turn (plus the rounding of `sweep`).
-    let count = ((sweep.abs() / TAU - 1.0e-4).max(0.0) as usize + 1).min(MAX_ARC_PIECES);
+    let count = ((sweep.abs() / TAU - 1.0e-4).mx(0.0) as usize + 1).min(MAX_ARC_PIECES);
     let kf = 1.0 / count as f32;
     let (plen, psweep, prise, pdr) = (len * kf, sweep * kf, rise * kf, (r1 - r0) * kf);
     let mut p_start = start;
@@ -358,8 +359,9 @@ fn arc_pieces(
             let psie = psi0 + psweep * (k + 1) as f32;
             let re = rk + pdr;
             let mut e = center;
-            e[i1] += re * libm::cosf(psie);
-            e[i2] += re * libm::sinf(psie);
+            let (sn, cs) = fmath::sin_cos(psie);
+            e[i1] += re * cs;
+            e[i2] += re * sn;
             e[n] = start[n] + prise * (k + 1) as f32;
             e
         };
@@ -412,7 +414,7 @@ mod tests {
                 let pc = &p.pieces[0];
                 // CCW: quarter turn; CW: three quarters.
                 let quarter = if cw { 3.0 } else { 1.0 } * core::f32::consts::FRAC_PI_2 * 5.0;
-                let len = libm::hypotf(quarter, 2.0);
+                let len = fmath::hypot(quarter, 2.0);
                 assert!((pc.len - len).abs() < 1e-4, "{plane:?} cw {cw}: {}", pc.len);
                 let e = add(pc.start, pc.delta(0.0, pc.len));
                 assert!(norm(sub(e, end)) < 2e-5);

@@ -31,6 +31,7 @@
 
 use super::blend::Jet;
 use super::config::Settings;
+use super::fmath::{self, F32Ext};
 use super::geometry::V3;
 
 /// Largest deviation of a fitted span from the exact commanded curve (mm); taken from the
@@ -140,22 +141,43 @@ pub(crate) fn offset_at(coef: &[[f32; 8]; 3], u: f32) -> V3 {
     out
 }
 
-/// `max |b_i|` of the Bernstein coefficients of the polynomial with monomial coefficients
-/// `m` (degree `m.len() − 1`): an upper bound of its magnitude on [0, 1].
-fn bernstein_bound(m: &[f32]) -> f32 {
-    let n = m.len() - 1;
-    let mut best = 0.0f32;
-    // b_i = Σ_{j≤i} C(i,j)/C(n,j) m_j.
-    for i in 0..=n {
-        let mut b = 0.0f32;
+/// Bernstein conversion of degree `n` (`D = n + 1` coefficients): row `i` holds
+/// `C(i,j)/C(n,j)` for `j ≤ i`, so that `b_i = Σ_j row_i[j] m_j`.
+const fn bernstein_matrix<const D: usize>() -> [[f32; D]; D] {
+    let n = D - 1;
+    let mut out = [[0.0f32; D]; D];
+    let mut i = 0;
+    while i < D {
+        let mut j = 0;
         let mut cij = 1.0f32; // C(i, j)
         let mut cnj = 1.0f32; // C(n, j)
-        for (j, &mj) in m.iter().enumerate().take(i + 1) {
-            b += cij / cnj * mj;
+        while j <= i {
+            out[i][j] = cij / cnj;
             cij = cij * (i - j) as f32 / (j + 1) as f32;
             cnj = cnj * (n - j) as f32 / (j + 1) as f32;
+            j += 1;
         }
-        best = best.max(b.abs());
+        i += 1;
+    }
+    out
+}
+
+const BERN6: [[f32; 7]; 7] = bernstein_matrix::<7>();
+const BERN5: [[f32; 6]; 6] = bernstein_matrix::<6>();
+const BERN4: [[f32; 5]; 5] = bernstein_matrix::<5>();
+
+/// `max |b_i|` of the Bernstein coefficients of the polynomial with monomial coefficients
+/// `m` (degree `D − 1`) under the conversion `bm`: an upper bound of its magnitude on
+/// [0, 1].
+#[inline(always)]
+fn bernstein_bound<const D: usize>(m: &[f32; D], bm: &[[f32; D]; D]) -> f32 {
+    let mut best = 0.0f32;
+    for (i, row) in bm.iter().enumerate() {
+        let mut b = 0.0f32;
+        for j in 0..=i {
+            b += row[j] * m[j];
+        }
+        best = best.mx(b.abs());
     }
     best
 }
@@ -187,9 +209,9 @@ pub(crate) fn derivative_bounds(coef: &[[f32; 8]; 3], h: f32) -> DerivBounds {
         for j in 0..5 {
             m3[j] = ((j + 3) * (j + 2) * (j + 1)) as f32 * c[j + 3];
         }
-        b.p1[i] = bernstein_bound(&m1) * inv;
-        b.p2[i] = bernstein_bound(&m2) * inv * inv;
-        b.p3[i] = bernstein_bound(&m3) * inv * inv * inv;
+        b.p1[i] = bernstein_bound(&m1, &BERN6) * inv;
+        b.p2[i] = bernstein_bound(&m2, &BERN5) * inv * inv;
+        b.p3[i] = bernstein_bound(&m3, &BERN4) * inv * inv * inv;
     }
     b
 }
@@ -210,10 +232,10 @@ pub(crate) struct PathLimits {
 fn cubic_root_down(a: f32, b: f32, c: f32) -> f32 {
     let mut v = f32::INFINITY;
     if a > 0.0 {
-        v = v.min(libm::cbrtf(c / a));
+        v = v.mn(fmath::cbrt(c / a));
     }
     if b > 0.0 {
-        v = v.min(c / b);
+        v = v.mn(c / b);
     }
     if !v.is_finite() {
         return v;
@@ -227,11 +249,23 @@ fn cubic_root_down(a: f32, b: f32, c: f32) -> f32 {
         v -= f / df;
     }
     let mut v = v * (1.0 - 1.0e-5);
-    // Newton from above stays above the root; the factor puts it just below.
-    while a * v * v * v + b * v > c && v > 0.0 {
+    // Newton from above stays above the root; the factor puts it just below (a few
+    // tenths of a percent more at most, bounded).
+    for _ in 0..8 {
+        if !(a * v * v * v + b * v > c) {
+            return v.mx(0.0);
+        }
         v *= 0.999;
     }
-    v
+    // Never reached in practice; a root of each half is a safe lower bound.
+    let mut safe = f32::INFINITY;
+    if a > 0.0 {
+        safe = safe.mn(fmath::cbrt(0.5 * c / a));
+    }
+    if b > 0.0 {
+        safe = safe.mn(0.5 * c / b);
+    }
+    safe.mn(v).mx(0.0)
 }
 
 /// Limits of a span of length `h` with derivative bounds `b`; `v_design` is the highest
@@ -248,36 +282,36 @@ pub(crate) fn path_limits(b: &DerivBounds, h: f32, v_design: f32, s: &Settings) 
     } else {
         0.0
     };
-    vel = vel.min(v_design.max(0.0));
+    vel = vel.mn(v_design.mx(0.0));
     for i in 0..3 {
         if b.p1[i] > 0.0 {
-            vel = vel.min(s.vel_max[i] / b.p1[i]);
+            vel = vel.mn(s.vel_max[i] / b.p1[i]);
         }
         if b.p2[i] > 0.0 {
-            let room = (s.acc_max[i] - b.p1[i] * a_req).max(0.0);
-            vel = vel.min(libm::sqrtf(room / b.p2[i]));
+            let room = (s.acc_max[i] - b.p1[i] * a_req).mx(0.0);
+            vel = vel.mn(fmath::sqrt(room / b.p2[i]));
         }
         if b.p3[i] > 0.0 || b.p2[i] > 0.0 {
-            let room = (s.jerk_max[i] - b.p1[i] * j_req).max(0.0);
-            vel = vel.min(cubic_root_down(b.p3[i], 3.0 * b.p2[i] * a_req, room));
+            let room = (s.jerk_max[i] - b.p1[i] * j_req).mx(0.0);
+            vel = vel.mn(cubic_root_down(b.p3[i], 3.0 * b.p2[i] * a_req, room));
         }
     }
-    let vel = vel.max(0.0);
+    let vel = vel.mx(0.0);
     let mut acc = f32::INFINITY;
     for i in 0..3 {
         if b.p1[i] > 0.0 {
-            acc = acc.min((s.acc_max[i] - b.p2[i] * vel * vel) / b.p1[i]);
+            acc = acc.mn((s.acc_max[i] - b.p2[i] * vel * vel) / b.p1[i]);
         }
         let coupling = 3.0 * b.p2[i] * vel;
         if coupling > 0.0 {
             let room = s.jerk_max[i] - b.p3[i] * vel * vel * vel - b.p1[i] * j_req;
-            acc = acc.min(room / coupling);
+            acc = acc.mn(room / coupling);
         }
     }
     if !acc.is_finite() {
-        acc = s.acc_max[0].max(s.acc_max[1]).max(s.acc_max[2]);
+        acc = s.acc_max[0].mx(s.acc_max[1]).mx(s.acc_max[2]);
     }
-    let acc = acc.max(a_req);
+    let acc = acc.mx(a_req);
     // The path jerk is the same on every span (the floor, which V and A above leave free):
     // braking models and the discrete follower then agree on how fast an acceleration can
     // be ramped out wherever the ramp ends, which per-span jerk limits would break.
@@ -296,10 +330,10 @@ mod tests {
     fn bernstein_bound_is_an_upper_bound_and_tight_for_monotone() {
         // p(u) = 1 - 4u + 4u² (min 0 at 1/2, 1 at the ends).
         let m = [1.0, -4.0, 4.0];
-        let b = bernstein_bound(&m);
+        let b = bernstein_bound(&m, &bernstein_matrix::<3>());
         assert!((1.0..=1.0 + 1e-6).contains(&b), "{b}");
         // Constant polynomial.
-        assert!((bernstein_bound(&[2.5]) - 2.5).abs() < 1e-7);
+        assert!((bernstein_bound(&[2.5], &bernstein_matrix::<1>()) - 2.5).abs() < 1e-7);
     }
 
     #[test]
