@@ -35,7 +35,7 @@ pub(crate) const MAX_CONSTRAINTS: usize = 16;
 /// distance (f32 rounding of span lengths and positions), plus the lag of the discrete
 /// follower (see `feasible`). The slip test allows the same amount the other way, so that
 /// rounding on a state that rides the braking curve is no slip.
-const CHECK_MARGIN_MM: f32 = 2.0e-6;
+pub(crate) const CHECK_MARGIN_MM: f32 = 2.0e-6;
 const CHECK_MARGIN_REL: f32 = 2.0e-6;
 
 /// How far the last ramp-out period may carry the motion past a stop point (mm) before
@@ -43,8 +43,15 @@ const CHECK_MARGIN_REL: f32 = 2.0e-6;
 /// zero speed and acceleration at a period boundary exactly.
 const STOP_OVERSHOOT_MM: f32 = 5.0e-6;
 
-/// Bisection steps between the braking and the tracking jerk (resolution J·2⁻¹²).
-const BISECT_STEPS: usize = 12;
+/// Search steps between the braking and the tracking jerk (enough for 2⁻¹² of the bracket
+/// with every other step a bisection).
+const SEARCH_STEPS: usize = 24;
+
+/// The search stops once the chosen state is this close (mm) to its binding constraint.
+pub(crate) const SLACK_TIGHT_MM: f32 = 2.0e-7;
+
+/// Slack of a failed check without a distance scale.
+const FAIL: f32 = -1.0e6;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct SpeedConstraint {
@@ -124,12 +131,20 @@ impl Ahead {
     /// Whether the state reached by jerk `j` from `(v, a)` can still meet every
     /// constraint.
     fn feasible(&self, v: f32, a: f32, j: f32, t: f32, margin: f32, soft: bool) -> bool {
+        self.slack(v, a, j, t, margin, soft) >= 0.0
+    }
+
+    /// How much room (mm) the state reached by jerk `j` from `(v, a)` has left on the
+    /// tightest constraint: ≥ 0 when every one can still be met, [`FAIL`] for a check
+    /// that has no distance scale (past a point, reversal).
+    pub(crate) fn slack(&self, v: f32, a: f32, j: f32, t: f32, margin: f32, soft: bool) -> f32 {
         let (ds, v1, a1) = integrate(v, a, j, t);
         // The last period of a stop may end slightly below zero speed (the planner rests
         // there and zeroes the acceleration next period); more is a real undershoot.
         if v1 < -self.jerk * t * t {
-            return false;
+            return FAIL;
         }
+        let mut slack = f32::INFINITY;
         let v1 = v1.mx(0.0);
         for c in self
             .speed
@@ -144,6 +159,16 @@ impl Ahead {
             } else {
                 0.0
             };
+            // Never above w again (the peak after ramping the acceleration out): nothing to
+            // brake for, wherever the point lies.
+            let peak = if a1 > 0.0 {
+                v1 + 0.5 * a1 * a1 / c.jerk
+            } else {
+                v1
+            };
+            if peak <= w {
+                continue;
+            }
             let need = braking_distance(v1, a1, w, c.acc, c.jerk);
             let room = c.dist - ds;
             // A continuous braking profile reaches its constant deceleration inside a
@@ -159,13 +184,13 @@ impl Ahead {
                 if c.w > 0.0 {
                     let tol_v = 0.125 * c.jerk * t * t + 1.0e-6 * c.w;
                     if v1 > c.w + tol_v || need > 1.0e-6 + tol_v * t {
-                        return false;
+                        return FAIL;
                     }
                 } else if need > room + STOP_OVERSHOOT_MM {
-                    return false;
+                    return FAIL;
                 }
-            } else if need > room - m {
-                return false;
+            } else {
+                slack = slack.mn(room - m - need);
             }
         }
         for c in self.accel.iter().take(self.n_accel) {
@@ -174,12 +199,10 @@ impl Ahead {
                 // period that reaches the span already runs under its limit.
                 let v_end = v1 + 0.5 * a1 * a1 / c.jerk.mx(1.0);
                 let need = ramp_down_distance(v1, a1, c.acc, c.jerk) + 2.0 * v_end * t;
-                if need > c.dist - ds - margin * (1.0 + c.dist.abs() * 0.1) {
-                    return false;
-                }
+                slack = slack.mn(c.dist - ds - margin * (1.0 + c.dist.abs() * 0.1) - need);
             }
         }
-        true
+        slack
     }
 }
 
@@ -260,7 +283,8 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t)
         .mx(j_min)
         .mn(j_max);
-    if ahead.feasible(v, a, j_hi, t, CHECK_MARGIN_MM, true) {
+    let mut f_hi = ahead.slack(v, a, j_hi, t, CHECK_MARGIN_MM, true);
+    if f_hi >= 0.0 {
         return Choice {
             jerk: j_hi,
             slipped: false,
@@ -270,7 +294,8 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     // landing tolerance of `feasible`).
     let j_vzero = -2.0 * (v + a * t - jmax * t * t) / (t * t);
     let j_lo = j_min.mx(j_vzero).mn(j_hi);
-    if !ahead.feasible(v, a, j_lo, t, CHECK_MARGIN_MM, true) {
+    let mut f_lo = ahead.slack(v, a, j_lo, t, CHECK_MARGIN_MM, true);
+    if !(f_lo >= 0.0) {
         return Choice {
             jerk: j_lo,
             // Riding the braking curve exactly, f32 rounding can exceed it by a few nm:
@@ -278,17 +303,46 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
             slipped: !ahead.feasible(v, a, j_lo, t, -CHECK_MARGIN_MM, false),
         };
     }
+    // The largest feasible jerk in [j_lo, j_hi]: the slack is monotone in the jerk, so
+    // regula falsi (Illinois variant, each step kept 2 % inside the bracket) on it; a step
+    // that did not halve the bracket is followed by a bisection step (the slack is only
+    // piecewise smooth), so the bracket shrinks at least as fast as by bisection every
+    // other step. Done when the bracket is below J·2⁻¹² or the feasible end lies within
+    // a fraction of a nanometre of its constraint.
     let (mut lo, mut hi) = (j_lo, j_hi);
-    for _ in 0..BISECT_STEPS {
-        let mid = 0.5 * (lo + hi);
-        if ahead.feasible(v, a, mid, t, CHECK_MARGIN_MM, true) {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo < 1.0e-6 * jt.mx(1.0) {
+    let resolution = (j_hi - j_lo) * (1.0 / 4096.0);
+    let mut tight = f_lo;
+    let mut side = 0i8;
+    let mut bisect_next = false;
+    for _ in 0..SEARCH_STEPS {
+        let w = hi - lo;
+        if !(w > resolution) || tight <= SLACK_TIGHT_MM {
             break;
         }
+        let secant = !bisect_next && f_hi > FAIL && f_lo.is_finite() && f_lo - f_hi > 0.0;
+        let mid = if secant {
+            (hi - f_hi * w / (f_hi - f_lo)).clampf(lo + 0.02 * w, hi - 0.02 * w)
+        } else {
+            lo + 0.5 * w
+        };
+        let f = ahead.slack(v, a, mid, t, CHECK_MARGIN_MM, true);
+        if f >= 0.0 {
+            lo = mid;
+            f_lo = f;
+            tight = f;
+            if side > 0 {
+                f_hi *= 0.5;
+            }
+            side = 1;
+        } else {
+            hi = mid;
+            f_hi = f;
+            if side < 0 {
+                f_lo *= 0.5;
+            }
+            side = -1;
+        }
+        bisect_next = secant && hi - lo > 0.5 * w;
     }
     Choice {
         jerk: lo,

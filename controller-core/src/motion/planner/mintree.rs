@@ -10,12 +10,12 @@ pub(crate) struct MinTree<const S: usize> {
     leaf: [f32; S],
 }
 
-/// Deepest tree supported (S ≤ 2³¹).
-const MAX_DEPTH: usize = 32;
+/// Right-hand nodes of a range cover kept at most (one per level: S ≤ 2²⁴).
+const MAX_DEPTH: usize = 24;
 
 impl<const S: usize> MinTree<S> {
     const POW2: () = assert!(
-        S.is_power_of_two() && S >= 2,
+        S.is_power_of_two() && S >= 2 && S <= 1 << MAX_DEPTH,
         "the span capacity must be a power of two (≥ 2)"
     );
 
@@ -117,46 +117,45 @@ impl<const S: usize> MinTree<S> {
         }
     }
 
-    /// First physical slot in `l..=r` with a value below `x`.
+    /// Descends from node `i` (whose value is below `x`) to its first leaf below `x`.
+    #[inline]
+    fn descend(&self, mut i: usize, x: f32) -> usize {
+        while i < S {
+            i = if self.val(2 * i) < x {
+                2 * i
+            } else {
+                2 * i + 1
+            };
+        }
+        i - S
+    }
+
+    /// First physical slot in `l..=r` with a value below `x`: the canonical cover of the
+    /// range, left nodes in order as they come, right nodes afterwards in reverse.
     fn first_below_phys(&self, l: usize, r: usize, x: f32) -> Option<usize> {
-        // Canonical cover of [l, r], left part in order, right part in reverse.
-        let mut left = [0usize; MAX_DEPTH];
-        let mut right = [0usize; MAX_DEPTH];
-        let (mut nl, mut nr) = (0, 0);
+        let mut right = [0u32; MAX_DEPTH];
+        let mut nr = 0;
         let (mut lo, mut hi) = (l + S, r + S + 1);
         while lo < hi {
             if lo & 1 == 1 {
-                if let Some(s) = left.get_mut(nl) {
-                    *s = lo;
-                    nl += 1;
+                if self.val(lo) < x {
+                    return Some(self.descend(lo, x));
                 }
                 lo += 1;
             }
             if hi & 1 == 1 {
                 hi -= 1;
                 if let Some(s) = right.get_mut(nr) {
-                    *s = hi;
+                    *s = hi as u32;
                     nr += 1;
                 }
             }
             lo >>= 1;
             hi >>= 1;
         }
-        let ordered = left
-            .iter()
-            .take(nl)
-            .chain(right.iter().take(nr).rev())
-            .copied();
-        for mut i in ordered {
-            if self.val(i) < x {
-                while i < S {
-                    i = if self.val(2 * i) < x {
-                        2 * i
-                    } else {
-                        2 * i + 1
-                    };
-                }
-                return Some(i - S);
+        for &i in right.iter().take(nr).rev() {
+            if self.val(i as usize) < x {
+                return Some(self.descend(i as usize, x));
             }
         }
         None

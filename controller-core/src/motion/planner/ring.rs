@@ -31,17 +31,25 @@ use super::span::{PathLimits, Span};
 const CUM_SCALE: f32 = 1_099_511_627_776.0;
 const CUM_UNIT_MM: f32 = 1.0 / CUM_SCALE;
 
-/// `len_mm` in cum units (exact for 2⁻¹⁷ ≤ len < 2²³ mm; shorter lengths truncate to
-/// within 2⁻⁴⁰ mm).
+/// `len_mm` in cum units (exact for 2⁻¹⁷ ≤ len < 2¹⁶ mm; shorter lengths truncate to
+/// within 2⁻⁴⁰ mm; negative and NaN give 0, longer saturate). In two 32-bit halves: the
+/// f32 → i64 conversion is a library routine on the Cortex-M4, f32 → u32 one instruction.
 #[inline]
 pub(crate) fn to_cum(len_mm: f32) -> i64 {
-    (len_mm.mx(0.0) * CUM_SCALE) as i64
+    let x = len_mm.clampf(0.0, 65_536.0) * CUM_SCALE;
+    // x < 2⁵⁶: the high part has at most 24 bits and x − hi·2³² is exact.
+    let hi = (x * (1.0 / 4_294_967_296.0)) as u32;
+    let lo = (x - hi as f32 * 4_294_967_296.0) as u32;
+    ((hi as i64) << 32) | lo as i64
 }
 
-/// A cum difference in mm.
+/// A cum difference in mm: `d = hi·2³² + lo` with a signed low half (|lo| ≤ 2³¹), each
+/// converted by one instruction; small differences are exact up to the final rounding.
 #[inline]
 pub(crate) fn cum_mm(d: i64) -> f32 {
-    d as f32 * CUM_UNIT_MM
+    let lo = d as i32;
+    let hi = (d.wrapping_sub(lo as i64) >> 32) as i32;
+    (hi as f32 * 4_294_967_296.0 + lo as f32) * CUM_UNIT_MM
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -449,6 +457,28 @@ mod tests {
                 r.set_override(0.5 + (rnd() % 4) as f32 * 0.3);
             }
             check(&r);
+        }
+    }
+
+    #[test]
+    fn fixed_point_conversions_are_exact() {
+        for &x in &[
+            0.0f32, 1.0e-9, 3.0e-6, 0.05, 0.1, 1.0, 12.345_678, 64.0, 1000.5, 65_535.9,
+        ] {
+            let want = (x as f64 * 1_099_511_627_776.0).trunc() as i64;
+            assert_eq!(to_cum(x), want, "{x}");
+            let back = cum_mm(want) as f64;
+            assert!(
+                (back - x as f64).abs() <= 1.0e-7 * x as f64 + 1.0e-12,
+                "{x}"
+            );
+        }
+        assert_eq!(to_cum(-1.0), 0);
+        assert_eq!(to_cum(f32::NAN), 0);
+        for d in [-5_000_000_000_000i64, -1, 0, 1, 123_456_789_012_345] {
+            let back = cum_mm(d) as f64;
+            let want = d as f64 / 1_099_511_627_776.0;
+            assert!((back - want).abs() <= 1.0e-7 * want.abs() + 1.0e-15, "{d}");
         }
     }
 

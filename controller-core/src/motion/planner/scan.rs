@@ -371,23 +371,26 @@ impl ScanCache {
     ) -> f32 {
         let (v, a) = inp.stop_from;
         self.stop_v_max = v;
+        // Drops of a few percent (span-to-span noise of the limits) are taken in stride:
+        // the stop brakes with 97 % of the limit so far, down to the next real drop.
         let mut acc_run = cur_acc;
         let mut from = inp.idx + 1;
         for _ in 0..STOP_LIMIT_STEPS {
-            let Some(k) = spans.first_acc_below(from, inp.scan_last, acc_run) else {
-                return acc_run;
+            let lim = acc_run * (1.0 - STOP_ACC_SLACK);
+            let Some(k) = spans.first_acc_below(from, inp.scan_last, lim) else {
+                return lim;
             };
             let Some(sk) = spans.get(k) else {
-                return acc_run;
+                return lim;
             };
-            let need = braking_distance(v, a, 0.0, acc_run, inp.jerk) + v * inp.period_s;
+            let need = braking_distance(v, a, 0.0, lim, inp.jerk) + v * inp.period_s;
             if to_cum(need) < sk.cum.wrapping_sub(cur_cum).wrapping_sub(inp.sigma_cum) {
-                return acc_run;
+                return lim;
             }
             acc_run = sk.lim.acc;
             from = k + 1;
         }
-        acc_run.mn(spans.min_acc(from, inp.scan_last))
+        (acc_run * (1.0 - STOP_ACC_SLACK)).mn(spans.min_acc(from, inp.scan_last))
     }
 
     /// The constraints ahead of the current span (which starts at `cur_cum`), as seen
@@ -439,7 +442,10 @@ impl ScanCache {
 }
 
 /// Weaker spans the executor's stop limit looks through before taking the weakest.
-const STOP_LIMIT_STEPS: usize = 6;
+const STOP_LIMIT_STEPS: usize = 4;
+/// Fraction of the acceleration limit the executor's stop leaves unused (see
+/// `ScanCache::stop_limit`).
+const STOP_ACC_SLACK: f32 = 0.03;
 
 /// Cap steps one scan keeps exactly; the rest of a longer staircase is represented by its
 /// lowest cap at the last kept point (conservative).
