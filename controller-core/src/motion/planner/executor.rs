@@ -325,27 +325,23 @@ impl Executor {
     }
 
     fn output(&mut self, spans: &impl Source<Span>) -> PathSample {
-        let mut out = PathSample {
-            mode: self.mode,
-            path_speed_mm_s: self.vel,
-            path_acc_mm_s2: self.acc,
-            ..PathSample::default()
-        };
         let span = if self.on_span { spans.peek() } else { None };
         let Some(span) = span else {
-            out.pos_mm = Vec3::from_array(self.pos);
-            out.tangent = Vec3::from_array(self.tangent);
-            return out;
+            return PathSample {
+                pos_mm: Vec3::from_array(self.pos),
+                vel_mm_s: Vec3::from_array([0.0; 3]),
+                acc_mm_s2: Vec3::from_array([0.0; 3]),
+                tangent: Vec3::from_array(self.tangent),
+                path_speed_mm_s: self.vel,
+                path_acc_mm_s2: self.acc,
+                feed_ratio: 0.0,
+                tag: self.tag,
+                mode: self.mode,
+            };
         };
         let p = span.eval(self.sigma);
         let (v, a) = (self.vel, self.acc);
         let v2 = v * v;
-        let mut vel = [0.0f32; 3];
-        let mut acc = [0.0f32; 3];
-        for i in 0..3 {
-            vel[i] = p.d1[i] * v;
-            acc[i] = p.d2[i] * v2 + p.d1[i] * a;
-        }
         // Tangent from p' (|p'| ≈ 1); at a reversal cusp p' = 0 and p'' points the new way.
         let n1 = p.d1[0] * p.d1[0] + p.d1[1] * p.d1[1] + p.d1[2] * p.d1[2];
         if n1 > 1.0e-8 {
@@ -359,12 +355,20 @@ impl Executor {
             }
         }
         self.pos = p.pos;
-        out.pos_mm = Vec3::from_array(p.pos);
-        out.vel_mm_s = Vec3::from_array(vel);
-        out.acc_mm_s2 = Vec3::from_array(acc);
-        out.tangent = Vec3::from_array(self.tangent);
-        out.feed_ratio = v * span.inv_feed;
-        out.tag = span.tag;
-        out
+        PathSample {
+            pos_mm: Vec3::from_array(p.pos),
+            vel_mm_s: Vec3::from_array([p.d1[0] * v, p.d1[1] * v, p.d1[2] * v]),
+            acc_mm_s2: Vec3::from_array([
+                p.d2[0] * v2 + p.d1[0] * a,
+                p.d2[1] * v2 + p.d1[1] * a,
+                p.d2[2] * v2 + p.d1[2] * a,
+            ]),
+            tangent: Vec3::from_array(self.tangent),
+            path_speed_mm_s: v,
+            path_acc_mm_s2: a,
+            feed_ratio: v * span.inv_feed,
+            tag: span.tag,
+            mode: self.mode,
+        }
     }
 }

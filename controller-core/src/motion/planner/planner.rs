@@ -324,7 +324,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 let free = last.piece.len - last.cursor;
                 let j = plan_junction(
                     &last.piece,
-                    &prep.pieces[0],
+                    &prep.piece(0),
                     last.attr.tol_after,
                     &last.j_in,
                     free,
@@ -344,13 +344,18 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 }
             }
         }
+        let mut piece = prep.piece(0);
         for k in 0..prep.n {
-            let piece = prep.pieces[k];
+            let next = if k + 1 < prep.n {
+                prep.piece(k + 1)
+            } else {
+                piece
+            };
             let closed = k + 1 < prep.n;
             let j_out = if closed {
                 plan_junction(
                     &piece,
-                    &prep.pieces[k + 1],
+                    &next,
                     prep.attr.tol_after,
                     &j_in,
                     piece.len,
@@ -372,8 +377,9 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             // Capacity was checked above.
             let _ = self.pieces.push_back(entry);
             j_in = j_out;
+            piece = next;
         }
-        self.end_pos = prep.pieces[prep.n - 1].end;
+        self.end_pos = piece.end;
         Ok(())
     }
 
@@ -566,7 +572,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
 
     /// Cuts the next span of piece `k`.
     fn generate_one(&mut self, k: usize) {
-        let Some(e) = self.pieces.get(k).copied() else {
+        let Some(e) = self.pieces.get(k) else {
             return;
         };
         let piece_id = self.front_piece_id.wrapping_add(k as u32);
@@ -613,7 +619,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             return;
         }
         let lmin = self.set.min_span_mm();
-        let (b_in, b_out) = self.breakpoints(&e);
+        let (b_in, b_out) = self.breakpoints(e);
         let mut sb = len.mn(sa + e.piece.max_span_len());
         if len - sb < lmin {
             sb = len;

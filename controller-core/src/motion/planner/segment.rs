@@ -168,12 +168,85 @@ pub(crate) struct PieceAttr {
     pub dwell_periods: u32,
 }
 
-/// A validated segment: 0 pieces (skipped zero-length line), 1, or several (arc turns).
+/// A validated segment: 0 pieces (skipped zero-length line), 1, or several (arc turns),
+/// generated on demand by [`Prepared::piece`] (no array of pieces to copy around).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Prepared {
-    pub pieces: [Piece; MAX_ARC_PIECES],
     pub n: usize,
     pub attr: PieceAttr,
+    kind: PrepKind,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PrepKind {
+    Single(Piece),
+    Arc(ArcSplit),
+}
+
+/// An arc cut into `count` equal pieces of at most one turn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ArcSplit {
+    start: V3,
+    end: V3,
+    center: V3,
+    axes: (usize, usize, usize),
+    psi0: f32,
+    r0: f32,
+    count: usize,
+    /// Length, sweep, rise and radius change of one piece.
+    plen: f32,
+    psweep: f32,
+    prise: f32,
+    pdr: f32,
+}
+
+impl ArcSplit {
+    /// The point between piece `k − 1` and piece `k` (the programmed ends exactly).
+    fn point(&self, k: usize) -> V3 {
+        if k == 0 {
+            return self.start;
+        }
+        if k >= self.count {
+            return self.end;
+        }
+        let (i1, i2, n) = self.axes;
+        let (sn, cs) = fmath::sin_cos(self.psi0 + self.psweep * k as f32);
+        let r = self.r0 + self.pdr * k as f32;
+        let mut e = self.center;
+        e[i1] += r * cs;
+        e[i2] += r * sn;
+        e[n] = self.start[n] + self.prise * k as f32;
+        e
+    }
+
+    fn piece(&self, k: usize) -> Piece {
+        let (i1, i2, n) = self.axes;
+        Piece {
+            start: self.point(k),
+            end: self.point(k + 1),
+            len: self.plen,
+            shape: Shape::Helix(Helix {
+                i1,
+                i2,
+                n,
+                psi0: libm::fmodf(self.psi0 + self.psweep * k as f32, TAU),
+                omega: self.psweep / self.plen,
+                r0: self.r0 + self.pdr * k as f32,
+                rho: self.pdr / self.plen,
+                eta: self.prise / self.plen,
+            }),
+        }
+    }
+}
+
+impl Prepared {
+    /// Piece `k` (`k < n`).
+    pub fn piece(&self, k: usize) -> Piece {
+        match &self.kind {
+            PrepKind::Single(p) => *p,
+            PrepKind::Arc(a) => a.piece(k),
+        }
+    }
 }
 
 fn finite3(v: [f32; 3], name: &'static str) -> Result<V3, SegmentError> {
@@ -217,7 +290,7 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
         Blend::ExactStop => None,
     };
     let mut out = Prepared {
-        pieces: [EMPTY; MAX_ARC_PIECES],
+        kind: PrepKind::Single(EMPTY),
         n: 0,
         attr: PieceAttr {
             feed: f32::INFINITY,
@@ -238,14 +311,14 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
             let len = norm(d);
             if len >= s.min_segment_mm {
                 let k = 1.0 / len;
-                out.pieces[0] = Piece {
+                out.kind = PrepKind::Single(Piece {
                     start,
                     end,
                     len,
                     shape: Shape::Line {
                         u: [d[0] * k, d[1] * k, d[2] * k],
                     },
-                };
+                });
                 out.n = 1;
             }
         }
@@ -260,16 +333,9 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
             let end = finite3(end_mm, "end_mm")?;
             let center = finite3(center_mm, "center_mm")?;
             out.attr.feed = feed_ok(feed_mm_s)?;
-            out.n = arc_pieces(
-                start,
-                end,
-                center,
-                plane,
-                clockwise,
-                turns,
-                s,
-                &mut out.pieces,
-            )?;
+            let split = arc_split(start, end, center, plane, clockwise, turns, s)?;
+            out.n = split.count;
+            out.kind = PrepKind::Arc(split);
         }
         Motion::Dwell { duration_s } => {
             if !duration_s.is_finite() {
@@ -282,20 +348,19 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
             let periods = (duration_s / s.period_s + 0.5).mn(1.0e9);
             out.attr.dwell_periods = periods as u32;
             out.attr.tol_after = None;
-            out.pieces[0] = Piece {
+            out.kind = PrepKind::Single(Piece {
                 start,
                 end: start,
                 len: 0.0,
                 shape: Shape::Dwell,
-            };
+            });
             out.n = 1;
         }
     }
     Ok(out)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn arc_pieces(
+fn arc_split(
     start: V3,
     end: V3,
     center: V3,
@@ -303,8 +368,7 @@ fn arc_pieces(
     clockwise: bool,
     turns: u32,
     s: &Settings,
-    out: &mut [Piece; MAX_ARC_PIECES],
-) -> Result<usize, SegmentError> {
+) -> Result<ArcSplit, SegmentError> {
     let (i1, i2, n) = plane_axes(plane);
     let (a0, b0) = (start[i1] - center[i1], start[i2] - center[i2]);
     let (a1, b1) = (end[i1] - center[i1], end[i2] - center[i2]);
@@ -348,41 +412,19 @@ fn arc_pieces(
     // Pieces of at most one turn (plus the rounding of `sweep`).
     let count = ((sweep.abs() / TAU - 1.0e-4).mx(0.0) as usize + 1).min(MAX_ARC_PIECES);
     let kf = 1.0 / count as f32;
-    let (plen, psweep, prise, pdr) = (len * kf, sweep * kf, rise * kf, (r1 - r0) * kf);
-    let mut p_start = start;
-    for (k, piece) in out.iter_mut().enumerate().take(count) {
-        let rk = r0 + pdr * k as f32;
-        let psik = libm::fmodf(psi0 + psweep * k as f32, TAU);
-        let p_end = if k + 1 == count {
-            end
-        } else {
-            let psie = psi0 + psweep * (k + 1) as f32;
-            let re = rk + pdr;
-            let mut e = center;
-            let (sn, cs) = fmath::sin_cos(psie);
-            e[i1] += re * cs;
-            e[i2] += re * sn;
-            e[n] = start[n] + prise * (k + 1) as f32;
-            e
-        };
-        *piece = Piece {
-            start: p_start,
-            end: p_end,
-            len: plen,
-            shape: Shape::Helix(Helix {
-                i1,
-                i2,
-                n,
-                psi0: psik,
-                omega: psweep / plen,
-                r0: rk,
-                rho: pdr / plen,
-                eta: prise / plen,
-            }),
-        };
-        p_start = p_end;
-    }
-    Ok(count)
+    Ok(ArcSplit {
+        start,
+        end,
+        center,
+        axes: (i1, i2, n),
+        psi0,
+        r0,
+        count,
+        plen: len * kf,
+        psweep: sweep * kf,
+        prise: rise * kf,
+        pdr: (r1 - r0) * kf,
+    })
 }
 
 #[cfg(test)]
@@ -411,7 +453,7 @@ mod tests {
                 let seg = Segment::arc(end, center, plane, cw, 0, 10.0, 1);
                 let p = prepare(&seg, start, &s).unwrap();
                 assert_eq!(p.n, 1);
-                let pc = &p.pieces[0];
+                let pc = &p.piece(0);
                 // CCW: quarter turn; CW: three quarters.
                 let quarter = if cw { 3.0 } else { 1.0 } * core::f32::consts::FRAC_PI_2 * 5.0;
                 let len = fmath::hypot(quarter, 2.0);
@@ -434,7 +476,7 @@ mod tests {
         let p = prepare(&seg, start, &s).unwrap();
         assert_eq!(p.n, 3);
         for k in 0..3 {
-            let pc = &p.pieces[k];
+            let pc = &p.piece(k);
             assert!((pc.len - TAU * 10.0).abs() < 1e-3);
             assert!(norm(sub(pc.end, start)) < 1e-4);
         }

@@ -177,7 +177,10 @@ fn bernstein_bound<const D: usize>(m: &[f32; D], bm: &[[f32; D]; D]) -> f32 {
         for j in 0..=i {
             b += row[j] * m[j];
         }
-        best = best.mx(b.abs());
+        // Plain select (no NaN handling: a non-finite coefficient makes the caller's
+        // bounds infinite, see `derivative_bounds`).
+        let b = b.abs();
+        best = if b > best { b } else { best };
     }
     best
 }
@@ -197,6 +200,10 @@ pub(crate) fn derivative_bounds(coef: &[[f32; 8]; 3], h: f32) -> DerivBounds {
     }
     let inv = 1.0 / h;
     for (i, c) in coef.iter().enumerate() {
+        if c[1..].iter().all(|&x| x == 0.0) {
+            // The axis does not move on this span (a plane move, a line along an axis).
+            continue;
+        }
         let mut m1 = [0.0f32; 7];
         for j in 0..7 {
             m1[j] = (j + 1) as f32 * c[j + 1];
@@ -212,6 +219,12 @@ pub(crate) fn derivative_bounds(coef: &[[f32; 8]; 3], h: f32) -> DerivBounds {
         b.p1[i] = bernstein_bound(&m1, &BERN6) * inv;
         b.p2[i] = bernstein_bound(&m2, &BERN5) * inv * inv;
         b.p3[i] = bernstein_bound(&m3, &BERN4) * inv * inv * inv;
+        if !c.iter().all(|x| x.is_finite()) {
+            // Cannot happen for validated geometry; an unusable span gets no speed.
+            b.p1[i] = f32::INFINITY;
+            b.p2[i] = f32::INFINITY;
+            b.p3[i] = f32::INFINITY;
+        }
     }
     b
 }
@@ -246,7 +259,12 @@ fn cubic_root_down(a: f32, b: f32, c: f32) -> f32 {
         if !(df > 0.0) || !(f > 0.0) {
             break;
         }
-        v -= f / df;
+        let step = f / df;
+        v -= step;
+        if step <= 1.0e-6 * v {
+            // Quadratic convergence: the next step would be below f32 resolution.
+            break;
+        }
     }
     let mut v = v * (1.0 - 1.0e-5);
     // Newton from above stays above the root; the factor puts it just below (a few
