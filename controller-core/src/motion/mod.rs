@@ -3,9 +3,12 @@
 //! - [`trajectory`]: analytic reference paths (step, sine, line, helix, polyline) with
 //!   exact first and second derivatives, evaluated at a time;
 //! - [`path`]: their configuration as it appears in scenario files and settings, and where
-//!   a path starts (absolute, or from the position the machine is at).
+//!   a path starts (absolute, or from the position the machine is at);
+//! - [`planner`]: the segment planner (queue, blending within a path tolerance, look-ahead,
+//!   jerk-limited feed, hold/resume/abort, feed override) and its per-period executor.
 
 pub mod path;
+pub mod planner;
 pub mod trajectory;
 
 pub use trajectory::{RefSample, Trajectory};

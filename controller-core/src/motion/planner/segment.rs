@@ -1,0 +1,533 @@
+//! Program input: the segment types a G-code interpreter (or any caller) queues, and their
+//! validation into geometric pieces. Validation either produces the pieces or an error;
+//! it never touches planner state, so a rejected segment changes nothing.
+
+use super::config::Settings;
+use super::fmath::{self, F32Ext};
+use super::geometry::{norm, plane_axes, sub, Helix, Piece, Shape, V3};
+use core::f32::consts::TAU;
+
+/// Arc plane: G17 (XY, normal +Z), G18 (ZX, normal +Y), G19 (YZ, normal +X).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Plane {
+    XY,
+    ZX,
+    YZ,
+}
+
+/// Feed of a line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Feed {
+    /// Programmed path speed (mm/s), scaled by the feed override.
+    MmPerS(f32),
+    /// G0: as fast as the per-axis velocity limits allow (override capped at 100 %).
+    Rapid,
+}
+
+/// What happens at the junction after a segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Blend {
+    /// G64 without P: blend within the configured `tolerance_mm`.
+    Default,
+    /// G64 P<ε>: blend within ε mm of the programmed path (0 = stop at corners).
+    Tolerance(f32),
+    /// G61: stop exactly at the end of the segment.
+    ExactStop,
+}
+
+/// The motion of one segment. Positions are absolute machine coordinates (mm); the start
+/// is where the previous segment ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Motion {
+    /// G0/G1.
+    Line { end_mm: [f32; 3], feed: Feed },
+    /// G2/G3 (helix when the end differs from the start along the plane normal). `turns`
+    /// extra full turns (LinuxCNC's P−1); end == start is a full circle.
+    Arc {
+        end_mm: [f32; 3],
+        center_mm: [f32; 3],
+        plane: Plane,
+        clockwise: bool,
+        turns: u32,
+        feed_mm_s: f32,
+    },
+    /// G4: stop and wait.
+    Dwell { duration_s: f32 },
+}
+
+/// One queued segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Segment {
+    pub motion: Motion,
+    /// Junction after this segment.
+    pub blend: Blend,
+    /// Caller's tag (e.g. the G-code line number), reported by every sample on it.
+    pub tag: u32,
+}
+
+impl Segment {
+    pub fn line(end_mm: [f32; 3], feed_mm_s: f32, tag: u32) -> Self {
+        Self {
+            motion: Motion::Line {
+                end_mm,
+                feed: Feed::MmPerS(feed_mm_s),
+            },
+            blend: Blend::Default,
+            tag,
+        }
+    }
+    pub fn rapid(end_mm: [f32; 3], tag: u32) -> Self {
+        Self {
+            motion: Motion::Line {
+                end_mm,
+                feed: Feed::Rapid,
+            },
+            blend: Blend::Default,
+            tag,
+        }
+    }
+    #[allow(clippy::too_many_arguments)]
+    pub fn arc(
+        end_mm: [f32; 3],
+        center_mm: [f32; 3],
+        plane: Plane,
+        clockwise: bool,
+        turns: u32,
+        feed_mm_s: f32,
+        tag: u32,
+    ) -> Self {
+        Self {
+            motion: Motion::Arc {
+                end_mm,
+                center_mm,
+                plane,
+                clockwise,
+                turns,
+                feed_mm_s,
+            },
+            blend: Blend::Default,
+            tag,
+        }
+    }
+    pub fn dwell(duration_s: f32, tag: u32) -> Self {
+        Self {
+            motion: Motion::Dwell { duration_s },
+            blend: Blend::ExactStop,
+            tag,
+        }
+    }
+    /// The same segment with another junction mode.
+    pub fn with_blend(mut self, blend: Blend) -> Self {
+        self.blend = blend;
+        self
+    }
+}
+
+/// Why a segment was rejected. The planner is unchanged after any of these.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SegmentError {
+    /// The named field holds NaN or ±∞.
+    NotFinite(&'static str),
+    /// Feed must be > 0.
+    FeedNotPositive,
+    /// Blend tolerance must be ≥ 0.
+    NegativeTolerance,
+    /// Dwell time must be ≥ 0.
+    NegativeDwell,
+    /// Start or end radius below `min_segment_mm` (grbl error 33-35 family).
+    ArcZeroRadius,
+    /// Start and end radius differ by more than `arc_radius_tolerance_mm`.
+    ArcRadiusMismatch { start_mm: f32, end_mm: f32 },
+    /// More turns than one push can queue (at most [`MAX_ARC_PIECES`] full turns).
+    ArcTooManyTurns,
+    /// Not enough free queue slots (an arc of n turns needs n+1); retry later.
+    QueueFull,
+    /// An abort is stopping the machine; pushes resume once it has stopped.
+    Aborting,
+}
+
+/// An arc is queued as pieces of at most one full turn each (f32 angles stay below 2π
+/// and the look-ahead sees every turn); this bounds one push.
+pub const MAX_ARC_PIECES: usize = 16;
+
+/// Attributes a piece carries besides its geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PieceAttr {
+    /// Programmed feed (mm/s); +∞ for rapids.
+    pub feed: f32,
+    pub rapid: bool,
+    pub tag: u32,
+    /// Blend tolerance at the junction after the piece (mm); `None` = exact stop.
+    pub tol_after: Option<f32>,
+    /// Dwell length in control periods (dwell pieces only).
+    pub dwell_periods: u32,
+}
+
+/// A validated segment: 0 pieces (skipped zero-length line), 1, or several (arc turns),
+/// generated on demand by [`Prepared::piece`] (no array of pieces to copy around).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Prepared {
+    pub n: usize,
+    pub attr: PieceAttr,
+    kind: PrepKind,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PrepKind {
+    Single(Piece),
+    Arc(ArcSplit),
+}
+
+/// An arc cut into `count` equal pieces of at most one turn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ArcSplit {
+    start: V3,
+    end: V3,
+    center: V3,
+    axes: (usize, usize, usize),
+    psi0: f32,
+    r0: f32,
+    count: usize,
+    /// Length, sweep, rise and radius change of one piece.
+    plen: f32,
+    psweep: f32,
+    prise: f32,
+    pdr: f32,
+}
+
+impl ArcSplit {
+    /// The point between piece `k − 1` and piece `k` (the programmed ends exactly).
+    fn point(&self, k: usize) -> V3 {
+        if k == 0 {
+            return self.start;
+        }
+        if k >= self.count {
+            return self.end;
+        }
+        let (i1, i2, n) = self.axes;
+        let (sn, cs) = fmath::sin_cos(self.psi0 + self.psweep * k as f32);
+        let r = self.r0 + self.pdr * k as f32;
+        let mut e = self.center;
+        e[i1] += r * cs;
+        e[i2] += r * sn;
+        e[n] = self.start[n] + self.prise * k as f32;
+        e
+    }
+
+    fn piece(&self, k: usize) -> Piece {
+        let (i1, i2, n) = self.axes;
+        Piece {
+            start: self.point(k),
+            end: self.point(k + 1),
+            len: self.plen,
+            shape: Shape::Helix(Helix {
+                i1,
+                i2,
+                n,
+                psi0: libm::fmodf(self.psi0 + self.psweep * k as f32, TAU),
+                omega: self.psweep / self.plen,
+                r0: self.r0 + self.pdr * k as f32,
+                rho: self.pdr / self.plen,
+                eta: self.prise / self.plen,
+            }),
+        }
+    }
+}
+
+impl Prepared {
+    /// Piece `k` (`k < n`).
+    pub fn piece(&self, k: usize) -> Piece {
+        match &self.kind {
+            PrepKind::Single(p) => *p,
+            PrepKind::Arc(a) => a.piece(k),
+        }
+    }
+}
+
+fn finite3(v: [f32; 3], name: &'static str) -> Result<V3, SegmentError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(SegmentError::NotFinite(name))
+    }
+}
+
+fn feed_ok(f: f32) -> Result<f32, SegmentError> {
+    if !f.is_finite() {
+        Err(SegmentError::NotFinite("feed_mm_s"))
+    } else if !(f > 0.0) {
+        Err(SegmentError::FeedNotPositive)
+    } else {
+        Ok(f)
+    }
+}
+
+const EMPTY: Piece = Piece {
+    start: [0.0; 3],
+    end: [0.0; 3],
+    len: 0.0,
+    shape: Shape::Dwell,
+};
+
+/// Validates `seg` starting at `start` into pieces.
+pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared, SegmentError> {
+    let tol_after = match seg.blend {
+        Blend::Default => Some(s.tolerance_mm),
+        Blend::Tolerance(e) => {
+            if !e.is_finite() {
+                return Err(SegmentError::NotFinite("blend tolerance"));
+            }
+            if !(e >= 0.0) {
+                return Err(SegmentError::NegativeTolerance);
+            }
+            Some(e)
+        }
+        Blend::ExactStop => None,
+    };
+    let mut out = Prepared {
+        kind: PrepKind::Single(EMPTY),
+        n: 0,
+        attr: PieceAttr {
+            feed: f32::INFINITY,
+            rapid: false,
+            tag: seg.tag,
+            tol_after,
+            dwell_periods: 0,
+        },
+    };
+    match seg.motion {
+        Motion::Line { end_mm, feed } => {
+            let end = finite3(end_mm, "end_mm")?;
+            match feed {
+                Feed::MmPerS(f) => out.attr.feed = feed_ok(f)?,
+                Feed::Rapid => out.attr.rapid = true,
+            }
+            let d = sub(end, start);
+            let len = norm(d);
+            if len >= s.min_segment_mm {
+                let k = 1.0 / len;
+                out.kind = PrepKind::Single(Piece {
+                    start,
+                    end,
+                    len,
+                    shape: Shape::Line {
+                        u: [d[0] * k, d[1] * k, d[2] * k],
+                    },
+                });
+                out.n = 1;
+            }
+        }
+        Motion::Arc {
+            end_mm,
+            center_mm,
+            plane,
+            clockwise,
+            turns,
+            feed_mm_s,
+        } => {
+            let end = finite3(end_mm, "end_mm")?;
+            let center = finite3(center_mm, "center_mm")?;
+            out.attr.feed = feed_ok(feed_mm_s)?;
+            let split = arc_split(start, end, center, plane, clockwise, turns, s)?;
+            out.n = split.count;
+            out.kind = PrepKind::Arc(split);
+        }
+        Motion::Dwell { duration_s } => {
+            if !duration_s.is_finite() {
+                return Err(SegmentError::NotFinite("duration_s"));
+            }
+            if !(duration_s >= 0.0) {
+                return Err(SegmentError::NegativeDwell);
+            }
+            // Saturating conversion; 1e9 periods is over a day at 10 kHz.
+            let periods = (duration_s / s.period_s + 0.5).mn(1.0e9);
+            out.attr.dwell_periods = periods as u32;
+            out.attr.tol_after = None;
+            out.kind = PrepKind::Single(Piece {
+                start,
+                end: start,
+                len: 0.0,
+                shape: Shape::Dwell,
+            });
+            out.n = 1;
+        }
+    }
+    Ok(out)
+}
+
+fn arc_split(
+    start: V3,
+    end: V3,
+    center: V3,
+    plane: Plane,
+    clockwise: bool,
+    turns: u32,
+    s: &Settings,
+) -> Result<ArcSplit, SegmentError> {
+    let (i1, i2, n) = plane_axes(plane);
+    let (a0, b0) = (start[i1] - center[i1], start[i2] - center[i2]);
+    let (a1, b1) = (end[i1] - center[i1], end[i2] - center[i2]);
+    let r0 = fmath::hypot(a0, b0);
+    let r1 = fmath::hypot(a1, b1);
+    if !(r0 >= s.min_segment_mm) || !(r1 >= s.min_segment_mm) {
+        return Err(SegmentError::ArcZeroRadius);
+    }
+    if !((r1 - r0).abs() <= s.arc_tol_mm) {
+        return Err(SegmentError::ArcRadiusMismatch {
+            start_mm: r0,
+            end_mm: r1,
+        });
+    }
+    if turns as usize >= MAX_ARC_PIECES {
+        return Err(SegmentError::ArcTooManyTurns);
+    }
+    let psi0 = libm::atan2f(b0, a0);
+    let psi1 = libm::atan2f(b1, a1);
+    // Angle from start to end in (-π, π].
+    let mut d = psi1 - psi0;
+    if d > core::f32::consts::PI {
+        d -= TAU;
+    } else if d <= -core::f32::consts::PI {
+        d += TAU;
+    }
+    let full = fmath::hypot(a1 - a0, b1 - b0) < s.min_segment_mm;
+    let sweep = if clockwise {
+        let base = if full || d >= 0.0 { d - TAU } else { d };
+        base - TAU * turns as f32
+    } else {
+        let base = if full || d <= 0.0 { d + TAU } else { d };
+        base + TAU * turns as f32
+    };
+    let rise = end[n] - start[n];
+    let r_mean = 0.5 * (r0 + r1);
+    let len = fmath::hypot(r_mean * sweep, rise);
+    if !(len >= s.min_segment_mm) {
+        return Err(SegmentError::ArcZeroRadius);
+    }
+    // Pieces of at most one turn (plus the rounding of `sweep`).
+    let count = ((sweep.abs() / TAU - 1.0e-4).mx(0.0) as usize + 1).min(MAX_ARC_PIECES);
+    let kf = 1.0 / count as f32;
+    Ok(ArcSplit {
+        start,
+        end,
+        center,
+        axes: (i1, i2, n),
+        psi0,
+        r0,
+        count,
+        plen: len * kf,
+        psweep: sweep * kf,
+        prise: rise * kf,
+        pdr: (r1 - r0) * kf,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::config::{Settings, GANTRY_PLANNER};
+    use super::super::geometry::add;
+    use super::*;
+
+    fn settings() -> Settings {
+        Settings::new(&GANTRY_PLANNER).unwrap()
+    }
+
+    #[test]
+    fn arcs_in_every_plane_end_on_the_programmed_point() {
+        let s = settings();
+        for plane in [Plane::XY, Plane::ZX, Plane::YZ] {
+            for cw in [false, true] {
+                let (i1, i2, n) = plane_axes(plane);
+                let mut start = [1.0, 2.0, 3.0];
+                let mut center = start;
+                center[i1] -= 5.0; // start at angle 0, radius 5
+                let mut end = center;
+                end[i2] += 5.0; // angle +90°
+                end[n] += 2.0;
+                start[n] += 0.0;
+                let seg = Segment::arc(end, center, plane, cw, 0, 10.0, 1);
+                let p = prepare(&seg, start, &s).unwrap();
+                assert_eq!(p.n, 1);
+                let pc = &p.piece(0);
+                // CCW: quarter turn; CW: three quarters.
+                let quarter = if cw { 3.0 } else { 1.0 } * core::f32::consts::FRAC_PI_2 * 5.0;
+                let len = fmath::hypot(quarter, 2.0);
+                assert!((pc.len - len).abs() < 1e-4, "{plane:?} cw {cw}: {}", pc.len);
+                let e = add(pc.start, pc.delta(0.0, pc.len));
+                assert!(norm(sub(e, end)) < 2e-5);
+                // The tangent at the start turns the right way about the normal.
+                let t = pc.derivs(0.0).d1;
+                let sign = if cw { -1.0 } else { 1.0 };
+                assert!(t[i2] * sign > 0.9, "{plane:?} cw {cw}: {t:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn full_circle_and_turns_split_into_turn_pieces() {
+        let s = settings();
+        let start = [10.0, 0.0, 0.0];
+        let seg = Segment::arc(start, [0.0; 3], Plane::XY, false, 2, 10.0, 1);
+        let p = prepare(&seg, start, &s).unwrap();
+        assert_eq!(p.n, 3);
+        for k in 0..3 {
+            let pc = &p.piece(k);
+            assert!((pc.len - TAU * 10.0).abs() < 1e-3);
+            assert!(norm(sub(pc.end, start)) < 1e-4);
+        }
+    }
+
+    #[test]
+    fn bad_segments_are_rejected_with_the_reason() {
+        let s = settings();
+        let o = [0.0; 3];
+        let e = |seg: Segment| prepare(&seg, o, &s).err();
+        assert_eq!(
+            e(Segment::line([f32::NAN, 0.0, 0.0], 10.0, 0)),
+            Some(SegmentError::NotFinite("end_mm"))
+        );
+        assert_eq!(
+            e(Segment::line([1.0, 0.0, 0.0], 0.0, 0)),
+            Some(SegmentError::FeedNotPositive)
+        );
+        assert_eq!(
+            e(Segment::arc(
+                [1.0, 0.0, 0.0],
+                o,
+                Plane::XY,
+                false,
+                0,
+                5.0,
+                0
+            )),
+            Some(SegmentError::ArcZeroRadius)
+        );
+        assert!(matches!(
+            e(Segment::arc(
+                [0.0, 2.0, 0.0],
+                [1.0, 0.0, 0.0],
+                Plane::XY,
+                false,
+                0,
+                5.0,
+                0
+            )),
+            Some(SegmentError::ArcRadiusMismatch { .. })
+        ));
+        assert_eq!(
+            e(Segment::line([1.0, 0.0, 0.0], 5.0, 0).with_blend(Blend::Tolerance(-1.0))),
+            Some(SegmentError::NegativeTolerance)
+        );
+        assert_eq!(
+            e(Segment::dwell(-1.0, 0)),
+            Some(SegmentError::NegativeDwell)
+        );
+        // A zero-length line is accepted and yields no piece.
+        assert_eq!(prepare(&Segment::line(o, 5.0, 0), o, &s).unwrap().n, 0);
+    }
+}
