@@ -6,7 +6,7 @@
 //! ([`crate::sim::world::World`]). Every method runs inside the control interrupt: short,
 //! bounded, non-blocking.
 
-use crate::axes::AXES;
+use crate::axes::{Axis, AXES};
 use crate::config::{limit, positive, ConfigError};
 use crate::estimator::CounterWidth;
 
@@ -27,12 +27,19 @@ pub struct Inputs {
 
 impl Inputs {
     /// The first active limit switch: (axis, high end).
-    pub fn first_limit(&self) -> Option<(usize, bool)> {
-        (0..AXES).find_map(|i| match self.limits[i] {
-            [true, _] => Some((i, false)),
-            [_, true] => Some((i, true)),
-            _ => None,
-        })
+    pub fn first_limit(&self) -> Option<(Axis, bool)> {
+        // the common case (no switch) in one test; the search only when one is on
+        if !self.limits.iter().flatten().any(|&on| on) {
+            return None;
+        }
+        Axis::ALL
+            .into_iter()
+            .zip(self.limits)
+            .find_map(|(axis, sides)| match sides {
+                [true, _] => Some((axis, false)),
+                [_, true] => Some((axis, true)),
+                _ => None,
+            })
     }
 }
 

@@ -85,7 +85,8 @@ impl Jog {
             cfg.axes.get(axis),
         ) {
             let v = if vel_mm_s.is_finite() { vel_mm_s } else { 0.0 };
-            *t = v.clamp(-a.speed_max_mm_s, a.speed_max_mm_s);
+            // (max/min, not clamp: clamp panics on a bad bound)
+            *t = v.max(-a.speed_max_mm_s).min(a.speed_max_mm_s);
             *l = timeout_periods;
         }
     }

@@ -656,7 +656,8 @@ impl<R: Real> Servo<R> {
                 }
             }
             (Command::Identify { axis, window_mm }, st) => {
-                let i = axis.index();
+                // (`min`: lets the compiler drop the bounds checks below)
+                let i = axis.index().min(AXES - 1);
                 let pos = self.position_of(counts)[i].to_f32();
                 let travel = if self.referenced(i) {
                     self.travel.axes[i]
@@ -818,13 +819,13 @@ impl<R: Real> Servo<R> {
             } else {
                 inputs.first_limit()
             };
-            if let Some((i, high)) = tripped {
+            if let Some((axis, high)) = tripped {
                 let kind = if high {
                     FaultKind::LimitMax
                 } else {
                     FaultKind::LimitMin
                 };
-                self.trip(Fault::on(kind, Axis::ALL[i]), 0.0, None);
+                self.trip(Fault::on(kind, axis), 0.0, None);
             }
         }
         if !self.state.drives() {
@@ -1046,16 +1047,19 @@ impl<R: Real> Servo<R> {
     /// side is the sensor, not a fault.
     #[cold]
     #[inline(never)]
-    fn homing_limit(&self, inputs: &Inputs) -> Option<(usize, bool)> {
+    fn homing_limit(&self, inputs: &Inputs) -> Option<(Axis, bool)> {
         let Motion::Homing { run, .. } = &self.motion else {
             return inputs.first_limit();
         };
-        (0..AXES).find_map(|i| {
-            (0..2).find_map(|side| {
-                let sensor = run.masks_switch(&self.homing_cfg, i, side);
-                (inputs.limits[i][side] && !sensor).then_some((i, side == 1))
+        Axis::ALL
+            .into_iter()
+            .zip(inputs.limits)
+            .find_map(|(axis, sides)| {
+                (0..2).zip(sides).find_map(|(side, on)| {
+                    let sensor = run.masks_switch(&self.homing_cfg, axis.index(), side);
+                    (on && !sensor).then_some((axis, side == 1))
+                })
             })
-        })
     }
 
     /// Publish the latched faults and the homed axes in the snapshot (they change only

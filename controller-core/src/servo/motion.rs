@@ -107,14 +107,15 @@ impl<R: Real> Motion<R> {
 /// planner's references use segment-local times and do not.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Clock<R> {
-    rate_hz: u32,
+    // non-zero by type: the division below needs no zero check in the interrupt
+    rate_hz: core::num::NonZeroU32,
     dt: R,
 }
 
 impl<R: Real> Clock<R> {
     pub fn new(rate_hz: u32) -> Self {
         Self {
-            rate_hz: rate_hz.max(1),
+            rate_hz: core::num::NonZeroU32::new(rate_hz).unwrap_or(core::num::NonZeroU32::MIN),
             dt: R::from_f64(1.0 / f64::from(rate_hz.max(1))),
         }
     }

@@ -49,7 +49,8 @@ impl Ramp {
         let margin = self.vel_mm_s.abs() * dt_s;
         let up = stop_speed(hi_mm - self.pos_mm - margin, accel_mm_s2);
         let down = stop_speed(self.pos_mm - lo_mm - margin, accel_mm_s2);
-        let target = target_mm_s.clamp(-down, up);
+        // (max/min, not clamp: clamp panics when the bounds cross, e.g. past a bound)
+        let target = target_mm_s.max(-down).min(up);
         self.advance(target, accel_mm_s2, dt_s);
         if self.pos_mm >= hi_mm {
             self.pos_mm = hi_mm;
@@ -86,7 +87,7 @@ impl Ramp {
     fn advance(&mut self, target_mm_s: f32, accel_mm_s2: f32, dt_s: f32) {
         let step = accel_mm_s2 * dt_s;
         let v0 = self.vel_mm_s;
-        let v1 = v0 + (target_mm_s - v0).clamp(-step, step);
+        let v1 = v0 + (target_mm_s - v0).max(-step).min(step);
         self.acc_mm_s2 = if dt_s > 0.0 { (v1 - v0) / dt_s } else { 0.0 };
         self.vel_mm_s = v1;
         self.pos_mm += 0.5 * (v0 + v1) * dt_s;

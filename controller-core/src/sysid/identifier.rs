@@ -566,7 +566,7 @@ impl Identifier {
     }
 
     /// Stop at once with zero effort.
-    fn abort(&mut self, reason: AbortReason) -> IdentifyOutput {
+    fn give_up(&mut self, reason: AbortReason) -> IdentifyOutput {
         self.stage = Stage::Finished;
         self.status = IdentifyStatus::Aborted(reason);
         self.output(0.0)
@@ -599,17 +599,17 @@ impl Identifier {
         }
         self.k = self.k.saturating_add(1);
         if m.fault {
-            return self.abort(AbortReason::Fault);
+            return self.give_up(AbortReason::Fault);
         }
         if !(m.pos_mm.is_finite() && m.vel_mm_s.is_finite() && m.effort_applied_mnm.is_finite()) {
-            return self.abort(AbortReason::NonFiniteInput);
+            return self.give_up(AbortReason::NonFiniteInput);
         }
         let c = self.s.c;
         if !(m.pos_mm >= c.window_min_mm && m.pos_mm <= c.window_max_mm) {
-            return self.abort(AbortReason::LeftWindow);
+            return self.give_up(AbortReason::LeftWindow);
         }
         if !(m.vel_mm_s.abs() <= c.velocity_limit_mm_s) {
-            return self.abort(AbortReason::VelocityLimit);
+            return self.give_up(AbortReason::VelocityLimit);
         }
         self.win.add(m.effort_applied_mnm, m.vel_mm_s);
         if !matches!(self.stage, Stage::Braking(_)) {
@@ -631,7 +631,7 @@ impl Identifier {
         if u.abs() >= c.torque_cap_mnm {
             let since = *self.saturated_since.get_or_insert(self.k);
             if self.elapsed_since(since) >= SATURATION_LIMIT_S {
-                return self.abort(AbortReason::Saturated);
+                return self.give_up(AbortReason::Saturated);
             }
         } else {
             self.saturated_since = None;
