@@ -36,6 +36,7 @@ pub const FILES: &[(&str, &str)] = &[
     ),
     ("faults.toml", include_str!("../scenarios/faults.toml")),
     ("identify.toml", include_str!("../scenarios/identify.toml")),
+    ("gcode.toml", include_str!("../scenarios/gcode.toml")),
     (
         "../machines/paper_axis.toml",
         include_str!("../machines/paper_axis.toml"),

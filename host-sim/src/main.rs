@@ -8,6 +8,7 @@ use host_sim::builtin;
 use host_sim::output::report::{paper_tables, write_json, write_trace_csv};
 use host_sim::output::{plots, seed_plots};
 use host_sim::studies::{estimators, generic, paper, qemu_verdict, seeds};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -121,6 +122,24 @@ enum Command {
         #[arg(long)]
         no_plots: bool,
     },
+    /// Run a G-code program on a simulated machine through the planner and the servo step
+    /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
+    /// completed, 2 when it was rejected (nothing ran), 1 on a fault or an error.
+    Gcode {
+        file: PathBuf,
+        /// Machine file (default: the built-in physical gantry, travel ±150/±150/±50 mm).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Also write the report as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Output folder for the plots (default: out/gcode/<program name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Skip the plots.
+        #[arg(long)]
+        no_plots: bool,
+    },
     /// Compare a QEMU scenario's figures from the firmware's log with host-sim's (used by
     /// firmware/qemu/run-all); prints `qemu <name> passed` or `qemu <name> FAILED: <why>`.
     QemuVerdict {
@@ -167,6 +186,21 @@ fn main() -> ExitCode {
             out,
             no_plots,
         }) => run_identify(machine.as_deref(), seed, json.as_deref(), &out, no_plots),
+        Some(Command::Gcode {
+            file,
+            machine,
+            json,
+            out,
+            no_plots,
+        }) => {
+            return run_gcode(
+                &file,
+                machine.as_deref(),
+                json.as_deref(),
+                out.as_deref(),
+                no_plots,
+            )
+        }
         Some(Command::QemuVerdict { file, log, rate_hz }) => {
             return run_verdict(&file, &log, rate_hz)
         }
@@ -328,6 +362,46 @@ fn run_identify(
         bail!("not every axis was identified");
     }
     Ok(())
+}
+
+fn run_gcode(
+    file: &Path,
+    machine: Option<&Path>,
+    json: Option<&Path>,
+    out: Option<&Path>,
+    no_plots: bool,
+) -> ExitCode {
+    use host_sim::studies::gcode;
+    let started = Instant::now();
+    let res = (|| -> Result<gcode::GcodeReport> {
+        let r = gcode::run(file, machine, std::io::stderr().is_terminal())?;
+        print!("{}", gcode::table(&r));
+        if let Some(j) = json {
+            write_json(j, &r)?;
+            println!("JSON: {}", j.display());
+        }
+        if !no_plots && r.status != "rejected" {
+            let stem = file
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "program".into());
+            let dir = out.map_or_else(|| Path::new("out/gcode").join(&stem), Path::to_path_buf);
+            create_dir(&dir)?;
+            let n = host_sim::output::gcode_plots::figures(&dir, &r)?;
+            println!("{n} figures (PNG + SVG) in {}", dir.display());
+        }
+        println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+        Ok(r)
+    })();
+    match res {
+        Ok(r) if r.completed() => ExitCode::SUCCESS,
+        Ok(r) if r.status == "rejected" => ExitCode::from(2),
+        Ok(_) => ExitCode::FAILURE,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
 }
 
 fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {

@@ -53,6 +53,7 @@ use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3, ControllerConfig, Measured};
 use crate::estimator::{EstimatorBank, EstimatorBankConfig, EstimatorTiming, WideCounter};
 use crate::motion::path::{PathConfig, PathStart};
+use crate::motion::planner::PathSample;
 use crate::motion::trajectory::{RefSample, Trajectory};
 #[cfg(feature = "serde")]
 use crate::sysid::IDENTIFY_DEFAULTS;
@@ -406,6 +407,41 @@ impl<R: Real> Servo<R> {
         &self.controller
     }
 
+    /// The planner's reference for the coming period (call once per period, before
+    /// [`Self::period`], with the executor's sample). Ignored unless the servo runs the
+    /// planner (`Run` after [`Command::Run`]); a non-finite sample is ignored too (the
+    /// reference keeps the last good one, and the following-error check acts).
+    pub fn set_planner_reference(&mut self, s: &PathSample) {
+        if let Motion::Planner(r) = &mut self.motion {
+            let ok = s
+                .pos_mm
+                .to_array()
+                .iter()
+                .chain(&s.vel_mm_s.to_array())
+                .chain(&s.acc_mm_s2.to_array())
+                .all(|x| x.is_finite());
+            if ok {
+                let f =
+                    |v: Vec3<f32>| Vec3::new(R::from_f32(v.x), R::from_f32(v.y), R::from_f32(v.z));
+                *r = RefSample {
+                    pos: f(s.pos_mm),
+                    vel: f(s.vel_mm_s),
+                    acc: f(s.acc_mm_s2),
+                };
+            }
+        }
+    }
+
+    /// Where the planner must start a program: the reference the servo holds (Idle), or
+    /// follows; `None` outside Idle and Run.
+    pub fn planner_start_mm(&self) -> Option<[f32; AXES]> {
+        match (self.state, &self.motion) {
+            (ServoState::Idle, Motion::Hold(p)) => Some(p.to_array().map(Real::to_f32)),
+            (ServoState::Run, Motion::Planner(r)) => Some(r.pos.to_array().map(Real::to_f32)),
+            _ => None,
+        }
+    }
+
     /// How the last identification ended (its result, if it finished).
     pub fn identify_outcome(&self) -> Option<&IdentifyOutcome> {
         self.identify_outcome.as_ref()
@@ -682,7 +718,11 @@ impl<R: Real> Servo<R> {
                 self.state = ServoState::Identify;
             }
             (Command::Run, _) => {
-                self.motion = Motion::Planner;
+                // until the first sample arrives the reference holds where the servo was
+                let mut r = here();
+                r.vel = Vec3::zero();
+                r.acc = Vec3::zero();
+                self.motion = Motion::Planner(r);
                 self.state = ServoState::Run;
             }
             (Command::Stop, ServoState::Identify) => {

@@ -35,8 +35,10 @@ pub enum Motion<R> {
     Jog(Jog),
     /// Homing: the axis being homed follows the sequence's ramp, the others hold.
     Homing { hold: Vec3<R>, run: Homing },
-    /// The planner's reference (sampled by the servo from its executor).
-    Planner,
+    /// The planner's reference: the executor's sample of this period, handed to the servo
+    /// before the period by [`super::Servo::set_planner_reference`] (the executor runs in
+    /// the same interrupt, just before the servo step; host-sim does the same).
+    Planner(RefSample<R>),
 }
 
 impl<R: Real> Motion<R> {
@@ -66,7 +68,7 @@ impl<R: Real> Motion<R> {
     /// Advance one period.
     pub fn advance(&mut self) {
         match self {
-            Motion::Hold(_) | Motion::Jog(_) | Motion::Homing { .. } | Motion::Planner => {}
+            Motion::Hold(_) | Motion::Jog(_) | Motion::Homing { .. } | Motion::Planner(_) => {}
             Motion::Path { k, .. } | Motion::Stop { k, .. } => *k = k.saturating_add(1),
         }
     }
@@ -145,7 +147,7 @@ pub fn sample<R: Real>(
     };
     match *motion {
         Motion::Hold(p) => hold(p),
-        Motion::Planner => hold(Vec3::zero()),
+        Motion::Planner(r) => (r, R::ZERO, false),
         Motion::Jog(ref j) => {
             let r = ramps_sample(&j.ramps);
             let rest = j.finished();

@@ -151,6 +151,18 @@ pub(crate) enum Panel {
         title: String,
         paths: Vec<Path3>,
     },
+    /// A 2-D path drawn piecewise, each piece coloured by a value (blue = 0 to red =
+    /// `scale`), with equal axis scales.
+    Coloured {
+        title: String,
+        xl: String,
+        yl: String,
+        /// (x, y, value) along the path.
+        points: Vec<(f64, f64, f64)>,
+        scale: f64,
+        /// What the colour means, e.g. "contour error: blue 0 → red 12.3 µm".
+        legend: String,
+    },
 }
 
 fn render<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, draw: Draw) -> Result<()> {
@@ -169,9 +181,78 @@ fn render<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, draw: Draw) -> Resu
                 series,
             } => line_panel(a, title, xl, yl, series)?,
             Panel::Helix3d { title, paths } => helix_panel(a, title, paths)?,
+            Panel::Coloured {
+                title,
+                xl,
+                yl,
+                points,
+                scale,
+                legend,
+            } => coloured_panel(a, title, (xl, yl), points, *scale, legend)?,
         }
     }
     Ok(())
+}
+
+/// Blue (0) to red (1) through green, for a value in [0, 1].
+fn heat(f: f64) -> RGBColor {
+    let f = if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let (r, g, b) = if f < 0.5 {
+        (0.0, 2.0 * f, 1.0 - 2.0 * f)
+    } else {
+        (2.0 * f - 1.0, 2.0 - 2.0 * f, 0.0)
+    };
+    RGBColor((r * 220.0) as u8, (g * 180.0) as u8, (b * 220.0) as u8)
+}
+
+fn coloured_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    (xl, yl): (&str, &str),
+    points: &[(f64, f64, f64)],
+    scale: f64,
+    legend: &str,
+) -> Result<()> {
+    let xy: Vec<Series> = vec![Series {
+        name: String::new(),
+        color: BLACK,
+        points: points.iter().map(|p| (p.0, p.1)).collect(),
+    }];
+    let ((x0, x1), (y0, y1)) = bounds(&xy);
+    // equal scales: widen the narrower range about its centre
+    let (w, h) = area.dim_in_pixel();
+    let (w, h) = (f64::from(w.max(1)), f64::from(h.max(1)));
+    let span = ((x1 - x0) / w).max((y1 - y0) / h) * 1.05;
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let (hx, hy) = (0.5 * span * w, 0.5 * span * h);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 18))
+        .margin(8)
+        .x_label_area_size(32)
+        .y_label_area_size(64)
+        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(xl)
+        .y_desc(yl)
+        .label_style(("sans-serif", 12))
+        .draw()
+        .map_err(err)?;
+    let inv = if scale > 0.0 { 1.0 / scale } else { 0.0 };
+    chart
+        .draw_series(points.windows(2).map(|w| {
+            let c = heat(w[1].2 * inv);
+            PathElement::new(vec![(w[0].0, w[0].1), (w[1].0, w[1].1)], c.stroke_width(2))
+        }))
+        .map_err(err)?
+        .label(legend.to_string())
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 8, y)], heat(0.0).stroke_width(3)));
+    draw_legend(&mut chart)
 }
 
 fn helix_panel<DB: DrawingBackend>(

@@ -5,11 +5,13 @@
 //! - [`estimators`]: velocity sources × laws;
 //! - [`faults`]: the fault matrix (every fault class injected, detection and overrun);
 //! - [`identify`]: identification of every axis through the servo step, and the contour it buys;
+//! - [`gcode`]: a G-code program through the planner and the servo step, against its path;
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
 
 pub mod estimators;
 pub mod faults;
+pub mod gcode;
 pub mod generic;
 pub mod identify;
 pub mod paper;

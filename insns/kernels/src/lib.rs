@@ -16,6 +16,7 @@
 #![no_std]
 
 pub mod parts;
+pub mod planner;
 
 use controller_core::axes::AXES;
 use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, Measured};

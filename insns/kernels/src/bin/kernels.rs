@@ -69,6 +69,7 @@ mod cortex_m4 {
     use super::*;
     use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
+    use insns_kernels::planner::PlannerState;
     use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
 
     kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
@@ -140,6 +141,18 @@ mod cortex_m4 {
         |k| k.step()
     );
     kernel!(servo_part_laws, PartLaws, PartLaws::setup(), |k| k.step());
+    kernel!(
+        planner_sample,
+        PlannerState,
+        PlannerState::setup_sample(),
+        |k| k.sample()
+    );
+    kernel!(
+        planner_segment,
+        PlannerState,
+        PlannerState::setup_segment(),
+        |k| k.add_segment()
+    );
     kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
         .step());
 }

@@ -1,0 +1,128 @@
+//! Figures of `host-sim gcode` (PNG and SVG): the tool path (top view and side view)
+//! coloured by the contour error, the feed ratio along the path, and each axis' planned
+//! velocity and acceleration against the planner's limits.
+
+use crate::output::plots::{both, register_font, Panel, Series};
+use crate::studies::gcode::GcodeReport;
+use anyhow::Result;
+use plotters::style::RGBColor;
+use std::path::Path;
+
+const AXIS_COLORS: [RGBColor; 3] = [
+    RGBColor(31, 119, 180),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+];
+const LIMIT: RGBColor = RGBColor(90, 90, 90);
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// Every figure into `dir`; the number of files written.
+pub fn figures(dir: &Path, r: &GcodeReport) -> Result<usize> {
+    register_font()?;
+    let t = &r.trace;
+    let scale = t.contour_mm.iter().copied().fold(0.0, f64::max);
+    let legend = format!(
+        "contour error: blue 0 → red {:.2} µm (max {:.2} µm)",
+        scale * 1e3,
+        r.contour_max_mm * 1e3
+    );
+    let coloured = |a: usize, b: usize| -> Vec<(f64, f64, f64)> {
+        t.pos_mm
+            .iter()
+            .zip(&t.contour_mm)
+            .map(|(p, c)| (p[a], p[b], *c))
+            .collect()
+    };
+    let mut n = both(dir, "path", (1000, 1400), &|add| {
+        add(Panel::Coloured {
+            title: format!("{}: tool path (top view)", r.program),
+            xl: "x (mm)".into(),
+            yl: "y (mm)".into(),
+            points: coloured(0, 1),
+            scale,
+            legend: legend.clone(),
+        })?;
+        add(Panel::Coloured {
+            title: "tool path (side view)".into(),
+            xl: "x (mm)".into(),
+            yl: "z (mm)".into(),
+            points: coloured(0, 2),
+            scale,
+            legend: legend.clone(),
+        })
+    })?;
+    n += both(dir, "feed", (1000, 500), &|add| {
+        add(Panel::Lines {
+            title: format!(
+                "feed ratio along the path (path speed / programmed feed; mean {:.3} on feed moves)",
+                r.feed_ratio_mean
+            ),
+            xl: "distance along the path (mm)".into(),
+            yl: "feed ratio".into(),
+            series: vec![Series {
+                name: "feed ratio".into(),
+                color: AXIS_COLORS[0],
+                points: t.along_mm.iter().copied().zip(t.feed_ratio.iter().copied()).collect(),
+            }],
+        })
+    })?;
+    let limits = r.limits;
+    n += both(dir, "axes", (1000, 1600), &|add| {
+        for (i, name) in AXES.iter().enumerate() {
+            let span = (
+                t.t_s.first().copied().unwrap_or(0.0),
+                t.t_s.last().copied().unwrap_or(1.0),
+            );
+            let band = |v: f64| {
+                vec![
+                    Series {
+                        name: format!("limit ±{v}"),
+                        color: LIMIT,
+                        points: vec![(span.0, v), (span.1, v)],
+                    },
+                    Series {
+                        name: String::new(),
+                        color: LIMIT,
+                        points: vec![(span.0, -v), (span.1, -v)],
+                    },
+                ]
+            };
+            let mut vs = vec![Series {
+                name: format!("{name} velocity"),
+                color: AXIS_COLORS[i],
+                points: t
+                    .t_s
+                    .iter()
+                    .zip(&t.vel_mm_s)
+                    .map(|(t, v)| (*t, v[i]))
+                    .collect(),
+            }];
+            vs.extend(band(limits.vel[i]));
+            add(Panel::Lines {
+                title: format!("axis {name}: planned velocity against the limit"),
+                xl: "time (s)".into(),
+                yl: "mm/s".into(),
+                series: vs,
+            })?;
+            let mut acc = vec![Series {
+                name: format!("{name} acceleration"),
+                color: AXIS_COLORS[i],
+                points: t
+                    .t_s
+                    .iter()
+                    .zip(&t.acc_mm_s2)
+                    .map(|(t, a)| (*t, a[i]))
+                    .collect(),
+            }];
+            acc.extend(band(limits.acc[i]));
+            add(Panel::Lines {
+                title: format!("axis {name}: planned acceleration against the limit"),
+                xl: "time (s)".into(),
+                yl: "mm/s²".into(),
+                series: acc,
+            })?;
+        }
+        Ok(())
+    })?;
+    Ok(n)
+}
