@@ -12,6 +12,7 @@
 
 pub mod physical;
 pub mod plant;
+pub mod rng;
 pub mod run;
 pub mod truth;
 pub mod world;

@@ -14,6 +14,7 @@ use crate::servo::io::{Inputs, ServoIo};
 use crate::servo::ServoConfig;
 use crate::sim::physical::{PhysicalAxis, PhysicalAxisConfig};
 use crate::sim::plant::{rk4_step, AxisDynamics, AxisState, DisturbedPaperAxis, PaperAxis};
+use crate::sim::rng::SplitMix64;
 use crate::Real;
 
 /// Most plant RK4 steps per control period.
@@ -187,7 +188,7 @@ pub struct World {
     faults: WorldFaults,
     switches: [SwitchConfig; AXES],
     imperfect: ImperfectionConfig,
-    rng: u64,
+    rng: SplitMix64,
     /// Edge jitter of the current reading, counts.
     noise: [f64; AXES],
     /// Command written last period, applied this period (one period of delay).
@@ -302,7 +303,7 @@ impl World {
             faults: WorldFaults::default(),
             switches: cfg.switches,
             imperfect: cfg.imperfections,
-            rng: cfg.imperfections.seed,
+            rng: SplitMix64::new(cfg.imperfections.seed),
             noise: [0.0; AXES],
             pending: [0.0; AXES],
             last_counts: [0; AXES],
@@ -342,13 +343,8 @@ impl World {
         Ok(w)
     }
 
-    /// SplitMix64 (Steele, Lea, Flood 2014): reproducible noise without a dependency.
     fn next_random(&mut self) -> u64 {
-        self.rng = self.rng.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.rng.next_u64()
     }
 
     /// The safety inputs now: the injected ones, the switches at the true positions and

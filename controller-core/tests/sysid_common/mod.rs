@@ -19,37 +19,7 @@ use controller_core::sysid::{
     IdentifyStatus, IDENTIFY_DEFAULTS,
 };
 
-/// SplitMix64 (Steele, Lea, Flood 2014): a seedable, dependency-free generator; the
-/// tests need reproducible draws, not cryptographic quality.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    /// Log-uniform in [lo, hi] (ranges spanning decades).
-    pub fn log_uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
-    }
-}
+pub use controller_core::sim::rng::SplitMix64 as Rng;
 
 /// The documented range of random machines (docs/identification.md):
 /// J 0.02–0.4 mN·m/(mm/s²) and B 0.05–1.0 mN·m/(mm/s) log-uniform, f+ 10–80 and
