@@ -39,6 +39,7 @@ pub mod coupling;
 pub mod estimator;
 pub mod law;
 pub mod link;
+pub mod machine;
 pub mod metrics;
 pub mod model;
 pub mod motion;

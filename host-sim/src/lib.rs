@@ -17,6 +17,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod builtin;
+pub mod cli;
 pub mod engine;
 pub mod gcode;
 pub mod jobs;

@@ -137,7 +137,7 @@ pub struct Trace {
 }
 
 impl GcodeReport {
-    fn rejected(program: &str, e: &gcode::Error, limits: LimitsJson, tol: f64) -> Self {
+    pub fn rejected(program: &str, e: &gcode::Error, limits: LimitsJson, tol: f64) -> Self {
         Self {
             program: program.to_string(),
             status: "rejected".into(),
@@ -183,7 +183,7 @@ fn f32s(v: [f64; 3]) -> [f32; 3] {
 
 /// The planner segments of `program`, tagged with the index of their move; `None` for a
 /// move that only changes the blend mode.
-fn segments(program: &Program) -> Vec<Segment> {
+pub fn segments(program: &Program) -> Vec<Segment> {
     let mut blend = Blend::Default;
     let mut out = Vec::with_capacity(program.moves.len());
     for (i, m) in program.moves.iter().enumerate() {
@@ -309,7 +309,7 @@ fn distance(p: [f64; 3], m: &gcode::Move) -> Option<f64> {
 }
 
 /// Length of the path of move `m`, mm.
-fn length(m: &gcode::Move) -> f64 {
+pub fn length(m: &gcode::Move) -> f64 {
     match m.kind {
         MoveKind::Rapid { to } | MoveKind::Line { to, .. } => norm(sub(to, m.from)),
         MoveKind::Arc {
@@ -329,7 +329,7 @@ fn length(m: &gcode::Move) -> f64 {
 }
 
 /// Distance from `p` to the programmed path near move `tag`.
-fn path_distance(p: [f64; 3], moves: &[gcode::Move], tag: usize) -> f64 {
+pub fn path_distance(p: [f64; 3], moves: &[gcode::Move], tag: usize) -> f64 {
     let lo = tag.saturating_sub(SEARCH_WINDOW);
     let hi = (tag + SEARCH_WINDOW + 1).min(moves.len());
     moves
@@ -342,7 +342,7 @@ fn path_distance(p: [f64; 3], moves: &[gcode::Move], tag: usize) -> f64 {
 
 /// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
 /// configuration at the machine's rate.
-fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, PlannerConfig)> {
+pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, PlannerConfig)> {
     let file = match machine {
         Some(m) => builtin::load_on_machine("gcode.toml", m)?,
         None => builtin::load("gcode.toml")?,
@@ -371,11 +371,11 @@ fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, PlannerConf
 }
 
 /// An `f32` setting as the decimal it was written as (0.01, not 0.009999999776).
-fn decimal(x: f32) -> f64 {
+pub fn decimal(x: f32) -> f64 {
     x.to_string().parse().unwrap_or(f64::from(x))
 }
 
-fn limits_of(c: &PlannerConfig) -> LimitsJson {
+pub fn limits_of(c: &PlannerConfig) -> LimitsJson {
     LimitsJson {
         vel: c.vel_max_mm_s.map(decimal),
         acc: c.acc_max_mm_s2.map(decimal),
@@ -385,7 +385,7 @@ fn limits_of(c: &PlannerConfig) -> LimitsJson {
 
 /// The travel the program is checked against: the machine's soft limits (an unlimited
 /// side is given a bound far beyond any program).
-fn travel_of(cfg: &RunConfig) -> Result<Travel> {
+pub fn travel_of(cfg: &RunConfig) -> Result<Travel> {
     let big = gcode::MAX_WORD_MAGNITUDE;
     let t = cfg.servo.travel.axes.map(|a| {
         [
@@ -405,7 +405,11 @@ fn travel_of(cfg: &RunConfig) -> Result<Travel> {
 }
 
 /// Parse and check `program` from `start_mm` (nothing runs).
-fn load_program(path: &Path, start_mm: [f64; 3], travel: &Travel) -> Result<Program, gcode::Error> {
+pub fn load_program(
+    path: &Path,
+    start_mm: [f64; 3],
+    travel: &Travel,
+) -> Result<Program, gcode::Error> {
     let opts = ParseOptions {
         start_mm,
         ..ParseOptions::default()

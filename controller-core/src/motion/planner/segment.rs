@@ -9,7 +9,8 @@ use core::f32::consts::TAU;
 
 /// Arc plane: G17 (XY, normal +Z), G18 (ZX, normal +Y), G19 (YZ, normal +X).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+// serde + Schema always: segments travel on the host link (machine::messages)
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub enum Plane {
     XY,
     ZX,
@@ -18,7 +19,8 @@ pub enum Plane {
 
 /// Feed of a line.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+// serde + Schema always: segments travel on the host link (machine::messages)
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub enum Feed {
     /// Programmed path speed (mm/s), scaled by the feed override.
     MmPerS(f32),
@@ -28,7 +30,8 @@ pub enum Feed {
 
 /// What happens at the junction after a segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+// serde + Schema always: segments travel on the host link (machine::messages)
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub enum Blend {
     /// G64 without P: blend within the configured `tolerance_mm`.
     Default,
@@ -41,7 +44,8 @@ pub enum Blend {
 /// The motion of one segment. Positions are absolute machine coordinates (mm); the start
 /// is where the previous segment ended.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+// serde + Schema always: segments travel on the host link (machine::messages)
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub enum Motion {
     /// G0/G1.
     Line { end_mm: [f32; 3], feed: Feed },
@@ -61,7 +65,8 @@ pub enum Motion {
 
 /// One queued segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+// serde + Schema always: segments travel on the host link (machine::messages)
+#[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub struct Segment {
     pub motion: Motion,
     /// Junction after this segment.

@@ -1,0 +1,163 @@
+//! The application messages of the host link: what the host asks of the machine
+//! ([`Request`], on the reliable command channel), what the machine answers to a status
+//! request ([`Status`]) and what it streams ([`Telemetry`]). One definition for the
+//! firmware and every host tool; [`SCHEMA_HASH`] (from these types) is checked in the
+//! handshake, so a host and a device built from different message sets refuse each other.
+
+use heapless::String;
+use postcard_schema::Schema;
+use serde::{Deserialize, Serialize};
+
+use crate::link::schema_hash;
+use crate::motion::planner::Segment;
+
+/// Longest settings key on the wire (the longest key is 36 characters).
+pub const KEY_MAX: usize = 48;
+/// Longest settings value text on the wire.
+pub const VALUE_MAX: usize = 32;
+/// Longest refusal or error text on the wire.
+pub const TEXT_MAX: usize = 96;
+
+/// A request on the reliable command channel, executed in order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum Request {
+    /// Outputs on, holding where the machine stands (never starts motion).
+    Arm,
+    /// Outputs off (a controlled stop first when moving).
+    Disarm,
+    /// Clear the latched faults whose causes are gone.
+    Reset,
+    /// Run the homing sequence.
+    Home,
+    /// Jog axis 0/1/2 at `vel_mm_s` (0 stops); stops by itself when jog requests stop
+    /// arriving (the jog timeout).
+    Jog { axis: u8, vel_mm_s: f32 },
+    /// Start a program: the servo follows the planner from where it holds.
+    Run,
+    /// One segment of the running program (queued in the planner when it has room).
+    Segment(Segment),
+    /// The program has no more segments: when the planner is idle, back to Idle.
+    EndProgram,
+    /// Feed override, 0.01-2.0.
+    FeedOverride(f32),
+    /// Read one setting (dotted key); the value is in [`Status::last`].
+    SettingGet { key: String<KEY_MAX> },
+    /// Change one setting (value as text, as `gantry settings set` reads it); applied at
+    /// a period boundary, and only with the outputs off where a change could jump them.
+    SettingSet {
+        key: String<KEY_MAX>,
+        value: String<VALUE_MAX>,
+    },
+    /// Back to the factory settings (outputs off).
+    SettingsDefaults,
+    /// Identify axis 0/1/2: homed, or within the user-confirmed window `[min, max]` in
+    /// machine mm (an axis that cannot be homed yet: no model to arm with).
+    Identify {
+        axis: u8,
+        window_mm: Option<[f32; 2]>,
+    },
+    /// Store the last identification's model of the axis in the settings (outputs off).
+    AcceptIdentified { axis: u8 },
+}
+
+/// How the last executed request ended.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub enum Outcome {
+    /// Nothing executed yet in this session.
+    None,
+    /// Done.
+    Done,
+    /// A setting's value, as text.
+    Value(String<VALUE_MAX>),
+    /// Not executed: why, and how to fix it.
+    Refused(String<TEXT_MAX>),
+}
+
+/// The machine's supervisor state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum MachineState {
+    Disabled,
+    Idle,
+    Jog,
+    Homing,
+    /// Running a program (`held`: feed hold in force).
+    Run {
+        held: bool,
+    },
+    Identify,
+    /// Decelerating to a stop.
+    Stopping,
+    /// Checking the encoders before a reset completes.
+    EncoderCheck,
+    Fault,
+}
+
+/// An identified model as the link carries it (mN·m, mm, s).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct ModelMsg {
+    pub inertia: f32,
+    pub viscous: f32,
+    pub coulomb_pos_mnm: f32,
+    pub coulomb_neg_mnm: f32,
+}
+
+/// The last identification's result.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct IdentifyMsg {
+    pub axis: u8,
+    /// `true` when it finished with a model.
+    pub done: bool,
+    pub model: Option<ModelMsg>,
+    pub nrmse: f32,
+    pub r2: f32,
+    /// Machine time it took, s.
+    pub time_s: f32,
+}
+
+/// Answer to every real-time request.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct Status {
+    pub state: MachineState,
+    /// Control period number.
+    pub period: u32,
+    /// Requests executed in this session (the host counts what it sent).
+    pub executed: u32,
+    /// Outcome of the last executed request.
+    pub last: Outcome,
+    /// Latched fault bits (system, per axis) and the first fault's name.
+    pub fault_bits: (u32, [u32; 3]),
+    pub first_fault: Option<String<VALUE_MAX>>,
+    /// Homed axes (bit per axis).
+    pub homed: u8,
+    /// Axes whose model is missing (a model-based law refuses to arm).
+    pub model_missing: u8,
+    pub pos_mm: [f32; 3],
+    pub vel_mm_s: [f32; 3],
+    /// Free slots in the planner's segment queue and requests waiting to be executed.
+    pub planner_free: u16,
+    pub queued: u16,
+    /// The program's segments are all executed and the machine is at rest.
+    pub program_done: bool,
+    /// Homing / identification progress, 0-1.
+    pub progress: f32,
+    pub identify: Option<IdentifyMsg>,
+}
+
+/// One telemetry sample (every `decimation` periods).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct Telemetry {
+    pub period: u32,
+    pub state: MachineState,
+    pub pos_mm: [f32; 3],
+    pub reference_mm: [f32; 3],
+    /// The planner's reference velocity and acceleration (zero outside a program).
+    pub ref_vel_mm_s: [f32; 3],
+    pub ref_acc_mm_s2: [f32; 3],
+    pub contour_mm: f32,
+    pub feed_ratio: f32,
+    /// Tag of the planner segment being executed.
+    pub tag: u32,
+}
+
+/// The handshake's schema hash of this message set.
+pub const SCHEMA_HASH: u32 = schema_hash::<Request, Telemetry, Status>();

@@ -1,0 +1,484 @@
+//! [`Machine`]: the servo step, the motion planner and the settings behind the link.
+//!
+//! Requests are queued as they arrive (the link task's side, [`Machine::submit`]) and
+//! executed in order at the start of a control period ([`Machine::period`]): servo
+//! commands go to the servo step of that period, segments into the planner while it has
+//! room (a segment that does not fit waits, and so does everything behind it), settings
+//! changes are validated whole and applied only while the outputs are off where they
+//! could make the output jump. Each period the planner plans ahead and samples the
+//! reference the servo follows in `Run`.
+//!
+//! On the board the planner's planning half belongs in a lower-priority task; here
+//! both halves run in [`Machine::period`] (host simulation, and the board until the link
+//! task is wired).
+
+use core::fmt::Write;
+
+use heapless::{Deque, String};
+
+use super::messages::{IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry};
+use crate::axes::Axis;
+use crate::link::RealtimeRequest;
+use crate::motion::planner::{MotionPlanner, PathSample, PlannerConfig, PlannerConfigError};
+use crate::servo::io::ServoIo;
+use crate::servo::{Command, Servo, ServoState};
+use crate::settings::{Settings, SettingsError};
+use crate::sysid::IdentifyStatus;
+
+/// Requests waiting to be executed, at most (the link's credit: the host never has more
+/// in flight than [`Machine::free_slots`] says).
+pub const REQUEST_QUEUE: usize = 16;
+
+/// The machine's planner: 32 segments, 128 spans, 64 spans and 32 steps between its halves.
+pub type MachinePlanner = MotionPlanner<32, 128, 64, 32>;
+
+/// Why a machine could not be built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MachineError {
+    Settings(SettingsError),
+    Planner(PlannerConfigError),
+    Servo(crate::config::ConfigError),
+}
+
+/// The supervisor (see the module docs).
+pub struct Machine {
+    servo: Servo<f32>,
+    planner: MachinePlanner,
+    planner_cfg: PlannerConfig,
+    settings: Settings,
+    rate_hz: u32,
+    queue: Deque<Request, REQUEST_QUEUE>,
+    executed: u32,
+    last: Outcome,
+    /// A program is running (after `Run`), and its end was announced.
+    program: bool,
+    program_ended: bool,
+    identify: Option<IdentifyMsg>,
+    /// A servo command of the supervisor's own (stop at program end, link loss).
+    pending: Option<Command>,
+    sample: PathSample,
+    held: bool,
+}
+
+fn text<const N: usize>(s: &str) -> String<N> {
+    let mut t = String::new();
+    for c in s.chars() {
+        if t.push(c).is_err() {
+            break;
+        }
+    }
+    t
+}
+
+fn refused(s: &str) -> Outcome {
+    Outcome::Refused(text(s))
+}
+
+impl Machine {
+    /// A machine with `settings` at `rate_hz`; `raw` are the encoder registers now,
+    /// standing for wide counts `start_counts` (0 on a board at boot).
+    pub fn new(
+        settings: &Settings,
+        planner_cfg: &PlannerConfig,
+        rate_hz: u32,
+        raw: [u32; 3],
+        start_counts: [i64; 3],
+    ) -> Result<Self, MachineError> {
+        let cfg = settings
+            .servo_config(rate_hz)
+            .map_err(MachineError::Settings)?;
+        let servo = Servo::new(&cfg, raw, start_counts).map_err(MachineError::Servo)?;
+        let mut pc = *planner_cfg;
+        pc.period_s = 1.0 / rate_hz as f32;
+        let start = servo.snapshot().pos;
+        let planner = MachinePlanner::new(&pc, start).map_err(MachineError::Planner)?;
+        let sample = PathSample {
+            pos_mm: crate::Vec3::from_array(start),
+            vel_mm_s: crate::Vec3::zero(),
+            acc_mm_s2: crate::Vec3::zero(),
+            tangent: crate::Vec3::zero(),
+            path_speed_mm_s: 0.0,
+            path_acc_mm_s2: 0.0,
+            feed_ratio: 0.0,
+            tag: 0,
+            mode: crate::motion::planner::ExecMode::Idle,
+        };
+        Ok(Self {
+            servo,
+            planner,
+            planner_cfg: pc,
+            settings: *settings,
+            rate_hz,
+            queue: Deque::new(),
+            executed: 0,
+            last: Outcome::None,
+            program: false,
+            program_ended: false,
+            identify: None,
+            pending: None,
+            sample,
+            held: false,
+        })
+    }
+
+    /// Room in the request queue (the credit the link advertises).
+    pub fn free_slots(&self) -> u16 {
+        (REQUEST_QUEUE - self.queue.len()) as u16
+    }
+
+    /// Queue a request (the link promised room: a request beyond it is dropped and
+    /// reported as refused).
+    pub fn submit(&mut self, r: Request) {
+        if self.queue.push_back(r).is_err() {
+            self.executed = self.executed.wrapping_add(1);
+            self.last = refused("request queue full (the host ignored the link's credit)");
+        }
+    }
+
+    /// A new link session: requests of the old one are dropped, numbering restarts.
+    pub fn session_started(&mut self) {
+        self.queue.clear();
+        self.executed = 0;
+        self.last = Outcome::None;
+    }
+
+    pub fn servo(&self) -> &Servo<f32> {
+        &self.servo
+    }
+
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// A real-time request, executed now (outside the queue).
+    pub fn realtime(&mut self, req: RealtimeRequest) {
+        match req {
+            RealtimeRequest::Hold => {
+                if self.program {
+                    self.planner.hold();
+                    self.held = true;
+                }
+            }
+            RealtimeRequest::Resume => {
+                if self.program {
+                    self.planner.resume();
+                    self.held = false;
+                }
+            }
+            RealtimeRequest::Stop => self.stop_program(Some(Command::Stop)),
+            RealtimeRequest::Status => {}
+        }
+    }
+
+    /// The link's watchdog expired: controlled stop and a `LinkLost` fault.
+    pub fn link_lost(&mut self) {
+        self.stop_program(Some(Command::LinkLost));
+    }
+
+    fn stop_program(&mut self, cmd: Option<Command>) {
+        self.queue.clear();
+        self.sample.vel_mm_s = crate::Vec3::zero();
+        self.sample.acc_mm_s2 = crate::Vec3::zero();
+        if self.program {
+            self.planner.abort();
+        }
+        self.program = false;
+        self.program_ended = false;
+        self.held = false;
+        if let Some(c) = cmd {
+            self.pending = Some(c);
+        }
+    }
+
+    /// One control period: execute what is queued, plan, sample, run the servo step.
+    pub fn period<IO: ServoIo<f32>>(&mut self, io: &mut IO) {
+        let mut cmds: heapless::Vec<Command, 4> = heapless::Vec::new();
+        if let Some(c) = self.pending.take() {
+            let _ = cmds.push(c);
+        }
+        // a servo command's outcome is known after the servo step: one per period
+        let mut servo_request = false;
+        while let Some(r) = self.queue.front() {
+            if servo_request {
+                break;
+            }
+            let r = r.clone();
+            match self.execute(&r, &mut cmds) {
+                Step::Done(o) => {
+                    self.executed = self.executed.wrapping_add(1);
+                    self.last = o;
+                }
+                Step::Servo => servo_request = true,
+                Step::Wait => break,
+            }
+            self.queue.pop_front();
+        }
+        if self.program {
+            self.sample = self.planner.tick();
+            self.servo.set_planner_reference(&self.sample);
+        }
+        let s = *self.servo.period(io, &cmds);
+        if servo_request {
+            self.executed = self.executed.wrapping_add(1);
+            self.last = match s.refused {
+                Some((_, why)) => refused(why.message()),
+                None => Outcome::Done,
+            };
+        }
+        if self.program {
+            match s.state {
+                ServoState::Run => {
+                    if self.program_ended && self.planner.is_idle() && !self.held {
+                        self.pending = Some(Command::Stop);
+                        self.program = false;
+                        self.program_ended = false;
+                    }
+                }
+                // a fault, a stop or a disarm ended the program
+                _ => self.stop_program(None),
+            }
+        }
+        if let Some(o) = self.servo.identify_outcome() {
+            if self
+                .identify
+                .is_none_or(|m| m.axis != o.axis.index() as u8 || !m.done)
+                && s.state != ServoState::Identify
+            {
+                self.identify = Some(IdentifyMsg {
+                    axis: o.axis.index() as u8,
+                    done: o.status == IdentifyStatus::Done,
+                    model: o.result.map(|r| ModelMsg {
+                        inertia: r.model.inertia,
+                        viscous: r.model.viscous,
+                        coulomb_pos_mnm: r.model.coulomb_pos_mnm,
+                        coulomb_neg_mnm: r.model.coulomb_neg_mnm,
+                    }),
+                    nrmse: o.result.map_or(0.0, |r| r.nrmse),
+                    r2: o.result.map_or(0.0, |r| r.r2),
+                    time_s: o.result.map_or(0.0, |r| r.machine_time_s),
+                });
+            }
+        }
+    }
+
+    fn execute(&mut self, r: &Request, cmds: &mut heapless::Vec<Command, 4>) -> Step {
+        let mut servo = |c: Command| {
+            let _ = cmds.push(c);
+            Step::Servo
+        };
+        match r {
+            Request::Arm => servo(Command::Arm),
+            Request::Disarm => servo(Command::Disarm),
+            Request::Reset => servo(Command::Reset),
+            Request::Home => servo(Command::Home),
+            Request::Jog { axis, vel_mm_s } => match Axis::from_index(usize::from(*axis)) {
+                Some(axis) => servo(Command::Jog {
+                    axis,
+                    vel_mm_s: *vel_mm_s,
+                }),
+                None => Step::Done(refused("jog: axis must be 0, 1 or 2")),
+            },
+            Request::Identify { axis, window_mm } => match Axis::from_index(usize::from(*axis)) {
+                Some(axis) => {
+                    self.identify = None;
+                    servo(Command::Identify {
+                        axis,
+                        window_mm: *window_mm,
+                    })
+                }
+                None => Step::Done(refused("identify: axis must be 0, 1 or 2")),
+            },
+            Request::Run => {
+                let Some(start) = self.servo.planner_start_mm() else {
+                    return Step::Done(refused("run: arm the machine first (it must be idle)"));
+                };
+                if self.servo.state() != ServoState::Idle {
+                    return Step::Done(refused("run: a program is already running"));
+                }
+                match MachinePlanner::new(&self.planner_cfg, start) {
+                    Ok(p) => self.planner = p,
+                    Err(_) => return Step::Done(refused("run: planner configuration invalid")),
+                }
+                self.program = true;
+                self.program_ended = false;
+                self.held = false;
+                servo(Command::Run)
+            }
+            Request::Segment(seg) => {
+                if !self.program {
+                    return Step::Done(refused("segment: no program running (send run first)"));
+                }
+                if self.planner.free_slots() == 0 {
+                    return Step::Wait;
+                }
+                match self.planner.push(seg) {
+                    Ok(()) => Step::Done(Outcome::Done),
+                    Err(e) => {
+                        let mut t: String<96> = String::new();
+                        let _ = write!(t, "segment {}: {:?}", seg.tag, e);
+                        Step::Done(Outcome::Refused(t))
+                    }
+                }
+            }
+            Request::EndProgram => {
+                if self.program {
+                    self.program_ended = true;
+                }
+                Step::Done(Outcome::Done)
+            }
+            Request::FeedOverride(r) => match self.planner.set_feed_override(*r) {
+                Ok(()) => Step::Done(Outcome::Done),
+                Err(_) => Step::Done(refused("feed override must be within 0.01-2.0")),
+            },
+            Request::SettingGet { key } => match self.settings.get(key) {
+                Ok(v) => {
+                    let mut t = String::new();
+                    let _ = write!(t, "{v}");
+                    Step::Done(Outcome::Value(t))
+                }
+                Err(e) => {
+                    let mut t = String::new();
+                    let _ = write!(t, "{e}");
+                    Step::Done(Outcome::Refused(t))
+                }
+            },
+            Request::SettingSet { key, value } => {
+                let mut next = self.settings;
+                if let Err(e) = next.set_text(key, value, self.rate_hz) {
+                    let mut t = String::new();
+                    let _ = write!(t, "{e}");
+                    return Step::Done(Outcome::Refused(t));
+                }
+                Step::Done(self.apply(next))
+            }
+            Request::SettingsDefaults => Step::Done(self.apply(crate::settings::FACTORY)),
+            Request::AcceptIdentified { axis } => {
+                let i = usize::from(*axis);
+                let model = self
+                    .identify
+                    .filter(|m| usize::from(m.axis) == i && m.done)
+                    .and_then(|m| m.model);
+                let Some(m) = model else {
+                    return Step::Done(refused(
+                        "accept: no finished identification of that axis (run identify first)",
+                    ));
+                };
+                let mut next = self.settings;
+                if let Some(a) = next.axis.get_mut(i) {
+                    a.model = Some(crate::sysid::AxisModel {
+                        inertia: m.inertia,
+                        viscous: m.viscous,
+                        coulomb_pos_mnm: m.coulomb_pos_mnm,
+                        coulomb_neg_mnm: m.coulomb_neg_mnm,
+                    });
+                }
+                Step::Done(self.apply(next))
+            }
+        }
+    }
+
+    /// Swap in `next` at this period boundary, if the servo takes it now.
+    fn apply(&mut self, next: Settings) -> Outcome {
+        let class = self.settings.change_class(&next);
+        let cfg = match next.servo_config(self.rate_hz) {
+            Ok(c) => c,
+            Err(e) => {
+                let mut t = String::new();
+                let _ = write!(t, "rejected: {e:?}");
+                return Outcome::Refused(t);
+            }
+        };
+        match class {
+            None => {
+                self.settings = next;
+                Outcome::Done
+            }
+            // (live changes with the outputs on are not taken yet: the servo swaps
+            // configurations only with the outputs off)
+            Some(_) => match self.servo.reconfigure(&cfg) {
+                Ok(()) => {
+                    self.settings = next;
+                    Outcome::Done
+                }
+                Err(crate::servo::ReconfigureError::OutputsOn) => {
+                    refused("this change needs the outputs off: disarm first")
+                }
+                Err(e) => {
+                    let mut t = String::new();
+                    let _ = write!(t, "rejected: {e:?}");
+                    Outcome::Refused(t)
+                }
+            },
+        }
+    }
+
+    /// The status a real-time request answers with.
+    pub fn status(&self) -> Status {
+        let s = self.servo.snapshot();
+        let first_fault = s.fault.map(|f| {
+            let mut t = String::new();
+            let _ = write!(t, "{}", f.fault.kind.name());
+            if let Some(a) = f.fault.axis {
+                let _ = write!(t, " on {}", a.name());
+            }
+            t
+        });
+        Status {
+            state: self.state(),
+            period: s.period,
+            executed: self.executed,
+            last: self.last.clone(),
+            fault_bits: s.fault_bits,
+            first_fault,
+            homed: s.homed,
+            model_missing: s.model_missing,
+            pos_mm: s.pos,
+            vel_mm_s: s.vel,
+            planner_free: self.planner.free_slots() as u16,
+            queued: self.queue.len() as u16,
+            program_done: !self.program && self.queue.is_empty() && self.pending.is_none(),
+            progress: s.progress,
+            identify: self.identify,
+        }
+    }
+
+    /// One telemetry sample of the last period.
+    pub fn telemetry(&self) -> Telemetry {
+        let s = self.servo.snapshot();
+        Telemetry {
+            period: s.period,
+            state: self.state(),
+            pos_mm: s.pos,
+            reference_mm: s.reference,
+            ref_vel_mm_s: self.sample.vel_mm_s.to_array(),
+            ref_acc_mm_s2: self.sample.acc_mm_s2.to_array(),
+            contour_mm: s.contour_norm(),
+            feed_ratio: self.sample.feed_ratio,
+            tag: self.sample.tag,
+        }
+    }
+
+    fn state(&self) -> MachineState {
+        match self.servo.state() {
+            ServoState::Disabled => MachineState::Disabled,
+            ServoState::Idle => MachineState::Idle,
+            ServoState::Run => MachineState::Run { held: self.held },
+            ServoState::Jog => MachineState::Jog,
+            ServoState::Homing => MachineState::Homing,
+            ServoState::Identify => MachineState::Identify,
+            ServoState::Stopping => MachineState::Stopping,
+            ServoState::EncoderCheck => MachineState::EncoderCheck,
+            ServoState::Fault => MachineState::Fault,
+        }
+    }
+}
+
+/// What executing one request did.
+enum Step {
+    /// Done now, with this outcome.
+    Done(Outcome),
+    /// A servo command: its outcome comes from this period's servo step.
+    Servo,
+    /// Cannot be executed yet (planner full): stays at the front of the queue.
+    Wait,
+}

@@ -1,0 +1,301 @@
+//! `gantry`: command a machine over the host link. `--sim` runs the machine's supervisor,
+//! planner and servo step in-process against the simulated physical gantry (one machine
+//! per invocation: it powers up at the work origin, unhomed, disarmed). See the README
+//! ("The gantry CLI") and docs/link-protocol.md.
+
+use anyhow::{bail, Result};
+use clap::{Parser, Subcommand};
+use controller_core::machine::messages::{MachineState, Request, Status};
+use host_sim::cli::client::{expect_done, Client};
+use host_sim::cli::sim::{SimMachine, SimModels};
+use host_sim::cli::{self, Hold, AXES};
+use host_sim::output::report::write_json;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "gantry", about = "Command a gantry over the host link")]
+struct Cli {
+    /// The simulated gantry in-process (the only target in this build: the firmware's
+    /// link task for a board or QEMU is not wired yet).
+    #[arg(long, required = true)]
+    sim: bool,
+    /// Start the simulated machine with factory settings (no axis model: identify first).
+    #[arg(long)]
+    factory: bool,
+    /// Telemetry rate of the session, Hz (1-10000).
+    #[arg(long, default_value_t = 1000)]
+    telemetry_hz: u32,
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// The machine's status.
+    Status {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Latched faults.
+    Faults {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Outputs on, holding.
+    Arm,
+    /// Outputs off.
+    Disarm,
+    /// Clear faults whose cause is gone.
+    Reset,
+    /// Arm and run the homing sequence.
+    Home,
+    /// Jog an axis at a speed for a time (homes first), then stop.
+    Jog {
+        axis: String,
+        vel_mm_s: f32,
+        #[arg(long, default_value_t = 1.0)]
+        seconds: f32,
+    },
+    /// Run a G-code program (homes and arms first); prints the `cargo sim gcode` keys.
+    Run {
+        file: PathBuf,
+        /// Write the report as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Feed hold after this many seconds of machine time...
+        #[arg(long)]
+        hold_at_s: Option<f32>,
+        /// ...and resume this long after it.
+        #[arg(long, default_value_t = 0.5)]
+        hold_for_s: f32,
+    },
+    /// Identify axes (x, y, z or all); --accept stores the models in the settings.
+    Identify {
+        #[arg(long)]
+        axis: String,
+        #[arg(long)]
+        accept: bool,
+        /// Identify unhomed axes within ± this many mm of where they stand (needed while
+        /// the machine has no model and so cannot arm to home).
+        #[arg(long)]
+        window_mm: Option<f32>,
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// Settings: list, get KEY, set KEY VALUE, defaults.
+    Settings {
+        #[command(subcommand)]
+        op: SettingsOp,
+    },
+}
+
+#[derive(Subcommand)]
+enum SettingsOp {
+    List,
+    Get { key: String },
+    Set { key: String, value: String },
+    Defaults,
+}
+
+fn axis_index(a: &str) -> Result<usize> {
+    AXES.iter()
+        .position(|n| n.eq_ignore_ascii_case(a))
+        .ok_or_else(|| anyhow::anyhow!("axis must be x, y or z, got `{a}`"))
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<ExitCode> {
+    if !cli.sim {
+        bail!("only --sim is available");
+    }
+    if cli.telemetry_hz == 0 || cli.telemetry_hz > 10_000 {
+        bail!(
+            "--telemetry-hz must be within 1-10000, got {}",
+            cli.telemetry_hz
+        );
+    }
+    let models = if cli.factory {
+        SimModels::Factory
+    } else {
+        SimModels::Designed
+    };
+    let decimation = 10_000 / cli.telemetry_hz;
+    let mut c = Client::connect(SimMachine::new(models, decimation)?)?;
+    match cli.command {
+        Cmd::Status { json } => {
+            let s = c.status()?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
+            } else {
+                println!("{s:#?}");
+            }
+        }
+        Cmd::Faults { json } => {
+            let s = c.status()?;
+            if json {
+                let j = serde_json::json!({
+                    "first": s.first_fault.as_deref(),
+                    "system_bits": s.fault_bits.0,
+                    "axis_bits": s.fault_bits.1,
+                });
+                println!("{}", serde_json::to_string_pretty(&j)?);
+            } else {
+                println!(
+                    "first fault: {}",
+                    s.first_fault.as_deref().unwrap_or("none")
+                );
+            }
+        }
+        Cmd::Arm => {
+            expect_done("arm", c.exec(Request::Arm)?)?;
+            println!("armed");
+        }
+        Cmd::Disarm => {
+            expect_done("disarm", c.exec(Request::Disarm)?)?;
+            println!("disarmed");
+        }
+        Cmd::Reset => {
+            expect_done("reset", c.exec(Request::Reset)?)?;
+            println!("reset");
+        }
+        Cmd::Home => {
+            let s = cli::ready(&mut c, true)?;
+            println!(
+                "homed at x {:.3} y {:.3} z {:.3} mm",
+                s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
+            );
+        }
+        Cmd::Jog {
+            axis,
+            vel_mm_s,
+            seconds,
+        } => {
+            let i = axis_index(&axis)?;
+            cli::ready(&mut c, true)?;
+            let ms = (seconds.max(0.0) * 1000.0) as u32;
+            let mut t = 0;
+            while t < ms {
+                // jog requests keep coming, or the jog stops by itself (the timeout)
+                let jog = Request::Jog {
+                    axis: i as u8,
+                    vel_mm_s,
+                };
+                expect_done("jog", c.exec(jog)?)?;
+                c.sleep_ms(100)?;
+                t += 100;
+            }
+            let stop = Request::Jog {
+                axis: i as u8,
+                vel_mm_s: 0.0,
+            };
+            expect_done("jog", c.exec(stop)?)?;
+            let s = cli::wait_while(&mut c, |s| s.state == MachineState::Jog)?;
+            println!("{} at {:.3} mm ({:?})", AXES[i], s.pos_mm[i], s.state);
+        }
+        Cmd::Run {
+            file,
+            json,
+            hold_at_s,
+            hold_for_s,
+        } => {
+            let hold = hold_at_s.map(|at_s| Hold {
+                at_s,
+                for_s: hold_for_s,
+            });
+            let progress = std::io::stderr().is_terminal();
+            let period_s = f64::from(decimation) / 10_000.0;
+            let r = cli::run_program(&mut c, &file, period_s, progress, hold)?;
+            print!("{}", host_sim::studies::gcode::table(&r));
+            if let Some(j) = json {
+                write_json(&j, &r)?;
+            }
+            return Ok(match r.status.as_str() {
+                "completed" => ExitCode::SUCCESS,
+                "rejected" => ExitCode::from(2),
+                _ => ExitCode::FAILURE,
+            });
+        }
+        Cmd::Identify {
+            axis,
+            accept,
+            window_mm,
+            json,
+        } => {
+            let axes: Vec<usize> = if axis.eq_ignore_ascii_case("all") {
+                vec![0, 1, 2]
+            } else {
+                vec![axis_index(&axis)?]
+            };
+            let r = cli::identify(&mut c, &axes, accept, window_mm)?;
+            for a in &r {
+                println!(
+                    "{}: {}  J {}  B {}  f+ {}  f- {}  NRMSE {:.4}  R² {:.4}  {:.2} s{}",
+                    a.axis,
+                    a.status,
+                    fmt(a.j),
+                    fmt(a.b),
+                    fmt(a.f_pos),
+                    fmt(a.f_neg),
+                    a.nrmse,
+                    a.r2,
+                    a.machine_time_s,
+                    if a.accepted { "  (stored)" } else { "" }
+                );
+            }
+            if let Some(j) = json {
+                write_json(&j, &r)?;
+            }
+            if r.iter().any(|a| a.status != "done") {
+                return Ok(ExitCode::FAILURE);
+            }
+        }
+        Cmd::Settings { op } => match op {
+            SettingsOp::List => {
+                for k in controller_core::settings::keys::keys() {
+                    let v = cli::get(&mut c, k.name).unwrap_or_else(|_| "-".into());
+                    println!("{:<36} {:>12} {:<10} {}", k.name, v, k.unit, k.doc);
+                }
+            }
+            SettingsOp::Get { key } => println!("{}", cli::get(&mut c, &key)?),
+            SettingsOp::Set { key, value } => {
+                cli::set(&mut c, &key, &value)?;
+                println!("{key} = {}", cli::get(&mut c, &key)?);
+            }
+            SettingsOp::Defaults => {
+                expect_done("settings defaults", c.exec(Request::SettingsDefaults)?)?;
+                println!("factory settings restored");
+            }
+        },
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn fmt(v: Option<f32>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.4}"))
+}
+
+fn status_json(s: &Status) -> serde_json::Value {
+    serde_json::json!({
+        "state": format!("{:?}", s.state),
+        "period": s.period,
+        "homed": s.homed,
+        "model_missing": s.model_missing,
+        "pos_mm": s.pos_mm,
+        "vel_mm_s": s.vel_mm_s,
+        "first_fault": s.first_fault.as_deref(),
+        "fault_bits": { "system": s.fault_bits.0, "axes": s.fault_bits.1 },
+        "planner_free": s.planner_free,
+        "queued": s.queued,
+    })
+}

@@ -1,0 +1,214 @@
+//! The host end of a `gantry` session: the link's [`HostLink`] over a [`Transport`], with
+//! the requests a command needs (execute one request and wait for its outcome, read the
+//! status, collect telemetry).
+//!
+//! A request's outcome: the device counts the requests it executed in the session
+//! ([`Status::executed`]) and keeps the last one's [`Outcome`]; the client sends one
+//! request, then asks for the status until the count reaches it.
+
+use super::Transport;
+use anyhow::{anyhow, bail, Result};
+use controller_core::link::host::DEFAULT_HOST_LINK_CONFIG;
+use controller_core::link::{
+    encode, Arrival, Feed, FrameDecoder, HostEvent, HostLink, HostState, RealtimeRequest, ToHost,
+    MAX_FRAME_LEN,
+};
+use controller_core::machine::messages::{Outcome, Request, Status, Telemetry, SCHEMA_HASH};
+
+/// Commands in flight at most.
+const WINDOW: usize = 8;
+/// Give up waiting for the device after this much (device) time, ms.
+const REPLY_TIMEOUT_MS: u32 = 5_000;
+
+/// A connected session.
+pub struct Client<T: Transport> {
+    pub transport: T,
+    link: HostLink<Request, WINDOW>,
+    decoder: FrameDecoder,
+    rx: Vec<u8>,
+    sent: u32,
+    status: Option<Status>,
+    status_id: Option<controller_core::link::Seq>,
+    /// Telemetry received since the last [`Client::take_telemetry`].
+    telemetry: Vec<Telemetry>,
+    pub telemetry_gaps: u32,
+}
+
+impl<T: Transport> Client<T> {
+    /// Handshake with the device behind `transport`.
+    pub fn connect(transport: T) -> Result<Self> {
+        let session = (std::process::id() & 0xffff) as u16 | 1;
+        let link = HostLink::new(&DEFAULT_HOST_LINK_CONFIG, SCHEMA_HASH, session)
+            .map_err(|e| anyhow!("link: {e}"))?;
+        let mut c = Self {
+            transport,
+            link,
+            decoder: FrameDecoder::new(),
+            rx: Vec::new(),
+            sent: 0,
+            status: None,
+            status_id: None,
+            telemetry: Vec::new(),
+            telemetry_gaps: 0,
+        };
+        while c.link.state() == HostState::Handshaking {
+            c.pump()?;
+            c.transport.wait()?;
+        }
+        if let HostState::Failed(e) = c.link.state() {
+            bail!("no session with the machine: {e:?}");
+        }
+        Ok(c)
+    }
+
+    /// Send what is due, then handle what arrived.
+    pub fn pump(&mut self) -> Result<()> {
+        let now = self.transport.now_ms();
+        let mut frames: Vec<Vec<u8>> = Vec::new();
+        let res = self.link.poll(now, |f| {
+            let mut buf = [0u8; MAX_FRAME_LEN];
+            if let Ok(n) = encode(&f, &mut buf) {
+                frames.push(buf[..n].to_vec());
+            }
+        });
+        for f in frames {
+            self.transport.send(&f)?;
+        }
+        res.map_err(|e| anyhow!("link failed: {e:?}"))?;
+        self.transport.recv(&mut self.rx)?;
+        let bytes = std::mem::take(&mut self.rx);
+        let mut rest: &[u8] = &bytes;
+        loop {
+            match self.decoder.feed::<ToHost<Telemetry, Status>>(rest) {
+                Feed::NeedMore => break,
+                Feed::Frame { result, rest: r } => {
+                    rest = r;
+                    let Ok(frame) = result else { continue };
+                    match self.link.on_frame(frame, now) {
+                        Ok(HostEvent::Telemetry {
+                            sample, arrival, ..
+                        }) => {
+                            if matches!(
+                                arrival,
+                                Arrival::InOrder | Arrival::Gap { .. } | Arrival::Late
+                            ) {
+                                self.telemetry.push(sample);
+                            }
+                        }
+                        Ok(HostEvent::Status { id, status, .. }) => {
+                            if Some(id) == self.status_id {
+                                self.status_id = None;
+                            }
+                            self.status = Some(status);
+                        }
+                        Ok(_) => {}
+                        Err(e) => bail!("link failed: {e:?}"),
+                    }
+                }
+            }
+        }
+        self.telemetry_gaps = self.link.stats().telemetry.lost;
+        Ok(())
+    }
+
+    /// Queue `req` (waiting for room in the window); does not wait for its outcome.
+    pub fn send(&mut self, req: Request) -> Result<()> {
+        let mut req = req;
+        let t0 = self.transport.now_ms();
+        loop {
+            match self.link.send(req) {
+                Ok(_) => {
+                    self.sent = self.sent.wrapping_add(1);
+                    return Ok(());
+                }
+                Err((e, r)) => {
+                    if !matches!(e, controller_core::link::LinkError::WouldBlock) {
+                        bail!("link: {e:?}");
+                    }
+                    req = r;
+                    self.pump()?;
+                    self.transport.wait()?;
+                    if self.transport.now_ms().wrapping_sub(t0) > REPLY_TIMEOUT_MS * 20 {
+                        bail!("the machine takes no more requests");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The status now (a real-time request).
+    pub fn status(&mut self) -> Result<Status> {
+        self.status_id = Some(self.link.request(RealtimeRequest::Status));
+        self.realtime_wait()
+    }
+
+    /// A real-time request (hold, resume, stop), answered with the status.
+    pub fn realtime(&mut self, req: RealtimeRequest) -> Result<Status> {
+        self.status_id = Some(self.link.request(req));
+        self.realtime_wait()
+    }
+
+    fn realtime_wait(&mut self) -> Result<Status> {
+        let t0 = self.transport.now_ms();
+        loop {
+            self.pump()?;
+            if self.status_id.is_none() {
+                if let Some(s) = &self.status {
+                    return Ok(s.clone());
+                }
+            }
+            if self.transport.now_ms().wrapping_sub(t0) > REPLY_TIMEOUT_MS {
+                bail!("no status from the machine");
+            }
+            self.transport.wait()?;
+        }
+    }
+
+    /// Send `req` and wait until the machine executed it; its outcome.
+    pub fn exec(&mut self, req: Request) -> Result<Outcome> {
+        self.send(req)?;
+        self.wait_executed()
+    }
+
+    /// Wait until every request sent so far was executed; the last outcome.
+    pub fn wait_executed(&mut self) -> Result<Outcome> {
+        let t0 = self.transport.now_ms();
+        loop {
+            let s = self.status()?;
+            if s.executed >= self.sent {
+                return Ok(s.last);
+            }
+            if self.transport.now_ms().wrapping_sub(t0) > REPLY_TIMEOUT_MS * 20 {
+                bail!(
+                    "the machine executed {} of {} requests",
+                    s.executed,
+                    self.sent
+                );
+            }
+            self.transport.wait()?;
+        }
+    }
+
+    /// Wait `ms` of device time (pumping the link).
+    pub fn sleep_ms(&mut self, ms: u32) -> Result<()> {
+        let t0 = self.transport.now_ms();
+        while self.transport.now_ms().wrapping_sub(t0) < ms {
+            self.pump()?;
+            self.transport.wait()?;
+        }
+        Ok(())
+    }
+
+    /// Telemetry received since the last call.
+    pub fn take_telemetry(&mut self) -> Vec<Telemetry> {
+        std::mem::take(&mut self.telemetry)
+    }
+}
+
+/// `Ok` for [`Outcome::Done`] and values, an error naming `what` for a refusal.
+pub fn expect_done(what: &str, o: Outcome) -> Result<Outcome> {
+    match o {
+        Outcome::Refused(why) => bail!("{what} refused: {why}"),
+        other => Ok(other),
+    }
+}

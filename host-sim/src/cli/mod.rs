@@ -1,0 +1,453 @@
+//! The `gantry` command line: a session over the host link with a machine, and what each
+//! subcommand does with it. The machine is `--sim` (the supervisor, planner and servo step
+//! in-process against the simulated gantry, [`sim`]); the board (`--port`) and the
+//! firmware in QEMU (`--qemu`) need the firmware's link task, which is not wired yet.
+//!
+//! Every subcommand speaks the link protocol ([`client`]): requests on the reliable
+//! channel, status by real-time request, telemetry for the program run.
+
+pub mod client;
+pub mod sim;
+
+use crate::gcode::Travel;
+use crate::studies::gcode::{
+    decimal, length, limits_of, load_program, machine_and_planner, path_distance, segments,
+    GcodeReport, Trace,
+};
+use anyhow::{bail, Context, Result};
+use client::{expect_done, Client};
+use controller_core::link::RealtimeRequest;
+use controller_core::machine::messages::{IdentifyMsg, MachineState, Outcome, Request, Status};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// Bytes to and from a machine, and its clock.
+pub trait Transport {
+    /// Send bytes (whole frames).
+    fn send(&mut self, bytes: &[u8]) -> Result<()>;
+    /// Append what arrived.
+    fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()>;
+    /// The link's millisecond clock (device time for the simulated machine).
+    fn now_ms(&self) -> u32;
+    /// Let time pass (about a millisecond).
+    fn wait(&mut self) -> Result<()>;
+}
+
+/// Axis names on the command line.
+pub const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// Poll interval while waiting for the machine, ms.
+const POLL_MS: u32 = 20;
+/// Longest wait for homing or an identification, ms of machine time.
+const LONG_WAIT_MS: u32 = 300_000;
+
+/// Wait (polling the status) while the machine is in a state `busy` says; its status then.
+pub fn wait_while<T: Transport>(
+    c: &mut Client<T>,
+    busy: impl Fn(&Status) -> bool,
+) -> Result<Status> {
+    let t0 = c.transport.now_ms();
+    loop {
+        let s = c.status()?;
+        if !busy(&s) {
+            return Ok(s);
+        }
+        if c.transport.now_ms().wrapping_sub(t0) > LONG_WAIT_MS {
+            bail!("the machine is still busy after {} s", LONG_WAIT_MS / 1000);
+        }
+        c.sleep_ms(POLL_MS)?;
+    }
+}
+
+fn fault_text(s: &Status) -> String {
+    s.first_fault.as_deref().unwrap_or("unknown").to_string()
+}
+
+/// Arm (when disarmed) and home (when an axis that homes is not homed yet).
+pub fn ready<T: Transport>(c: &mut Client<T>, home: bool) -> Result<Status> {
+    let s = c.status()?;
+    if s.state == MachineState::Fault {
+        bail!(
+            "the machine is in fault ({}): `gantry reset` once the cause is gone",
+            fault_text(&s)
+        );
+    }
+    if s.state == MachineState::Disabled {
+        expect_done("arm", c.exec(Request::Arm)?)?;
+    }
+    if home && c.status()?.homed != 0b111 {
+        expect_done("home", c.exec(Request::Home)?)?;
+        let s = wait_while(c, |s| s.state == MachineState::Homing)?;
+        if s.state != MachineState::Idle {
+            bail!("homing failed: {:?} ({})", s.state, fault_text(&s));
+        }
+    }
+    c.status()
+}
+
+/// The machine's travel, read from its settings.
+fn travel<T: Transport>(c: &mut Client<T>) -> Result<Travel> {
+    let mut t = [[0.0f64; 2]; 3];
+    for (i, a) in AXES.iter().enumerate() {
+        for (j, end) in ["min_mm", "max_mm"].iter().enumerate() {
+            t[i][j] = get_f64(c, &format!("axis.{a}.travel.{end}"))?;
+        }
+    }
+    // an unlimited end: far beyond any program
+    let big = crate::gcode::MAX_WORD_MAGNITUDE;
+    let t = t.map(|[lo, hi]| {
+        [
+            if lo.is_finite() { lo } else { -big },
+            if hi.is_finite() { hi } else { big },
+        ]
+    });
+    Travel::new(t).map_err(|e| anyhow::anyhow!("the machine's travel: {e}"))
+}
+
+/// One setting's value as text.
+pub fn get<T: Transport>(c: &mut Client<T>, key: &str) -> Result<String> {
+    let k = heapless::String::try_from(key).map_err(|_| anyhow::anyhow!("key too long: {key}"))?;
+    match c.exec(Request::SettingGet { key: k })? {
+        Outcome::Value(v) => Ok(v.to_string()),
+        Outcome::Refused(why) => bail!("{why}"),
+        other => bail!("unexpected answer to settings get {key}: {other:?}"),
+    }
+}
+
+fn get_f64<T: Transport>(c: &mut Client<T>, key: &str) -> Result<f64> {
+    let v = get(c, key)?;
+    v.parse()
+        .with_context(|| format!("setting {key} = {v} is not a number"))
+}
+
+/// Change one setting (value as text).
+pub fn set<T: Transport>(c: &mut Client<T>, key: &str, value: &str) -> Result<()> {
+    let k = heapless::String::try_from(key).map_err(|_| anyhow::anyhow!("key too long: {key}"))?;
+    let v = heapless::String::try_from(value)
+        .map_err(|_| anyhow::anyhow!("value too long: {value}"))?;
+    expect_done(
+        &format!("settings set {key}"),
+        c.exec(Request::SettingSet { key: k, value: v })?,
+    )?;
+    Ok(())
+}
+
+/// A feed hold issued by the operator while a program runs: at `at_s` of machine time
+/// after the start, resumed `for_s` later.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hold {
+    pub at_s: f32,
+    pub for_s: f32,
+}
+
+/// Issue the hold and the resume when due; `held_at` is when the hold was issued (ms).
+fn operator<T: Transport>(
+    c: &mut Client<T>,
+    hold: Option<Hold>,
+    t0: u32,
+    held_at: &mut Option<u32>,
+    resumed: &mut bool,
+) -> Result<()> {
+    let Some(h) = hold else { return Ok(()) };
+    let now = c.transport.now_ms().wrapping_sub(t0);
+    match *held_at {
+        None if now as f32 >= h.at_s * 1000.0 => {
+            c.realtime(RealtimeRequest::Hold)?;
+            *held_at = Some(now);
+        }
+        Some(at) if !*resumed && (now - at) as f32 >= h.for_s * 1000.0 => {
+            c.realtime(RealtimeRequest::Resume)?;
+            *resumed = true;
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// `gantry run FILE`: parse, check against the machine's travel, stream, follow. The
+/// report has the keys of `cargo sim gcode`; measured from telemetry (actual and
+/// reference positions, the planner's reference velocity and acceleration, at the
+/// telemetry rate), so jerk is the telemetry-rate estimate.
+pub fn run_program<T: Transport>(
+    c: &mut Client<T>,
+    path: &Path,
+    telemetry_period_s: f64,
+    progress: bool,
+    hold: Option<Hold>,
+) -> Result<GcodeReport> {
+    let (_, pcfg) = machine_and_planner(None)?;
+    let limits = limits_of(&pcfg);
+    let tol = decimal(pcfg.tolerance_mm);
+    let name = path.display().to_string();
+    let travel = travel(c)?;
+    let s = c.status()?;
+    // rejected before any motion (also when the machine is not ready)
+    let here = s.pos_mm.map(f64::from);
+    if let Err(e) = load_program(path, here, &travel) {
+        return Ok(GcodeReport::rejected(&name, &e, limits, tol));
+    }
+    let s = ready(c, true)?;
+    let program = match load_program(path, s.pos_mm.map(f64::from), &travel) {
+        Ok(p) => p,
+        Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
+    };
+    let segs = segments(&program);
+    expect_done("run", c.exec(Request::Run)?)?;
+    c.take_telemetry();
+    let started = Instant::now();
+    let t0 = c.transport.now_ms();
+    let bar = progress.then(|| {
+        let b = ProgressBar::new(segs.len() as u64);
+        b.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} segments sent, {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let mut samples = Vec::new();
+    let (mut held_at, mut resumed) = (None, false);
+    for (k, seg) in segs.iter().enumerate() {
+        c.send(Request::Segment(*seg))?;
+        c.pump()?;
+        operator(c, hold, t0, &mut held_at, &mut resumed)?;
+        samples.extend(c.take_telemetry());
+        if let Some(b) = &bar {
+            b.set_position(k as u64 + 1);
+        }
+    }
+    c.send(Request::EndProgram)?;
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let end = loop {
+        operator(c, hold, t0, &mut held_at, &mut resumed)?;
+        let s = c.status()?;
+        samples.extend(c.take_telemetry());
+        if matches!(s.last, Outcome::Refused(_)) {
+            let Outcome::Refused(why) = &s.last else {
+                unreachable!()
+            };
+            bail!("{name}: the machine refused a segment: {why}");
+        }
+        let waiting = hold.is_some() && !resumed;
+        if s.state == MachineState::Fault
+            || (s.program_done && s.state == MachineState::Idle && !waiting)
+        {
+            break s;
+        }
+        c.sleep_ms(POLL_MS)?;
+    };
+    let duration_s = f64::from(c.transport.now_ms().wrapping_sub(t0)) / 1000.0;
+    let compute_s = started.elapsed().as_secs_f64();
+
+    // figures from telemetry
+    let moves = &program.moves;
+    let feed_move: Vec<bool> = moves
+        .iter()
+        .map(|m| {
+            matches!(
+                m.kind,
+                crate::gcode::MoveKind::Line { .. } | crate::gcode::MoveKind::Arc { .. }
+            )
+        })
+        .collect();
+    let (mut dev, mut cmax, mut csq, mut n) = (0.0f64, 0.0f64, 0.0f64, 0u64);
+    let (mut vmax, mut amax, mut jmax) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 3]);
+    let (mut fsum, mut fn_) = (0.0, 0u64);
+    let mut prev: Option<(u32, [f32; 3])> = None;
+    let mut trace = Trace {
+        limits: Some(limits),
+        ..Trace::default()
+    };
+    for t in samples
+        .iter()
+        .filter(|t| matches!(t.state, MachineState::Run { .. }))
+    {
+        let tag = t.tag as usize;
+        let p = t.pos_mm.map(f64::from);
+        let r = t.reference_mm.map(f64::from);
+        dev = dev.max(path_distance(r, moves, tag));
+        let cerr = path_distance(p, moves, tag);
+        cmax = cmax.max(cerr);
+        csq += cerr * cerr;
+        n += 1;
+        if feed_move.get(tag).copied().unwrap_or(false) {
+            fsum += f64::from(t.feed_ratio);
+            fn_ += 1;
+        }
+        for i in 0..3 {
+            vmax[i] = vmax[i].max(f64::from(t.ref_vel_mm_s[i].abs()));
+            amax[i] = amax[i].max(f64::from(t.ref_acc_mm_s2[i].abs()));
+        }
+        if let Some((k0, a0)) = prev {
+            let dt = f64::from(t.period.wrapping_sub(k0)) * f64::from(pcfg.period_s);
+            if dt > 0.0 && dt <= 2.0 * telemetry_period_s {
+                for i in 0..3 {
+                    jmax[i] = jmax[i].max(f64::from(t.ref_acc_mm_s2[i] - a0[i]).abs() / dt);
+                }
+            }
+        }
+        prev = Some((t.period, t.ref_acc_mm_s2));
+        trace
+            .t_s
+            .push(f64::from(t.period) * f64::from(pcfg.period_s));
+        trace.pos_mm.push(p);
+        trace.contour_mm.push(cerr);
+        trace.vel_mm_s.push(t.ref_vel_mm_s.map(f64::from));
+        trace.acc_mm_s2.push(t.ref_acc_mm_s2.map(f64::from));
+        trace.feed_ratio.push(f64::from(t.feed_ratio));
+    }
+    let fault = (end.state == MachineState::Fault).then(|| fault_text(&end));
+    Ok(GcodeReport {
+        program: name,
+        status: if fault.is_some() {
+            "fault"
+        } else {
+            "completed"
+        }
+        .into(),
+        error: None,
+        segments: segs.len(),
+        duration_s,
+        path_length_mm: moves.iter().map(length).sum(),
+        corner_deviation_max_mm: dev,
+        contour_max_mm: cmax,
+        contour_rms_mm: if n > 0 { (csq / n as f64).sqrt() } else { 0.0 },
+        max_vel_mm_s: vmax,
+        max_acc_mm_s2: amax,
+        max_jerk_mm_s3: jmax,
+        limits,
+        tolerance_mm: tol,
+        feed_ratio_mean: if fn_ > 0 { fsum / fn_ as f64 } else { 0.0 },
+        ignored: program.ignored.iter().map(|w| w.word.clone()).collect(),
+        fault,
+        realtime_ratio: if compute_s > 0.0 {
+            duration_s / compute_s
+        } else {
+            0.0
+        },
+        trace,
+    })
+}
+
+/// Move to `target_mm` at the rapid rate (a one-segment program: the planner's limits and
+/// the soft limits apply as for any program).
+pub fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<Status> {
+    expect_done("move (run)", c.exec(Request::Run)?)?;
+    let seg = controller_core::motion::planner::Segment::rapid(target_mm, 0);
+    expect_done("move", c.exec(Request::Segment(seg))?)?;
+    expect_done("move (end)", c.exec(Request::EndProgram)?)?;
+    let s = wait_while(c, |s| {
+        !(s.program_done && s.state == MachineState::Idle) && s.state != MachineState::Fault
+    })?;
+    if s.state == MachineState::Fault {
+        bail!("move: the machine stopped on a fault ({})", fault_text(&s));
+    }
+    Ok(s)
+}
+
+/// `gantry identify` result of one axis (keys are public interface).
+#[derive(Clone, Debug, Serialize)]
+pub struct IdentifyJson {
+    pub axis: String,
+    pub status: String,
+    #[serde(rename = "J")]
+    pub j: Option<f32>,
+    #[serde(rename = "B")]
+    pub b: Option<f32>,
+    pub f_pos: Option<f32>,
+    pub f_neg: Option<f32>,
+    pub nrmse: f32,
+    pub r2: f32,
+    pub machine_time_s: f32,
+    pub accepted: bool,
+}
+
+/// `gantry identify --axis A [--accept]`: home, identify, report; store when accepted.
+///
+/// A machine whose axes have no model cannot arm, hence cannot home: then
+/// `window_half_mm` is required, the user's confirmation that the axis may move that far
+/// either side of where it stands; the identification then runs from Disabled.
+pub fn identify<T: Transport>(
+    c: &mut Client<T>,
+    axes: &[usize],
+    accept: bool,
+    window_half_mm: Option<f32>,
+) -> Result<Vec<IdentifyJson>> {
+    let mut out = Vec::new();
+    for &i in axes {
+        let s = c.status()?;
+        let window_mm =
+            if s.model_missing != 0 || s.homed & (1 << i) == 0 && window_half_mm.is_some() {
+                let Some(w) = window_half_mm else {
+                    bail!(
+                        "axis {} cannot be homed before it has a model (nothing can arm): give \
+                     --window-mm W to identify it within ±W mm of where it stands",
+                        AXES[i]
+                    );
+                };
+                if s.state == MachineState::Idle {
+                    expect_done("disarm", c.exec(Request::Disarm)?)?;
+                }
+                let at = c.status()?.pos_mm[i];
+                Some([at - w, at + w])
+            } else {
+                // homed: identify around the middle of the travel, where it has room
+                let s = ready(c, true)?;
+                let key = |end: &str| format!("axis.{}.travel.{end}", AXES[i]);
+                let (lo, hi) = (get_f64(c, &key("min_mm"))?, get_f64(c, &key("max_mm"))?);
+                if lo.is_finite() && hi.is_finite() {
+                    let mut target = s.pos_mm;
+                    target[i] = (0.5 * (lo + hi)) as f32;
+                    move_to(c, target)?;
+                }
+                None
+            };
+        expect_done(
+            &format!("identify {}", AXES[i]),
+            c.exec(Request::Identify {
+                axis: i as u8,
+                window_mm,
+            })?,
+        )?;
+        let s = wait_while(c, |s| s.state == MachineState::Identify)?;
+        let m: Option<IdentifyMsg> = s.identify.filter(|m| usize::from(m.axis) == i);
+        let done = m.is_some_and(|m| m.done);
+        let mut accepted = false;
+        if done && accept {
+            // the model changes the law: only with the outputs off
+            if c.status()?.state != MachineState::Disabled {
+                expect_done("disarm", c.exec(Request::Disarm)?)?;
+                wait_while(c, |s| s.state == MachineState::Stopping)?;
+            }
+            expect_done(
+                "accept",
+                c.exec(Request::AcceptIdentified { axis: i as u8 })?,
+            )?;
+            accepted = true;
+        }
+        let model = m.and_then(|m| m.model);
+        out.push(IdentifyJson {
+            axis: AXES[i].into(),
+            status: if done {
+                "done".into()
+            } else {
+                format!("failed ({:?}, {})", s.state, fault_text(&s))
+            },
+            j: model.map(|m| m.inertia),
+            b: model.map(|m| m.viscous),
+            f_pos: model.map(|m| m.coulomb_pos_mnm),
+            f_neg: model.map(|m| m.coulomb_neg_mnm),
+            nrmse: m.map_or(0.0, |m| m.nrmse),
+            r2: m.map_or(0.0, |m| m.r2),
+            machine_time_s: m.map_or(0.0, |m| m.time_s),
+            accepted,
+        });
+        if !done {
+            break;
+        }
+    }
+    Ok(out)
+}

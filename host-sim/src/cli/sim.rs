@@ -1,0 +1,155 @@
+//! `gantry --sim`: the machine's supervisor ([`Machine`]), planner and servo step
+//! in-process against the simulated physical gantry, behind the device end of the link
+//! ([`Endpoint`]). The host talks to it in link frames, byte for byte what a board gets on
+//! its USART; simulated time advances only when the host waits
+//! ([`Transport::wait`]), one control period after another.
+
+use super::Transport;
+use crate::studies::gcode::machine_and_planner;
+use anyhow::{anyhow, Result};
+use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
+use controller_core::machine::{Endpoint, Machine};
+use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
+use controller_core::sim::world::{Injection, SwitchConfig, World};
+
+/// Simulated time one [`Transport::wait`] advances, ms.
+const WAIT_MS: u32 = 1;
+
+/// The simulated machine and its link end.
+pub struct SimMachine {
+    world: World,
+    machine: Box<Machine>,
+    endpoint: Endpoint,
+    rate_hz: u32,
+    periods: u64,
+    to_host: Vec<u8>,
+}
+
+/// How the simulated machine starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SimModels {
+    /// The designed gantry's axis models are entered (every law can arm).
+    Designed,
+    /// Factory settings: no axis model (identify first).
+    Factory,
+}
+
+impl SimMachine {
+    /// The physical gantry (host-sim/scenarios/gcode.toml: travel ±150/±150/±50 mm
+    /// around where it starts) with limit switches where the factory homing expects
+    /// them; telemetry every `telemetry_periods` control periods.
+    pub fn new(models: SimModels, telemetry_periods: u32) -> Result<Self> {
+        let (run, planner) = machine_and_planner(None)?;
+        let mut settings: Settings = FACTORY;
+        if models == SimModels::Designed {
+            for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
+                a.model = Some(m);
+            }
+        }
+        let mut wcfg = run.world;
+        for (sw, a) in wcfg.switches.iter_mut().zip(&settings.axis) {
+            let h = a.homing;
+            *sw = if !h.enabled {
+                SwitchConfig::NONE
+            } else if h.direction.switch() == 0 {
+                SwitchConfig {
+                    min_mm: f64::from(h.switch_pos_mm),
+                    ..SwitchConfig::NONE
+                }
+            } else {
+                SwitchConfig {
+                    max_mm: f64::from(h.switch_pos_mm),
+                    ..SwitchConfig::NONE
+                }
+            };
+        }
+        let rate_hz = run.servo.rate_hz;
+        let servo_cfg = settings
+            .servo_config(rate_hz)
+            .map_err(|e| anyhow!("settings: {e:?}"))?;
+        let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
+        let machine = Machine::new(
+            &settings,
+            &planner,
+            rate_hz,
+            world.counter_registers(),
+            world.counts(),
+        )
+        .map_err(|e| anyhow!("machine: {e:?}"))?;
+        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG, telemetry_periods)
+            .map_err(|e| anyhow!("link: {e}"))?;
+        Ok(Self {
+            world,
+            machine: Box::new(machine),
+            endpoint,
+            rate_hz,
+            periods: 0,
+            to_host: Vec::new(),
+        })
+    }
+
+    /// The true state of the simulated axes (what no host sees over the link).
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// Inject a fault into the simulated machine (e-stop pressed, a switch, a sensor).
+    pub fn inject(&mut self, inj: &Injection) {
+        self.world.inject(inj);
+    }
+
+    /// Control periods run so far.
+    pub fn periods(&self) -> u64 {
+        self.periods
+    }
+
+    pub fn machine(&self) -> &Machine {
+        &self.machine
+    }
+
+    fn ms(&self) -> u32 {
+        (self.periods * 1000 / u64::from(self.rate_hz)) as u32
+    }
+
+    /// Run `n` control periods.
+    pub fn advance(&mut self, n: u32) {
+        let mut out = std::mem::take(&mut self.to_host);
+        for _ in 0..n {
+            self.machine.period(&mut self.world);
+            self.world.advance();
+            self.periods += 1;
+            let now = self.ms();
+            self.endpoint.poll(&mut self.machine, now, &mut |b: &[u8]| {
+                out.extend_from_slice(b)
+            });
+        }
+        self.to_host = out;
+    }
+}
+
+impl Transport for SimMachine {
+    fn send(&mut self, bytes: &[u8]) -> Result<()> {
+        let now = self.ms();
+        let mut out = std::mem::take(&mut self.to_host);
+        self.endpoint
+            .on_bytes(&mut self.machine, bytes, now, &mut |b: &[u8]| {
+                out.extend_from_slice(b)
+            });
+        self.to_host = out;
+        Ok(())
+    }
+
+    fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()> {
+        buf.append(&mut self.to_host);
+        Ok(())
+    }
+
+    fn now_ms(&self) -> u32 {
+        self.ms()
+    }
+
+    fn wait(&mut self) -> Result<()> {
+        self.advance(self.rate_hz * WAIT_MS / 1000);
+        Ok(())
+    }
+}

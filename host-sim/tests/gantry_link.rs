@@ -1,0 +1,204 @@
+//! The `gantry` CLI's session against the simulated machine, end to end over the link
+//! protocol (frames, acks, status requests, telemetry): settings, a program with a feed
+//! hold, identification with acceptance, link loss, e-stop, and 1 % byte errors.
+
+use anyhow::Result;
+use controller_core::link::RealtimeRequest;
+use controller_core::machine::messages::{MachineState, Outcome, Request};
+use controller_core::sim::rng::SplitMix64;
+use controller_core::sim::world::Injection;
+use host_sim::cli::client::{expect_done, Client};
+use host_sim::cli::sim::{SimMachine, SimModels};
+use host_sim::cli::{self, Hold, Transport};
+use std::path::Path;
+
+/// 1 kHz telemetry at 10 kHz.
+const DECIMATION: u32 = 10;
+const TELEMETRY_PERIOD_S: f64 = 1e-3;
+
+fn square() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/square.nc")
+}
+
+fn connect(models: SimModels) -> Client<SimMachine> {
+    Client::connect(SimMachine::new(models, DECIMATION).unwrap()).unwrap()
+}
+
+#[test]
+fn settings_are_validated_and_a_bad_value_changes_nothing() {
+    let mut c = connect(SimModels::Designed);
+    let key = "axis.x.following_error_mm";
+    let before = cli::get(&mut c, key).unwrap();
+    let err = cli::set(&mut c, key, "1000").unwrap_err().to_string();
+    assert!(err.contains("outside the allowed range"), "{err}");
+    assert_eq!(cli::get(&mut c, key).unwrap(), before);
+    let err = cli::get(&mut c, "axis.q.nothing").unwrap_err().to_string();
+    assert!(err.contains("axis.q.nothing"), "{err}");
+    cli::set(&mut c, key, "0.8").unwrap();
+    assert_eq!(cli::get(&mut c, key).unwrap(), "0.8");
+    assert_eq!(
+        c.transport.machine().settings().axis[0].following_error_mm,
+        0.8
+    );
+    // gains change only with the outputs off
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    let err = cli::set(&mut c, "axis.y.law.bandwidth_rad_s", "300")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("outputs off"), "{err}");
+}
+
+#[test]
+fn a_program_runs_over_the_link_with_a_feed_hold_and_stays_on_the_path() {
+    let mut c = connect(SimModels::Designed);
+    let plain = cli::run_program(&mut c, &square(), TELEMETRY_PERIOD_S, false, None).unwrap();
+    assert_eq!(plain.status, "completed");
+    assert!(plain.contour_max_mm < 0.02, "{}", plain.contour_max_mm);
+    assert!(
+        plain.corner_deviation_max_mm <= 0.0101,
+        "{}",
+        plain.corner_deviation_max_mm
+    );
+    assert_eq!(c.telemetry_gaps, 0);
+
+    let mut c = connect(SimModels::Designed);
+    let hold = Hold {
+        at_s: 6.0,
+        for_s: 1.0,
+    };
+    let held = cli::run_program(&mut c, &square(), TELEMETRY_PERIOD_S, false, Some(hold)).unwrap();
+    assert_eq!(held.status, "completed");
+    // the hold adds its second (plus the stop and the restart when it catches the
+    // machine moving); the path is the same
+    assert!(
+        held.duration_s >= plain.duration_s + 0.99,
+        "{} vs {}",
+        held.duration_s,
+        plain.duration_s
+    );
+    assert!(held.contour_max_mm < 0.02, "{}", held.contour_max_mm);
+}
+
+#[test]
+fn identification_over_the_link_is_stored_when_accepted_and_then_the_machine_arms() {
+    let mut c = connect(SimModels::Factory);
+    let err = expect_done("arm", c.exec(Request::Arm).unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("model"), "{err}");
+    let r = cli::identify(&mut c, &[0], true, Some(50.0)).unwrap();
+    assert_eq!(r[0].status, "done");
+    assert!(r[0].accepted);
+    // the simulated X: J 0.064, B 0.25, f+ 40, f- -32 (machines/gantry.toml)
+    let j = r[0].j.unwrap();
+    assert!((j - 0.064).abs() / 0.064 < 0.05, "{j}");
+    assert!(r[0].machine_time_s < 10.0);
+    let stored = c.transport.machine().settings().axis[0].model.unwrap();
+    assert_eq!(stored.inertia, j);
+    assert_eq!(
+        cli::get(&mut c, "axis.x.model.inertia").unwrap(),
+        j.to_string()
+    );
+}
+
+#[test]
+fn link_loss_stops_the_machine_within_the_watchdog_timeout() {
+    let mut c = connect(SimModels::Designed);
+    cli::ready(&mut c, true).unwrap();
+    expect_done(
+        "jog",
+        c.exec(Request::Jog {
+            axis: 0,
+            vel_mm_s: 10.0,
+        })
+        .unwrap(),
+    )
+    .unwrap();
+    // the host goes silent: only the machine's time passes
+    let start = c.transport.periods();
+    let mut lost_at = None;
+    for _ in 0..2000 {
+        c.transport.advance(10);
+        if c.transport.machine().servo().faults().any() {
+            lost_at = Some(c.transport.periods() - start);
+            break;
+        }
+    }
+    let periods = lost_at.expect("no fault after 2 s of silence");
+    // 500 ms watchdog at 10 kHz, counted from the last frame the machine got
+    assert!(periods <= 5_100, "{periods} periods");
+    let first = c.transport.machine().servo().faults().first().unwrap();
+    assert_eq!(first.fault.kind.name(), "link_lost");
+}
+
+#[test]
+fn e_stop_switches_the_outputs_off_and_the_fault_is_reported() {
+    let mut c = connect(SimModels::Designed);
+    cli::ready(&mut c, true).unwrap();
+    c.transport.inject(&Injection::Estop);
+    let s = cli::wait_while(&mut c, |s| s.state != MachineState::Fault).unwrap();
+    assert_eq!(s.first_fault.as_deref(), Some("estop"));
+    assert!(!c.transport.machine().servo().snapshot().outputs_on);
+    // the cause is still there: the reset is refused
+    let o = c.exec(Request::Reset).unwrap();
+    assert!(matches!(o, Outcome::Refused(_)), "{o:?}");
+    let _ = c.realtime(RealtimeRequest::Status).unwrap();
+}
+
+/// A transport that corrupts each byte with probability `p`, both ways.
+struct Lossy {
+    inner: SimMachine,
+    rng: SplitMix64,
+    p: f64,
+    corrupted: u64,
+}
+
+impl Lossy {
+    fn mangle(&mut self, bytes: &mut [u8]) {
+        for b in bytes {
+            if self.rng.unit() < self.p {
+                *b ^= 1 << (self.rng.next_u64() % 8);
+                self.corrupted += 1;
+            }
+        }
+    }
+}
+
+impl Transport for Lossy {
+    fn send(&mut self, bytes: &[u8]) -> Result<()> {
+        let mut b = bytes.to_vec();
+        self.mangle(&mut b);
+        self.inner.send(&b)
+    }
+    fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()> {
+        let mut b = Vec::new();
+        self.inner.recv(&mut b)?;
+        self.mangle(&mut b);
+        buf.extend_from_slice(&b);
+        Ok(())
+    }
+    fn now_ms(&self) -> u32 {
+        self.inner.now_ms()
+    }
+    fn wait(&mut self) -> Result<()> {
+        self.inner.wait()
+    }
+}
+
+#[test]
+fn a_program_completes_with_one_percent_byte_errors_on_the_link() {
+    let lossy = Lossy {
+        inner: SimMachine::new(SimModels::Designed, DECIMATION).unwrap(),
+        rng: SplitMix64::new(11),
+        p: 0.01,
+        corrupted: 0,
+    };
+    let mut c = Client::connect(lossy).unwrap();
+    let r = cli::run_program(&mut c, &square(), TELEMETRY_PERIOD_S, false, None).unwrap();
+    assert_eq!(r.status, "completed");
+    assert_eq!(r.segments, 9);
+    assert!(r.contour_max_mm < 0.02, "{}", r.contour_max_mm);
+    assert!(c.transport.corrupted > 100, "{}", c.transport.corrupted);
+    // corrupted telemetry frames are lost, not misread
+    assert!(c.telemetry_gaps > 0);
+}
