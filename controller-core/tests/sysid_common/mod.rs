@@ -27,27 +27,7 @@ pub use controller_core::sim::rng::SplitMix64 as Rng;
 /// 1–3 mm/s, peak torque 1–3 N·m, and on every third machine a constant load of
 /// ±(5–30) mN·m (gravity).
 pub fn random_machine(rng: &mut Rng, index: usize) -> PhysicalAxisConfig {
-    let load = if index % 3 == 2 {
-        let l = rng.uniform(5.0, 30.0);
-        if rng.unit() < 0.5 {
-            l
-        } else {
-            -l
-        }
-    } else {
-        0.0
-    };
-    PhysicalAxisConfig {
-        inertia: rng.log_uniform(0.02, 0.4) as f32,
-        viscous: rng.log_uniform(0.05, 1.0) as f32,
-        coulomb_pos_mnm: rng.uniform(10.0, 80.0) as f32,
-        coulomb_neg_mnm: -rng.uniform(8.0, 80.0) as f32,
-        stiction_ratio: rng.uniform(1.0, 1.5) as f32,
-        v_stribeck_mm_s: rng.uniform(1.0, 3.0) as f32,
-        load_const_mnm: load as f32,
-        torque_max_mnm: rng.uniform(1000.0, 3000.0) as f32,
-        ..GANTRY_X
-    }
+    controller_core::sim::physical::random_axis(rng, index % 3 == 2, &GANTRY_X)
 }
 
 /// Identification cap used on the random machines: half the motor's peak torque.
