@@ -21,7 +21,7 @@ fn square() -> std::path::PathBuf {
 }
 
 fn connect(models: SimModels) -> Client<SimMachine> {
-    Client::connect(SimMachine::new(models, DECIMATION).unwrap()).unwrap()
+    Client::connect_session(SimMachine::new(models, DECIMATION).unwrap(), 7).unwrap()
 }
 
 #[test]
@@ -193,7 +193,8 @@ fn a_program_completes_with_one_percent_byte_errors_on_the_link() {
         p: 0.01,
         corrupted: 0,
     };
-    let mut c = Client::connect(lossy).unwrap();
+    // a fixed session id: the same bytes, so the same corruption, on every run
+    let mut c = Client::connect_session(lossy, 7).unwrap();
     let r = cli::run_program(&mut c, &square(), TELEMETRY_PERIOD_S, false, None).unwrap();
     assert_eq!(r.status, "completed");
     assert_eq!(r.segments, 9);

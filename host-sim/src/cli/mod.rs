@@ -11,8 +11,8 @@ pub mod sim;
 
 use crate::gcode::Travel;
 use crate::studies::gcode::{
-    decimal, length, limits_of, load_program, machine_and_planner, path_distance, segments,
-    GcodeReport, Trace,
+    decimal, limits_of, load_program, machine_and_planner, segments, GcodeReport, MetricSample,
+    PathMetrics,
 };
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
@@ -242,94 +242,40 @@ pub fn run_program<T: Transport>(
     let duration_s = f64::from(c.transport.now_ms().wrapping_sub(t0)) / 1000.0;
     let compute_s = started.elapsed().as_secs_f64();
 
-    // figures from telemetry
-    let moves = &program.moves;
-    let feed_move: Vec<bool> = moves
-        .iter()
-        .map(|m| {
-            matches!(
-                m.kind,
-                crate::gcode::MoveKind::Line { .. } | crate::gcode::MoveKind::Arc { .. }
-            )
-        })
-        .collect();
-    let (mut dev, mut cmax, mut csq, mut n) = (0.0f64, 0.0f64, 0.0f64, 0u64);
-    let (mut vmax, mut amax, mut jmax) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 3]);
-    let (mut fsum, mut fn_) = (0.0, 0u64);
-    let mut prev: Option<(u32, [f32; 3])> = None;
-    let mut trace = Trace {
-        limits: Some(limits),
-        ..Trace::default()
-    };
+    // figures from telemetry: every sample in Run (a jerk only between consecutive ones)
+    let mut metrics = PathMetrics::new(&program, limits, 1.5 * telemetry_period_s);
+    let period_s = f64::from(pcfg.period_s);
     for t in samples
         .iter()
         .filter(|t| matches!(t.state, MachineState::Run { .. }))
     {
-        let tag = t.tag as usize;
-        let p = t.pos_mm.map(f64::from);
-        let r = t.reference_mm.map(f64::from);
-        dev = dev.max(path_distance(r, moves, tag));
-        let cerr = path_distance(p, moves, tag);
-        cmax = cmax.max(cerr);
-        csq += cerr * cerr;
-        n += 1;
-        if feed_move.get(tag).copied().unwrap_or(false) {
-            fsum += f64::from(t.feed_ratio);
-            fn_ += 1;
-        }
-        for i in 0..3 {
-            vmax[i] = vmax[i].max(f64::from(t.ref_vel_mm_s[i].abs()));
-            amax[i] = amax[i].max(f64::from(t.ref_acc_mm_s2[i].abs()));
-        }
-        if let Some((k0, a0)) = prev {
-            let dt = f64::from(t.period.wrapping_sub(k0)) * f64::from(pcfg.period_s);
-            if dt > 0.0 && dt <= 2.0 * telemetry_period_s {
-                for i in 0..3 {
-                    jmax[i] = jmax[i].max(f64::from(t.ref_acc_mm_s2[i] - a0[i]).abs() / dt);
-                }
-            }
-        }
-        prev = Some((t.period, t.ref_acc_mm_s2));
-        trace
-            .t_s
-            .push(f64::from(t.period) * f64::from(pcfg.period_s));
-        trace.pos_mm.push(p);
-        trace.contour_mm.push(cerr);
-        trace.vel_mm_s.push(t.ref_vel_mm_s.map(f64::from));
-        trace.acc_mm_s2.push(t.ref_acc_mm_s2.map(f64::from));
-        trace.feed_ratio.push(f64::from(t.feed_ratio));
+        let sample = MetricSample {
+            t_s: f64::from(t.period) * period_s,
+            tag: t.tag as usize,
+            planned_mm: t.reference_mm.map(f64::from),
+            vel_mm_s: t.ref_vel_mm_s.map(f64::from),
+            acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
+            actual_mm: t.pos_mm.map(f64::from),
+            feed_ratio: f64::from(t.feed_ratio),
+            along_mm: 0.0,
+        };
+        metrics.add(&sample, true, true);
     }
     let fault = (end.state == MachineState::Fault).then(|| fault_text(&end));
-    Ok(GcodeReport {
-        program: name,
-        status: if fault.is_some() {
-            "fault"
-        } else {
-            "completed"
-        }
-        .into(),
-        error: None,
-        segments: segs.len(),
+    let realtime = if compute_s > 0.0 {
+        duration_s / compute_s
+    } else {
+        0.0
+    };
+    Ok(metrics.report(
+        &program,
+        segs.len(),
         duration_s,
-        path_length_mm: moves.iter().map(length).sum(),
-        corner_deviation_max_mm: dev,
-        contour_max_mm: cmax,
-        contour_rms_mm: if n > 0 { (csq / n as f64).sqrt() } else { 0.0 },
-        max_vel_mm_s: vmax,
-        max_acc_mm_s2: amax,
-        max_jerk_mm_s3: jmax,
         limits,
-        tolerance_mm: tol,
-        feed_ratio_mean: if fn_ > 0 { fsum / fn_ as f64 } else { 0.0 },
-        ignored: program.ignored.iter().map(|w| w.word.clone()).collect(),
+        tol,
         fault,
-        realtime_ratio: if compute_s > 0.0 {
-            duration_s / compute_s
-        } else {
-            0.0
-        },
-        trace,
-    })
+        realtime,
+    ))
 }
 
 /// Move to `target_mm` at the rapid rate (a one-segment program: the planner's limits and

@@ -340,6 +340,161 @@ pub fn path_distance(p: [f64; 3], moves: &[gcode::Move], tag: usize) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// One reference sample for [`PathMetrics`].
+#[derive(Clone, Copy, Debug)]
+pub struct MetricSample {
+    pub t_s: f64,
+    /// Segment tag (index of the program's move).
+    pub tag: usize,
+    /// The planned reference: position, velocity, acceleration.
+    pub planned_mm: [f64; 3],
+    pub vel_mm_s: [f64; 3],
+    pub acc_mm_s2: [f64; 3],
+    /// The tool's position (true, or as measured).
+    pub actual_mm: [f64; 3],
+    pub feed_ratio: f64,
+    /// Distance along the reference so far, mm (0 when not known).
+    pub along_mm: f64,
+}
+
+/// The figures of a program run, accumulated sample by sample against the programmed
+/// path; one implementation for `cargo sim gcode` (every period) and `gantry run`
+/// (telemetry samples).
+pub struct PathMetrics<'a> {
+    moves: &'a [gcode::Move],
+    feed_move: Vec<bool>,
+    /// Largest time between samples over which a jerk is estimated, s.
+    max_gap_s: f64,
+    prev: Option<(f64, [f64; 3])>,
+    vmax: [f64; 3],
+    amax: [f64; 3],
+    jmax: [f64; 3],
+    dev_max: f64,
+    c_max: f64,
+    c_sq: f64,
+    c_n: u64,
+    feed_sum: f64,
+    feed_n: u64,
+    pub trace: Trace,
+}
+
+impl<'a> PathMetrics<'a> {
+    pub fn new(program: &'a Program, limits: LimitsJson, max_gap_s: f64) -> Self {
+        Self {
+            moves: &program.moves,
+            feed_move: program
+                .moves
+                .iter()
+                .map(|m| matches!(m.kind, MoveKind::Line { .. } | MoveKind::Arc { .. }))
+                .collect(),
+            max_gap_s,
+            prev: None,
+            vmax: [0.0; 3],
+            amax: [0.0; 3],
+            jmax: [0.0; 3],
+            dev_max: 0.0,
+            c_max: 0.0,
+            c_sq: 0.0,
+            c_n: 0,
+            feed_sum: 0.0,
+            feed_n: 0,
+            trace: Trace {
+                limits: Some(limits),
+                ..Trace::default()
+            },
+        }
+    }
+
+    /// Account one sample; `moving`: the program is still running (the distances and the
+    /// feed count only then); `record`: keep it for the plots.
+    pub fn add(&mut self, s: &MetricSample, moving: bool, record: bool) {
+        for i in 0..3 {
+            self.vmax[i] = self.vmax[i].max(s.vel_mm_s[i].abs());
+            self.amax[i] = self.amax[i].max(s.acc_mm_s2[i].abs());
+        }
+        if let Some((t0, a0)) = self.prev {
+            let dt = s.t_s - t0;
+            if dt > 0.0 && dt <= self.max_gap_s {
+                for ((j, a), a0) in self.jmax.iter_mut().zip(s.acc_mm_s2).zip(a0) {
+                    *j = j.max(((a - a0) / dt).abs());
+                }
+            }
+        }
+        self.prev = Some((s.t_s, s.acc_mm_s2));
+        let contour = (moving || record).then(|| path_distance(s.actual_mm, self.moves, s.tag));
+        if let (true, Some(c)) = (moving, contour) {
+            self.dev_max = self
+                .dev_max
+                .max(path_distance(s.planned_mm, self.moves, s.tag));
+            self.c_max = self.c_max.max(c);
+            self.c_sq += c * c;
+            self.c_n += 1;
+            if self.feed_move.get(s.tag).copied().unwrap_or(false) {
+                self.feed_sum += s.feed_ratio;
+                self.feed_n += 1;
+            }
+        }
+        if let (true, Some(c)) = (record, contour) {
+            let t = &mut self.trace;
+            t.t_s.push(s.t_s);
+            t.pos_mm.push(s.actual_mm);
+            t.contour_mm.push(c);
+            t.vel_mm_s.push(s.vel_mm_s);
+            t.acc_mm_s2.push(s.acc_mm_s2);
+            t.feed_ratio.push(s.feed_ratio);
+            t.along_mm.push(s.along_mm);
+        }
+    }
+
+    /// The report of a run that ended (`fault`: why it stopped early).
+    #[allow(clippy::too_many_arguments)]
+    pub fn report(
+        self,
+        program: &Program,
+        segments: usize,
+        duration_s: f64,
+        limits: LimitsJson,
+        tolerance_mm: f64,
+        fault: Option<String>,
+        realtime_ratio: f64,
+    ) -> GcodeReport {
+        GcodeReport {
+            program: program.name.clone(),
+            status: if fault.is_some() {
+                "fault"
+            } else {
+                "completed"
+            }
+            .into(),
+            error: None,
+            segments,
+            duration_s,
+            path_length_mm: program.moves.iter().map(length).sum(),
+            corner_deviation_max_mm: self.dev_max,
+            contour_max_mm: self.c_max,
+            contour_rms_mm: if self.c_n > 0 {
+                (self.c_sq / self.c_n as f64).sqrt()
+            } else {
+                0.0
+            },
+            max_vel_mm_s: self.vmax,
+            max_acc_mm_s2: self.amax,
+            max_jerk_mm_s3: self.jmax,
+            limits,
+            tolerance_mm,
+            feed_ratio_mean: if self.feed_n > 0 {
+                self.feed_sum / self.feed_n as f64
+            } else {
+                0.0
+            },
+            ignored: program.ignored.iter().map(|w| w.word.clone()).collect(),
+            fault,
+            realtime_ratio,
+            trace: self.trace,
+        }
+    }
+}
+
 /// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
 /// configuration at the machine's rate.
 pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, PlannerConfig)> {
@@ -493,11 +648,6 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     let mut mp = Box::new(Planner::new(&pcfg, here).map_err(|e| anyhow!("planner: {e:?}"))?);
 
     let path_length_mm: f64 = program.moves.iter().map(length).sum();
-    let feed_move: Vec<bool> = program
-        .moves
-        .iter()
-        .map(|m| matches!(m.kind, MoveKind::Line { .. } | MoveKind::Arc { .. }))
-        .collect();
     // a generous bound on the machine time: every move at 1 mm/s plus its dwells
     let dwell_s: f64 = program
         .moves
@@ -522,15 +672,9 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     let started = Instant::now();
     let mut next = 0usize;
     let mut k = 0u64;
-    let mut prev_acc: Option<[f64; 3]> = None;
-    let (mut vmax, mut amax, mut jmax) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 3]);
-    let (mut dev_max, mut c_max, mut c_sq, mut c_n) = (0.0f64, 0.0f64, 0.0f64, 0u64);
-    let (mut feed_sum, mut feed_n) = (0.0f64, 0u64);
     let mut along = 0.0f64;
-    let mut trace = Trace {
-        limits: Some(limits),
-        ..Trace::default()
-    };
+    // (every period: a jerk between consecutive periods)
+    let mut metrics = PathMetrics::new(&program, limits, 1.5 * dt);
     let mut fault = None;
     let mut finished_at = None;
     let mut rest = 0u32;
@@ -554,43 +698,21 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
         let truth = run.world().state().map(|s| s.pos);
         run.finish_period();
         k += 1;
-
-        let tag = sample.tag as usize;
-        let p = sample.pos_mm.to_array().map(f64::from);
-        let v = sample.vel_mm_s.to_array().map(f64::from);
-        let a = sample.acc_mm_s2.to_array().map(f64::from);
-        for i in 0..3 {
-            vmax[i] = vmax[i].max(v[i].abs());
-            amax[i] = amax[i].max(a[i].abs());
-            if let Some(a0) = prev_acc {
-                jmax[i] = jmax[i].max(((a[i] - a0[i]) / dt).abs());
-            }
-        }
-        prev_acc = Some(a);
-        let moving = finished_at.is_none();
-        if moving {
-            dev_max = dev_max.max(path_distance(p, &program.moves, tag));
-            let c = path_distance(truth, &program.moves, tag);
-            c_max = c_max.max(c);
-            c_sq += c * c;
-            c_n += 1;
-            if feed_move.get(tag).copied().unwrap_or(false) {
-                feed_sum += f64::from(sample.feed_ratio);
-                feed_n += 1;
-            }
-        }
         along += f64::from(sample.path_speed_mm_s.abs()) * dt;
-        if k.is_multiple_of(every) {
-            trace.t_s.push(k as f64 * dt);
-            trace.pos_mm.push(truth);
-            trace
-                .contour_mm
-                .push(path_distance(truth, &program.moves, tag));
-            trace.vel_mm_s.push(v);
-            trace.acc_mm_s2.push(a);
-            trace.feed_ratio.push(f64::from(sample.feed_ratio));
-            trace.along_mm.push(along);
-        }
+        metrics.add(
+            &MetricSample {
+                t_s: k as f64 * dt,
+                tag: sample.tag as usize,
+                planned_mm: sample.pos_mm.to_array().map(f64::from),
+                vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
+                acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
+                actual_mm: truth,
+                feed_ratio: f64::from(sample.feed_ratio),
+                along_mm: along,
+            },
+            finished_at.is_none(),
+            k.is_multiple_of(every),
+        );
 
         if snap.state == ServoState::Fault || snap.state == ServoState::Stopping {
             let f = run.servo().faults().first();
@@ -622,44 +744,20 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
         run.control_with(&[Command::Stop]);
         run.finish_period();
     }
-    Ok(GcodeReport {
-        program: name,
-        status: if fault.is_some() {
-            "fault"
-        } else {
-            "completed"
-        }
-        .into(),
-        error: None,
-        segments: segs.len(),
+    let realtime = if compute_s > 0.0 {
+        k as f64 * dt / compute_s
+    } else {
+        0.0
+    };
+    Ok(metrics.report(
+        &program,
+        segs.len(),
         duration_s,
-        path_length_mm,
-        corner_deviation_max_mm: dev_max,
-        contour_max_mm: c_max,
-        contour_rms_mm: if c_n > 0 {
-            (c_sq / c_n as f64).sqrt()
-        } else {
-            0.0
-        },
-        max_vel_mm_s: vmax,
-        max_acc_mm_s2: amax,
-        max_jerk_mm_s3: jmax,
         limits,
-        tolerance_mm: tol,
-        feed_ratio_mean: if feed_n > 0 {
-            feed_sum / feed_n as f64
-        } else {
-            0.0
-        },
-        ignored: program.ignored.iter().map(|w| w.word.clone()).collect(),
+        tol,
         fault,
-        realtime_ratio: if compute_s > 0.0 {
-            k as f64 * dt / compute_s
-        } else {
-            0.0
-        },
-        trace,
-    })
+        realtime,
+    ))
 }
 
 /// The report as a table for the terminal.
