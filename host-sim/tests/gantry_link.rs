@@ -203,3 +203,34 @@ fn a_program_completes_with_one_percent_byte_errors_on_the_link() {
     // corrupted telemetry frames are lost, not misread
     assert!(c.telemetry_gaps > 0);
 }
+
+#[test]
+fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
+    let mut c = connect(SimModels::Designed);
+    let all = cli::read_settings(&mut c).unwrap();
+    assert_eq!(all.len(), 101);
+    let text = cli::export_toml(&all);
+    let back = cli::parse_settings_toml("export.toml", &text).unwrap();
+    assert_eq!(
+        cli::import_settings(&mut c, &back, 10_000).unwrap(),
+        Vec::<String>::new()
+    );
+
+    let before = *c.transport.machine().settings();
+    let bad = "[axis.x]\nfollowing_error_mm = 0.8\nvel_max_mm_s = -5\n";
+    let changes = cli::parse_settings_toml("bad.toml", bad).unwrap();
+    let err = cli::import_settings(&mut c, &changes, 10_000)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("axis.x.vel_max_mm_s"), "{err}");
+    assert_eq!(*c.transport.machine().settings(), before);
+
+    let good = "[axis.x]\nfollowing_error_mm = 0.8\n";
+    let changes = cli::parse_settings_toml("good.toml", good).unwrap();
+    let changed = cli::import_settings(&mut c, &changes, 10_000).unwrap();
+    assert_eq!(changed, ["axis.x.following_error_mm"]);
+    assert_eq!(
+        c.transport.machine().settings().axis[0].following_error_mm,
+        0.8
+    );
+}

@@ -3,7 +3,10 @@
 //! per invocation: it powers up at the work origin, unhomed, disarmed). See the README
 //! ("The gantry CLI") and docs/link-protocol.md.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
+
+/// The simulated machine's control rate (host-sim/scenarios/gcode.toml), Hz.
+const CONTROL_RATE_HZ: u32 = 10_000;
 use clap::{Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use host_sim::cli::client::{expect_done, Client};
@@ -84,7 +87,7 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
-    /// Settings: list, get KEY, set KEY VALUE, defaults.
+    /// Settings: list, get KEY, set KEY VALUE, defaults, export FILE, import FILE.
     Settings {
         #[command(subcommand)]
         op: SettingsOp,
@@ -94,9 +97,23 @@ enum Cmd {
 #[derive(Subcommand)]
 enum SettingsOp {
     List,
-    Get { key: String },
-    Set { key: String, value: String },
+    Get {
+        key: String,
+    },
+    Set {
+        key: String,
+        value: String,
+    },
     Defaults,
+    /// Write every setting to a TOML file (dotted keys).
+    Export {
+        file: PathBuf,
+    },
+    /// Apply a TOML file of settings: all checked together first, nothing changes when one
+    /// is bad.
+    Import {
+        file: PathBuf,
+    },
 }
 
 fn axis_index(a: &str) -> Result<usize> {
@@ -275,6 +292,20 @@ fn run(cli: Cli) -> Result<ExitCode> {
             SettingsOp::Defaults => {
                 expect_done("settings defaults", c.exec(Request::SettingsDefaults)?)?;
                 println!("factory settings restored");
+            }
+            SettingsOp::Export { file } => {
+                let all = cli::read_settings(&mut c)?;
+                std::fs::write(&file, cli::export_toml(&all))
+                    .with_context(|| format!("cannot write {}", file.display()))?;
+                println!("{} settings written to {}", all.len(), file.display());
+            }
+            SettingsOp::Import { file } => {
+                let name = file.display().to_string();
+                let text = std::fs::read_to_string(&file)
+                    .with_context(|| format!("cannot read {name}"))?;
+                let changes = cli::parse_settings_toml(&name, &text)?;
+                let changed = cli::import_settings(&mut c, &changes, CONTROL_RATE_HZ)?;
+                println!("{} settings changed: {}", changed.len(), changed.join(", "));
             }
         },
     }

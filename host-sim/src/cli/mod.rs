@@ -397,3 +397,121 @@ pub fn identify<T: Transport>(
     }
     Ok(out)
 }
+
+/// Every setting the machine has (a key whose value is absent, e.g. the model of an axis
+/// that has none, is left out), as `key → text`, in the order of the settings keys.
+pub fn read_settings<T: Transport>(c: &mut Client<T>) -> Result<Vec<(String, String)>> {
+    let mut out = Vec::new();
+    for k in controller_core::settings::keys::keys() {
+        if let Ok(v) = get(c, k.name) {
+            out.push((k.name.to_string(), v));
+        }
+    }
+    Ok(out)
+}
+
+/// `gantry settings export`: the settings as a TOML table of dotted keys (numbers and
+/// booleans as TOML values, choices as strings).
+pub fn export_toml(settings: &[(String, String)]) -> String {
+    let mut t = toml::Table::new();
+    for (k, v) in settings {
+        let value = if let Ok(b) = v.parse::<bool>() {
+            toml::Value::Boolean(b)
+        } else if let Ok(i) = v.parse::<i64>() {
+            toml::Value::Integer(i)
+        } else if let Ok(f) = v.parse::<f64>() {
+            toml::Value::Float(f)
+        } else {
+            toml::Value::String(v.clone())
+        };
+        t.insert(k.clone(), value);
+    }
+    let mut s = String::from(
+        "# gantry settings (gantry settings export); import with gantry settings import\n",
+    );
+    s.push_str(&toml::to_string(&t).unwrap_or_default());
+    s
+}
+
+/// The `key → text` pairs of a settings file: a table of dotted keys, nested tables
+/// flattened (`[axis.x] following_error_mm = 0.8` is `axis.x.following_error_mm`).
+pub fn parse_settings_toml(name: &str, text: &str) -> Result<Vec<(String, String)>> {
+    let table: toml::Table = text
+        .parse()
+        .with_context(|| format!("{name}: not a TOML table"))?;
+    let mut out = Vec::new();
+    fn walk(
+        prefix: &str,
+        t: &toml::Table,
+        out: &mut Vec<(String, String)>,
+        name: &str,
+    ) -> Result<()> {
+        for (k, v) in t {
+            let key = if prefix.is_empty() {
+                k.clone()
+            } else {
+                format!("{prefix}.{k}")
+            };
+            match v {
+                toml::Value::Table(inner) => walk(&key, inner, out, name)?,
+                toml::Value::String(s) => out.push((key, s.clone())),
+                toml::Value::Integer(i) => out.push((key, i.to_string())),
+                toml::Value::Float(f) => out.push((key, f.to_string())),
+                toml::Value::Boolean(b) => out.push((key, b.to_string())),
+                other => bail!("{name}: {key}: {} is not a setting value", other.type_str()),
+            }
+        }
+        Ok(())
+    }
+    walk("", &table, &mut out, name)?;
+    Ok(out)
+}
+
+/// `gantry settings import FILE`: every value of the file is checked against the
+/// machine's current settings first, together (types, ranges, the whole tree at the
+/// machine's rate), so a bad file changes nothing; then the changed keys are sent.
+/// Returns the keys changed.
+pub fn import_settings<T: Transport>(
+    c: &mut Client<T>,
+    changes: &[(String, String)],
+    rate_hz: u32,
+) -> Result<Vec<String>> {
+    use controller_core::settings::{keys::find, FACTORY};
+    // the machine's tree, rebuilt from its values
+    let current = read_settings(c)?;
+    let mut tree = FACTORY;
+    let parsed: Vec<(&str, controller_core::settings::Value)> = current
+        .iter()
+        .map(|(k, v)| {
+            Ok((
+                k.as_str(),
+                find(k)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?
+                    .parse(v)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?,
+            ))
+        })
+        .collect::<Result<_>>()?;
+    tree.set_all(&parsed, rate_hz)
+        .map_err(|e| anyhow::anyhow!("the machine's own settings do not validate: {e}"))?;
+    let before = tree;
+    let mut wanted = Vec::new();
+    for (k, v) in changes {
+        let key = find(k).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let value = key.parse(v).map_err(|e| anyhow::anyhow!("{e}"))?;
+        wanted.push((key.name, value));
+    }
+    tree.set_all(&wanted, rate_hz)
+        .map_err(|e| anyhow::anyhow!("import rejected, nothing changed: {e}"))?;
+    let mut changed = Vec::new();
+    for (k, v) in changes {
+        let old = before.get(k).ok().map(|x| x.to_string());
+        let new = tree.get(k).ok().map(|x| x.to_string());
+        if old != new {
+            set(c, k, v)
+                .with_context(|| format!("after {} of the changes were applied", changed.len()))?;
+            changed.push(k.clone());
+        }
+    }
+    Ok(changed)
+}
