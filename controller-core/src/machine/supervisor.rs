@@ -314,8 +314,10 @@ impl Machine {
                 match self.planner.push(seg) {
                     Ok(()) => Step::Done(Outcome::Done),
                     Err(e) => {
+                        // a program with a bad segment cannot go on: stop on the path
                         let mut t: String<96> = String::new();
-                        let _ = write!(t, "segment {}: {:?}", seg.tag, e);
+                        let _ = write!(t, "segment {}: {:?} (program stopped)", seg.tag, e);
+                        self.stop_program(Some(Command::Stop));
                         Step::Done(Outcome::Refused(t))
                     }
                 }
