@@ -4,7 +4,7 @@
 
 use controller_core::machine::messages::{Outcome, Request};
 use controller_core::machine::Machine;
-use controller_core::motion::planner::{Segment, GANTRY_PLANNER};
+use controller_core::motion::planner::Segment;
 use controller_core::presets::gantry::GANTRY_AXES;
 use controller_core::servo::ServoState;
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
@@ -34,14 +34,7 @@ fn machine() -> (Machine, World) {
         imperfections: ImperfectionConfig::default(),
     };
     let world = World::new(&wcfg, &s.servo_config(RATE_HZ).unwrap()).unwrap();
-    let m = Machine::new(
-        &s,
-        &GANTRY_PLANNER,
-        RATE_HZ,
-        world.counter_registers(),
-        world.counts(),
-    )
-    .unwrap();
+    let m = Machine::new(&s, RATE_HZ, world.counter_registers(), world.counts()).unwrap();
     (m, world)
 }
 

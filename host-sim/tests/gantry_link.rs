@@ -208,7 +208,7 @@ fn a_program_completes_with_one_percent_byte_errors_on_the_link() {
 fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
     let mut c = connect(SimModels::Designed);
     let all = cli::read_settings(&mut c).unwrap();
-    assert_eq!(all.len(), 101);
+    assert_eq!(all.len(), 112);
     let text = cli::export_toml(&all);
     let back = cli::parse_settings_toml("export.toml", &text).unwrap();
     assert_eq!(

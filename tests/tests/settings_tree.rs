@@ -38,7 +38,7 @@ fn every_field_has_a_key_and_every_key_a_field() {
         .collect();
     names.sort();
     assert_eq!(fields, names);
-    assert_eq!(fields.len(), 98);
+    assert_eq!(fields.len(), 109);
 }
 
 #[test]

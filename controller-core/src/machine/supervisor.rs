@@ -75,11 +75,10 @@ fn refused(s: &str) -> Outcome {
 }
 
 impl Machine {
-    /// A machine with `settings` at `rate_hz`; `raw` are the encoder registers now,
+    /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder registers now,
     /// standing for wide counts `start_counts` (0 on a board at boot).
     pub fn new(
         settings: &Settings,
-        planner_cfg: &PlannerConfig,
         rate_hz: u32,
         raw: [u32; 3],
         start_counts: [i64; 3],
@@ -88,8 +87,8 @@ impl Machine {
             .servo_config(rate_hz)
             .map_err(MachineError::Settings)?;
         let servo = Servo::new(&cfg, raw, start_counts).map_err(MachineError::Servo)?;
-        let mut pc = *planner_cfg;
-        pc.period_s = 1.0 / rate_hz as f32;
+        // (validated with the rest of the tree by `servo_config` above)
+        let pc = settings.planner_config(rate_hz);
         let start = servo.snapshot().pos;
         let planner = MachinePlanner::new(&pc, start).map_err(MachineError::Planner)?;
         let sample = PathSample {
@@ -392,14 +391,14 @@ impl Machine {
         };
         match class {
             None => {
-                self.settings = next;
+                self.take(next);
                 Outcome::Done
             }
             // (live changes with the outputs on are not taken yet: the servo swaps
             // configurations only with the outputs off)
             Some(_) => match self.servo.reconfigure(&cfg) {
                 Ok(()) => {
-                    self.settings = next;
+                    self.take(next);
                     Outcome::Done
                 }
                 Err(crate::servo::ReconfigureError::OutputsOn) => {
@@ -412,6 +411,12 @@ impl Machine {
                 }
             },
         }
+    }
+
+    /// The new settings; the planner's take effect with the next program.
+    fn take(&mut self, next: Settings) {
+        self.settings = next;
+        self.planner_cfg = next.planner_config(self.rate_hz);
     }
 
     /// The status a real-time request answers with.

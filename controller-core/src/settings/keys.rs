@@ -592,6 +592,27 @@ static AXIS_KEYS: &[AxisDef] = &[
         Live,
         "Acceleration and deceleration of a jog"
     ),
+    axis_key!(
+        planner.vel_max_mm_s,
+        unit::MM_S,
+        f32_range(0.1, 10_000.0),
+        OutputsOff,
+        "Largest speed the motion planner commands (also the rapid speed); at most vel_max_mm_s"
+    ),
+    axis_key!(
+        planner.acc_max_mm_s2,
+        unit::MM_S2,
+        f32_range(1.0, 1e6),
+        OutputsOff,
+        "Largest acceleration the motion planner commands"
+    ),
+    axis_key!(
+        planner.jerk_max_mm_s3,
+        "mm/s³",
+        f32_range(10.0, 1e9),
+        OutputsOff,
+        "Largest jerk the motion planner commands"
+    ),
 ];
 
 /// The keys outside `axis.*`, in the tree's field order.
@@ -654,6 +675,20 @@ static GLOBAL_KEYS: &[GlobalDef] = &[
         f32_range(0.0, 100.0),
         Live,
         "Distance identification's motion keeps from each end of its window; read when a run starts"
+    ),
+    global_key!(
+        planner.tolerance_mm,
+        unit::MM,
+        f32_range(0.0, 10.0),
+        OutputsOff,
+        "Path tolerance of G64 without P: blended corners stay this close to the programmed path"
+    ),
+    global_key!(
+        planner.tangential_share,
+        unit::NONE,
+        f32_range(0.05, 0.95),
+        OutputsOff,
+        "Share of each axis' acceleration and jerk kept along curves (the rest bounds the centripetal terms)"
     ),
 ];
 

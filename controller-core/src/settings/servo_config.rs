@@ -38,6 +38,10 @@ pub enum SettingsError {
     Tuning { axis: Axis, error: ConfigError },
     /// The link watchdog's timeout is outside its range.
     Link(LinkConfigError),
+    /// The motion planner's settings are invalid (the field is named).
+    Planner(crate::motion::planner::PlannerConfigError),
+    /// The planner would command the axis faster than its overspeed limit.
+    PlannerSpeed { axis: Axis },
     /// The servo rejected the configuration (its own validation, e.g. an estimator
     /// bandwidth unstable at the control rate, a following error below its at-rest value,
     /// a home position outside the travel).
@@ -50,6 +54,10 @@ impl core::fmt::Display for SettingsError {
             Self::Model { axis, error } => write!(f, "axis.{}.model: {error}", axis.name()),
             Self::Tuning { axis, error } => write!(f, "axis.{} tuning: {error}", axis.name()),
             Self::Link(e) => write!(f, "{e}"),
+            Self::Planner(e) => write!(f, "planner: {e:?}"),
+            Self::PlannerSpeed { axis } => {
+                write!(f, "planner speed above axis.{}.vel_max_mm_s", axis.name())
+            }
             Self::Servo(e) => write!(f, "servo configuration: {e}"),
         }
     }
@@ -149,6 +157,13 @@ impl Settings {
             .watchdog()
             .validate()
             .map_err(SettingsError::Link)?;
+        crate::motion::planner::Settings::new(&self.planner_config(rate_hz))
+            .map_err(SettingsError::Planner)?;
+        for (a, axis) in self.axis.iter().zip(Axis::ALL) {
+            if !(a.planner.vel_max_mm_s <= a.vel_max_mm_s) {
+                return Err(SettingsError::PlannerSpeed { axis });
+            }
+        }
         c.safety.check_for_machine().map_err(SettingsError::Servo)?;
         Servo::<f32>::new(&c, [0; AXES], [0; AXES]).map_err(SettingsError::Servo)?;
         Ok(c)

@@ -15,6 +15,7 @@
 use crate::axes::AXES;
 use crate::estimator::PllConfig;
 use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
+use crate::motion::planner::{PlannerConfig, GANTRY_PLANNER};
 use crate::presets::board::{BOARD_LAMBDA, BOARD_PLL};
 use crate::presets::gantry::{
     GANTRY_AMPLIFIERS, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL, LOOP_OMEGA,
@@ -25,7 +26,7 @@ use crate::servo::travel::AxisTravel;
 use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
 
 /// Version of the tree's layout, stored with every record (see the module docs).
-pub const SETTINGS_VERSION: u16 = 1;
+pub const SETTINGS_VERSION: u16 = 2;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -150,6 +151,35 @@ pub struct AxisSettings {
     pub travel: AxisTravel,
     pub homing: AxisHomingConfig,
     pub jog: AxisJogConfig,
+    /// What the motion planner may command on this axis.
+    pub planner: AxisPlannerSettings,
+}
+
+/// The motion planner's limits of one axis (its velocity at most the axis' `vel_max_mm_s`,
+/// which trips overspeed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct AxisPlannerSettings {
+    /// Largest commanded speed, also the speed of rapid moves, mm/s.
+    pub vel_max_mm_s: f32,
+    /// Largest commanded acceleration, mm/s².
+    pub acc_max_mm_s2: f32,
+    /// Largest commanded jerk, mm/s³.
+    pub jerk_max_mm_s3: f32,
+}
+
+/// The motion planner's path settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct PlannerSettings {
+    /// Path tolerance of G64 without P: the commanded path stays within this distance of
+    /// the programmed one at blended corners, mm.
+    pub tolerance_mm: f32,
+    /// Share of each axis' acceleration and jerk kept for speeding up and slowing down
+    /// along curves; the rest bounds the centripetal terms (0-1).
+    pub tangential_share: f32,
 }
 
 /// Jog settings shared by the axes.
@@ -217,10 +247,7 @@ pub struct Settings {
     pub estimator: EstimatorSettings,
     pub link: LinkSettings,
     pub identify: IdentifySettings,
-    // PLANNER: the motion planner's settings (path tolerance, per-axis velocity /
-    // acceleration / jerk limits) go here as `pub planner: PlannerSettings`, with their keys
-    // in keys.rs (`planner.*`, `axis.<a>.planner.*`) and a SETTINGS_VERSION bump. Added
-    // when the planner is merged; its fields are the planner's to define.
+    pub planner: PlannerSettings,
 }
 
 /// One axis' factory settings: the designed gantry ([`crate::presets::gantry`]), no
@@ -248,6 +275,11 @@ const fn factory_axis(i: usize) -> AxisSettings {
         travel: GANTRY_TRAVEL.axes[i],
         homing: GANTRY_HOMING.axes[i],
         jog: JogConfig::GANTRY.axes[i],
+        planner: AxisPlannerSettings {
+            vel_max_mm_s: GANTRY_PLANNER.vel_max_mm_s[i],
+            acc_max_mm_s2: GANTRY_PLANNER.acc_max_mm_s2[i],
+            jerk_max_mm_s3: GANTRY_PLANNER.jerk_max_mm_s3[i],
+        },
     }
 }
 
@@ -277,7 +309,28 @@ pub const FACTORY: Settings = Settings {
         torque_cap_mnm: IDENTIFY_DEFAULTS.torque_cap_mnm,
         edge_margin_mm: IDENTIFY_DEFAULTS.edge_margin_mm,
     },
+    planner: PlannerSettings {
+        tolerance_mm: GANTRY_PLANNER.tolerance_mm,
+        tangential_share: GANTRY_PLANNER.tangential_share,
+    },
 };
+
+impl Settings {
+    /// The motion planner's configuration at `rate_hz` (the arc-radius tolerance and the
+    /// shortest segment are the planner's constants, not settings: grbl's rules).
+    pub fn planner_config(&self, rate_hz: u32) -> PlannerConfig {
+        PlannerConfig {
+            period_s: 1.0 / rate_hz.max(1) as f32,
+            vel_max_mm_s: self.axis.map(|a| a.planner.vel_max_mm_s),
+            acc_max_mm_s2: self.axis.map(|a| a.planner.acc_max_mm_s2),
+            jerk_max_mm_s3: self.axis.map(|a| a.planner.jerk_max_mm_s3),
+            tolerance_mm: self.planner.tolerance_mm,
+            tangential_share: self.planner.tangential_share,
+            arc_radius_tolerance_mm: GANTRY_PLANNER.arc_radius_tolerance_mm,
+            min_segment_mm: GANTRY_PLANNER.min_segment_mm,
+        }
+    }
+}
 
 impl Default for Settings {
     fn default() -> Self {

@@ -11,8 +11,7 @@ pub mod sim;
 
 use crate::gcode::Travel;
 use crate::studies::gcode::{
-    decimal, limits_of, load_program, machine_and_planner, segments, GcodeReport, MetricSample,
-    PathMetrics,
+    load_program, machine_and_planner, segments, GcodeReport, LimitsJson, MetricSample, PathMetrics,
 };
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
@@ -177,9 +176,21 @@ pub fn run_program<T: Transport>(
     progress: bool,
     hold: Option<Hold>,
 ) -> Result<GcodeReport> {
-    let (_, pcfg) = machine_and_planner(None)?;
-    let limits = limits_of(&pcfg);
-    let tol = decimal(pcfg.tolerance_mm);
+    // the machine's planner limits, from its settings
+    let mut limits = LimitsJson {
+        vel: [0.0; 3],
+        acc: [0.0; 3],
+        jerk: [0.0; 3],
+    };
+    for (i, a) in AXES.iter().enumerate() {
+        limits.vel[i] = get_f64(c, &format!("axis.{a}.planner.vel_max_mm_s"))?;
+        limits.acc[i] = get_f64(c, &format!("axis.{a}.planner.acc_max_mm_s2"))?;
+        limits.jerk[i] = get_f64(c, &format!("axis.{a}.planner.jerk_max_mm_s3"))?;
+    }
+    let tol = get_f64(c, "planner.tolerance_mm")?;
+    // the machine's control period (the telemetry's period numbers count it)
+    let (run, _) = machine_and_planner(None)?;
+    let period_s = 1.0 / f64::from(run.servo.rate_hz);
     let name = path.display().to_string();
     let travel = travel(c)?;
     let s = c.status()?;
@@ -244,7 +255,6 @@ pub fn run_program<T: Transport>(
 
     // figures from telemetry: every sample in Run (a jerk only between consecutive ones)
     let mut metrics = PathMetrics::new(&program, limits, 1.5 * telemetry_period_s);
-    let period_s = f64::from(pcfg.period_s);
     for t in samples
         .iter()
         .filter(|t| matches!(t.state, MachineState::Run { .. }))

@@ -39,7 +39,7 @@ impl SimMachine {
     /// around where it starts) with limit switches where the factory homing expects
     /// them; telemetry every `telemetry_periods` control periods.
     pub fn new(models: SimModels, telemetry_periods: u32) -> Result<Self> {
-        let (run, planner) = machine_and_planner(None)?;
+        let (run, _) = machine_and_planner(None)?;
         let mut settings: Settings = FACTORY;
         if models == SimModels::Designed {
             for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
@@ -70,7 +70,6 @@ impl SimMachine {
         let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
         let machine = Machine::new(
             &settings,
-            &planner,
             rate_hz,
             world.counter_registers(),
             world.counts(),

@@ -23,6 +23,7 @@ use controller_core::motion::planner::{
     Blend, MotionPlanner, PathSample, Plane, PlannerConfig, Segment,
 };
 use controller_core::servo::{Command, ServoState};
+use controller_core::settings::FACTORY;
 use controller_core::sim::run::{RunConfig, SimRun};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
@@ -46,7 +47,7 @@ const PROGRESS_PERIODS: u64 = 100_000;
 /// One plot sample every this many periods at most (the plots keep ≤ ~20,000 points).
 const PLOT_POINTS: u64 = 20_000;
 
-/// The study's own parameters (`study.planner` of `host-sim/scenarios/gcode.toml`):
+/// The study's own parameters (optional `study.planner` of a gcode study file):
 /// the planner's configuration without the period, which is the machine's.
 #[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -506,21 +507,29 @@ pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, Planner
     let r = runs
         .first()
         .ok_or_else(|| anyhow!("gcode.toml has no run"))?;
-    let study = r
-        .study
-        .clone()
-        .ok_or_else(|| anyhow!("gcode.toml: the study table (planner limits) is missing"))?;
-    let p: StudyParams = study.try_into().context("gcode.toml: study.planner")?;
-    let l = p.planner;
-    let cfg = PlannerConfig {
-        period_s: (1.0 / f64::from(r.run.servo.rate_hz)) as f32,
-        vel_max_mm_s: l.vel_max_mm_s,
-        acc_max_mm_s2: l.acc_max_mm_s2,
-        jerk_max_mm_s3: l.jerk_max_mm_s3,
-        tolerance_mm: l.tolerance_mm,
-        tangential_share: l.tangential_share,
-        arc_radius_tolerance_mm: l.arc_radius_tolerance_mm,
-        min_segment_mm: l.min_segment_mm,
+    // the factory settings' planner (controller-core settings, from GANTRY_PLANNER), or
+    // the study file's `study.planner` table (every field of the planner's configuration
+    // but the period, which is the machine's)
+    let rate = r.run.servo.rate_hz;
+    let cfg = match &r.study {
+        None => FACTORY.planner_config(rate),
+        Some(study) => {
+            let p: StudyParams = study
+                .clone()
+                .try_into()
+                .context("gcode.toml: study.planner")?;
+            let l = p.planner;
+            PlannerConfig {
+                period_s: (1.0 / f64::from(rate)) as f32,
+                vel_max_mm_s: l.vel_max_mm_s,
+                acc_max_mm_s2: l.acc_max_mm_s2,
+                jerk_max_mm_s3: l.jerk_max_mm_s3,
+                tolerance_mm: l.tolerance_mm,
+                tangential_share: l.tangential_share,
+                arc_radius_tolerance_mm: l.arc_radius_tolerance_mm,
+                min_segment_mm: l.min_segment_mm,
+            }
+        }
     };
     Ok((r.run, cfg))
 }
