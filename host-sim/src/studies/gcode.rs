@@ -18,7 +18,7 @@
 use crate::builtin;
 use crate::gcode::{self, check_travel, MoveKind, ParseOptions, Program, Travel};
 use crate::studies::resolve_all;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use controller_core::motion::planner::{
     Blend, MotionPlanner, PathSample, Plane, PlannerConfig, Segment,
 };
@@ -26,7 +26,7 @@ use controller_core::servo::{Command, ServoState};
 use controller_core::settings::FACTORY;
 use controller_core::sim::run::{RunConfig, SimRun};
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
@@ -46,26 +46,6 @@ const SEARCH_WINDOW: usize = 4;
 const PROGRESS_PERIODS: u64 = 100_000;
 /// One plot sample every this many periods at most (the plots keep ≤ ~20,000 points).
 const PLOT_POINTS: u64 = 20_000;
-
-/// The study's own parameters (optional `study.planner` of a gcode study file):
-/// the planner's configuration without the period, which is the machine's.
-#[derive(Clone, Copy, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PlannerLimits {
-    vel_max_mm_s: [f32; 3],
-    acc_max_mm_s2: [f32; 3],
-    jerk_max_mm_s3: [f32; 3],
-    tolerance_mm: f32,
-    tangential_share: f32,
-    arc_radius_tolerance_mm: f32,
-    min_segment_mm: f32,
-}
-
-#[derive(Clone, Copy, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct StudyParams {
-    planner: PlannerLimits,
-}
 
 /// Where a rejected program is wrong (keys are public interface).
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -507,30 +487,17 @@ pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, Planner
     let r = runs
         .first()
         .ok_or_else(|| anyhow!("gcode.toml has no run"))?;
-    // the factory settings' planner (controller-core settings, from GANTRY_PLANNER), or
-    // the study file's `study.planner` table (every field of the planner's configuration
-    // but the period, which is the machine's)
-    let rate = r.run.servo.rate_hz;
-    let cfg = match &r.study {
-        None => FACTORY.planner_config(rate),
-        Some(study) => {
-            let p: StudyParams = study
-                .clone()
-                .try_into()
-                .context("gcode.toml: study.planner")?;
-            let l = p.planner;
-            PlannerConfig {
-                period_s: (1.0 / f64::from(rate)) as f32,
-                vel_max_mm_s: l.vel_max_mm_s,
-                acc_max_mm_s2: l.acc_max_mm_s2,
-                jerk_max_mm_s3: l.jerk_max_mm_s3,
-                tolerance_mm: l.tolerance_mm,
-                tangential_share: l.tangential_share,
-                arc_radius_tolerance_mm: l.arc_radius_tolerance_mm,
-                min_segment_mm: l.min_segment_mm,
-            }
+    // the factory settings' planner (controller-core settings, from GANTRY_PLANNER), its
+    // speeds capped at the machine's own limits (a `--machine` may be slower)
+    let mut cfg = FACTORY.planner_config(r.run.servo.rate_hz);
+    for (v, safety) in cfg.vel_max_mm_s.iter_mut().zip(&r.run.servo.safety.axes) {
+        if safety.vel_max_mm_s.is_finite() && safety.vel_max_mm_s > 0.0 {
+            *v = v.min(safety.vel_max_mm_s);
         }
-    };
+    }
+    if r.study.is_some() {
+        bail!("gcode.toml: no study table expected (the planner's limits are settings)");
+    }
     Ok((r.run, cfg))
 }
 
