@@ -160,32 +160,12 @@ pub unsafe extern "C" fn HardFault() -> ! {
 
 /// Every other exception and interrupt without a handler of its own (MemManage, BusFault,
 /// UsageFault, SVCall, DebugMonitor, PendSV and unused interrupts; the NMI too in the QEMU
-/// build): the same as [`HardFault`].
+/// build): the same as [`HardFault`], by a plain branch to it (nothing pushed, `lr` and
+/// the IPSR still this exception's, so the report names it).
 #[unsafe(naked)]
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn DefaultHandler() -> ! {
-    core::arch::naked_asm!(
-        outputs_off_asm!(),
-        "mrs r1, ipsr",
-        "tst lr, #4",
-        "ite eq",
-        "mrseq r0, msp",
-        "mrsne r0, psp",
-        "b {report}",
-        tim1_lo = const TIM1_BASE & 0xFFFF,
-        tim1_hi = const TIM1_BASE >> 16,
-        bdtr_lo = const BDTR_SAFE & 0xFFFF,
-        bdtr_hi = const BDTR_SAFE >> 16,
-        bdtr = const TIM1_BDTR,
-        ccr1 = const TIM1_CCR1,
-        ccr2 = const TIM1_CCR2,
-        ccr3 = const TIM1_CCR3,
-        bsrr_lo = const GPIOD_BSRR & 0xFFFF,
-        bsrr_hi = const GPIOD_BSRR >> 16,
-        en_lo = const (ENABLE_PINS << 16) & 0xFFFF,
-        en_hi = const (ENABLE_PINS << 16) >> 16,
-        report = sym exception_report,
-    )
+    core::arch::naked_asm!("b {hard_fault}", hard_fault = sym HardFault)
 }
 
 /// Exception number of HardFault in IPSR.

@@ -85,20 +85,26 @@ fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
     (x, (y.0 - pad, y.1 + pad))
 }
 
-fn line_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
+/// A 2-D chart with the house style (caption, margins, labelled mesh) over the ranges.
+fn chart_2d<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
     title: &str,
-    xl: &str,
-    yl: &str,
-    series: &[Series],
-) -> Result<()> {
-    let ((x0, x1), (y0, y1)) = bounds(series);
+    (xl, yl): (&str, &str),
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> Result<
+    ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+> {
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 18))
         .margin(8)
         .x_label_area_size(32)
         .y_label_area_size(64)
-        .build_cartesian_2d(x0..x1, y0..y1)
+        .build_cartesian_2d(x, y)
         .map_err(err)?;
     chart
         .configure_mesh()
@@ -107,6 +113,18 @@ fn line_panel<DB: DrawingBackend>(
         .label_style(("sans-serif", 12))
         .draw()
         .map_err(err)?;
+    Ok(chart)
+}
+
+fn line_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    xl: &str,
+    yl: &str,
+    series: &[Series],
+) -> Result<()> {
+    let ((x0, x1), (y0, y1)) = bounds(series);
+    let mut chart = chart_2d(area, title, (xl, yl), x0..x1, y0..y1)?;
     for s in series {
         let c = s.color;
         chart
@@ -229,20 +247,7 @@ fn coloured_panel<DB: DrawingBackend>(
     let span = ((x1 - x0) / w).max((y1 - y0) / h) * 1.05;
     let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
     let (hx, hy) = (0.5 * span * w, 0.5 * span * h);
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 18))
-        .margin(8)
-        .x_label_area_size(32)
-        .y_label_area_size(64)
-        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc(xl)
-        .y_desc(yl)
-        .label_style(("sans-serif", 12))
-        .draw()
-        .map_err(err)?;
+    let mut chart = chart_2d(area, title, (xl, yl), cx - hx..cx + hx, cy - hy..cy + hy)?;
     let inv = if scale > 0.0 { 1.0 / scale } else { 0.0 };
     chart
         .draw_series(points.windows(2).map(|w| {
