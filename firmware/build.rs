@@ -10,7 +10,8 @@
 //!   postcard, and written to `OUT_DIR/qemu_scenarios.rs` as
 //!   `pub static SCENARIOS: &[(&str, &[u8])]` (name = file stem, sorted). The firmware
 //!   decodes the one named on its semihosting command line at boot. There is no second
-//!   copy of any scenario to keep in step. `GANTRY_CONTROL_HZ` sets every scenario's
+//!   copy of any scenario to keep in step. `LINK_RUN`: the link rig's machine,
+//!   `host-sim/scenarios/gcode.toml` resolved the same way. `GANTRY_CONTROL_HZ` sets every scenario's
 //!   rate, except a `…_<N>khz` file's (`gantry_scenario::file::load_at_rate`, which
 //!   `host-sim qemu-verdict --rate-hz` uses too).
 
@@ -110,6 +111,24 @@ mod qemu {
             let _ = writeln!(code, "    ({name:?}, &{bytes:?}),");
         }
         code.push_str("];\n");
+        // The link rig's machine: the simulated gantry of `gantry --sim` and `cargo sim
+        // gcode` (host-sim/scenarios/gcode.toml), at its own rate.
+        let gcode = manifest_dir.join("../host-sim/scenarios/gcode.toml");
+        println!("cargo:rerun-if-changed={}", gcode.display());
+        let file = gantry_scenario::file::load_at_rate(&gcode, None)
+            .unwrap_or_else(|e| fail(e.to_string()));
+        let first = file
+            .runs
+            .first()
+            .unwrap_or_else(|| fail(format!("{}: no run", gcode.display())));
+        let resolved = Resolved::new(&file.file, first).unwrap_or_else(|e| fail(e.to_string()));
+        let bytes = postcard::to_allocvec(&resolved.run)
+            .unwrap_or_else(|e| fail(format!("{}: postcard: {e}", gcode.display())));
+        let _ = writeln!(
+            code,
+            "/// The link rig's machine (host-sim/scenarios/gcode.toml, postcard `RunConfig`).\n\
+             pub static LINK_RUN: &[u8] = &{bytes:?};"
+        );
         fs::write(out.join("qemu_scenarios.rs"), code).expect("write qemu_scenarios.rs");
     }
 }

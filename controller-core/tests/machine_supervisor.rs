@@ -3,7 +3,9 @@
 //! stopping the program, settings only with the outputs off, link loss.
 
 use controller_core::machine::messages::{Outcome, Request};
-use controller_core::machine::Machine;
+use controller_core::machine::{Machine, MachinePlanner};
+
+type M = Machine<Box<MachinePlanner>>;
 use controller_core::motion::planner::Segment;
 use controller_core::presets::gantry::GANTRY_AXES;
 use controller_core::servo::ServoState;
@@ -24,7 +26,7 @@ fn settings() -> Settings {
     s
 }
 
-fn machine() -> (Machine, World) {
+fn machine() -> (M, World) {
     let s = settings();
     let wcfg = WorldConfig {
         plants: GANTRY_AXES.map(PlantConfig::Physical),
@@ -34,11 +36,18 @@ fn machine() -> (Machine, World) {
         imperfections: ImperfectionConfig::default(),
     };
     let world = World::new(&wcfg, &s.servo_config(RATE_HZ).unwrap()).unwrap();
-    let m = Machine::new(&s, RATE_HZ, world.counter_registers(), world.counts()).unwrap();
+    let m = Machine::new(
+        &s,
+        RATE_HZ,
+        world.counter_registers(),
+        world.counts(),
+        Box::new(MachinePlanner::BLANK),
+    )
+    .unwrap();
     (m, world)
 }
 
-fn periods(m: &mut Machine, w: &mut World, n: u32) {
+fn periods(m: &mut M, w: &mut World, n: u32) {
     for _ in 0..n {
         m.period(w);
         w.advance();
@@ -137,4 +146,120 @@ fn link_loss_stops_a_running_program_with_a_link_lost_fault() {
     );
     assert!(m.status().vel_mm_s[0].abs() < 1.0);
     assert_eq!(m.servo().state(), ServoState::Fault);
+}
+
+/// The program of the first test, on the link's path: requests through the queues of
+/// `machine::port` (as the firmware's link task hands them to the control interrupt),
+/// the credit never lets more requests in flight than the machine's queue holds, status
+/// replies come back up with their ids, telemetry at the subscribed rate.
+#[test]
+fn requests_through_the_link_queues_respect_the_credit_and_get_replies() {
+    use controller_core::link::{RealtimeRequest, Seq};
+    use controller_core::machine::{Channels, Down, MachinePort, Up, REQUEST_QUEUE};
+    let (mut m, mut w) = machine();
+    let mut ch = Channels::new();
+    let mut program = vec![
+        Request::Subscribe { every_periods: 100 },
+        Request::Arm,
+        Request::Run,
+    ];
+    for k in 1..=40u32 {
+        let x = if k % 2 == 1 { 10.0 } else { 0.0 };
+        program.push(Request::Segment(Segment::line([x, 0.0, 0.0], 50.0, k)));
+    }
+    program.push(Request::EndProgram);
+    let total = program.len() as u32;
+    let mut next = program.into_iter();
+    let mut pending = next.next();
+    let (mut statuses, mut telemetry, mut max_queued) = (0u32, 0u32, 0usize);
+    let mut periods_run = 0u32;
+    loop {
+        let (mut link, mut ctl) = ch.split();
+        // the host sends while the credit allows
+        while let Some(r) = pending.take() {
+            if link.free_slots() == 0 {
+                pending = Some(r);
+                break;
+            }
+            link.down(Down::Request(r));
+            pending = next.next();
+        }
+        if periods_run.is_multiple_of(1000) {
+            link.down(Down::Realtime {
+                id: Seq(periods_run as u16),
+                req: RealtimeRequest::Status,
+            });
+        }
+        m.linked_period(&mut w, &mut ctl);
+        w.advance();
+        periods_run += 1;
+        max_queued = max_queued.max(m.status().queued as usize);
+        while let Some(u) = link.up() {
+            match u {
+                Up::Status { id, status } => {
+                    assert_eq!(id.0, (periods_run - 1) as u16);
+                    assert!(status.period >= periods_run - 1);
+                    statuses += 1;
+                }
+                Up::Telemetry(t) => {
+                    assert_eq!(t.period % 100, 0, "{}", t.period);
+                    telemetry += 1;
+                }
+            }
+        }
+        if pending.is_none() && m.status().program_done && periods_run > 10 {
+            break;
+        }
+        assert!(periods_run < 300_000, "the program did not end");
+    }
+    assert!(max_queued <= REQUEST_QUEUE);
+    assert_eq!(m.retired(), total);
+    assert_eq!(m.status().executed, total);
+    assert_eq!(statuses, periods_run.div_ceil(1000));
+    // one sample per 100 periods from the subscription on (±1 for the ends)
+    assert!(
+        telemetry.abs_diff(periods_run / 100) <= 1,
+        "{telemetry} in {periods_run}"
+    );
+    assert!(m.status().pos_mm[0].abs() < 0.01);
+}
+
+/// A planner restarted in place is the planner `new` builds, and runs a program the same
+/// to the bit.
+#[test]
+fn a_planner_restarted_in_place_equals_a_new_one() {
+    let cfg = settings().planner_config(RATE_HZ);
+    let mut used = Box::new(MachinePlanner::new(&cfg, [0.0; 3]).unwrap());
+    for k in 1..=10u32 {
+        used.push(&Segment::line([k as f32, (k % 3) as f32, 0.0], 80.0, k))
+            .unwrap();
+    }
+    for _ in 0..1500 {
+        used.tick();
+    }
+    used.hold();
+    for _ in 0..50 {
+        used.tick();
+    }
+    let start = [3.0, -2.0, 1.0];
+    used.restart(&cfg, start).unwrap();
+    let mut fresh = Box::new(MachinePlanner::new(&cfg, start).unwrap());
+    assert_eq!(used.planner(), fresh.planner());
+    // and so is the blank one, restarted
+    let mut blank = Box::new(MachinePlanner::BLANK);
+    blank.restart(&cfg, start).unwrap();
+    assert_eq!(blank.planner(), fresh.planner());
+    for k in 1..=6u32 {
+        let seg = Segment::line([3.0 + k as f32, -2.0, 1.0 + (k % 2) as f32], 60.0, k);
+        used.push(&seg).unwrap();
+        fresh.push(&seg).unwrap();
+    }
+    for _ in 0..8000 {
+        assert_eq!(used.tick(), fresh.tick());
+    }
+    // a bad configuration changes nothing
+    let mut bad = cfg;
+    bad.period_s = -1.0;
+    assert!(used.restart(&bad, [0.0; 3]).is_err());
+    assert_eq!(used.planner(), fresh.planner());
 }

@@ -28,6 +28,10 @@ fn main() {
 
 #[cfg(target_os = "none")]
 mod board;
+// (the board build does not run the machine behind the link yet: see link.rs)
+#[cfg(target_os = "none")]
+#[cfg_attr(not(feature = "qemu"), allow(dead_code))]
+mod link;
 #[cfg(target_os = "none")]
 mod logger;
 #[cfg(all(target_os = "none", not(feature = "qemu")))]
@@ -62,7 +66,16 @@ mod app {
     #[cfg(not(feature = "qemu"))]
     use crate::period::{BoardPeriod as Period, End};
     #[cfg(feature = "qemu")]
-    use crate::qemu::rig::{End, Rig as Period};
+    use crate::qemu::{rig::End, Period};
+    // (RTIC names the types of every local resource, cfg'd ones too)
+    #[allow(unused_imports)]
+    use {crate::board::serial::HostUart, crate::link::LinkTask};
+    #[cfg(feature = "qemu")]
+    use {
+        crate::board::serial::{RxQueue, TxQueue},
+        crate::qemu::link_rig::FwMachine,
+        controller_core::machine::Channels,
+    };
 
     // (RTIC names the types of every local resource, cfg'd ones too.)
     use controller_core::servo::Command;
@@ -100,6 +113,10 @@ mod app {
         arm: board::inputs::ArmButton,
         #[cfg(not(feature = "qemu"))]
         commands: Producer<'static, Command>,
+        #[cfg(feature = "qemu")]
+        host_uart: Option<HostUart>,
+        #[cfg(feature = "qemu")]
+        link_task: Option<LinkTask>,
     }
 
     /// The command mailbox: lock-free single producer (the button task), single consumer
@@ -140,12 +157,36 @@ mod app {
             (period, board.arm, producer)
         };
         #[cfg(feature = "qemu")]
-        let period = {
+        let (period, host_uart, link_task) = {
             let _ = cx.local.mailbox;
             // The encoder timers and TIM1 are configured (and TIM1's outputs disabled)
             // but not used: the simulated world stands in for them.
             let _ = (board.encoders, board.servo, board.arm, board.clock);
-            Period::boot(board.safety)
+            // the link's queues and the machine's place: statics of the QEMU build only
+            // (init runs once, so each `singleton!` yields its static)
+            let (Some(channels), Some(rx_queue), Some(tx_queue), Some(machine)) = (
+                cortex_m::singleton!(: Channels = Channels::new()),
+                cortex_m::singleton!(: RxQueue = RxQueue::new()),
+                cortex_m::singleton!(: TxQueue = TxQueue::new()),
+                cortex_m::singleton!(: Option<FwMachine> = None),
+            ) else {
+                crate::qemu::exit(crate::qemu::EXIT_CONFIG)
+            };
+            let (port, control) = channels.split();
+            let (rx_in, rx_out) = rx_queue.split();
+            let (tx_in, tx_out) = tx_queue.split();
+            let period = Period::boot(board.safety, machine, control);
+            let link = period.is_link();
+            let host_uart = board
+                .host_uart
+                .filter(|_| link)
+                .map(|s| HostUart::new(s, rx_in, tx_out));
+            let link_task = if link {
+                LinkTask::new(port, rx_out, tx_in)
+            } else {
+                None
+            };
+            (period, host_uart, link_task)
         };
 
         let mut tick = board.tick;
@@ -172,6 +213,10 @@ mod app {
         if button::spawn().is_err() {
             defmt::error!("button task already running");
         }
+        #[cfg(feature = "qemu")]
+        if link_task.is_some() && link::spawn().is_err() {
+            defmt::error!("link task already running");
+        }
         (
             Shared {
                 telemetry: Telemetry::boot(),
@@ -185,6 +230,10 @@ mod app {
                 arm,
                 #[cfg(not(feature = "qemu"))]
                 commands,
+                #[cfg(feature = "qemu")]
+                host_uart,
+                #[cfg(feature = "qemu")]
+                link_task,
             },
         )
     }
@@ -252,6 +301,32 @@ mod app {
                         defmt::warn!("command mailbox full: {} dropped", c);
                     }
                 }
+            }
+        }
+    }
+
+    /// The host link's UART (`board::serial`): above the control interrupt, so that no
+    /// received byte waits longer than this handler; a few dozen cycles per byte.
+    #[cfg(feature = "qemu")]
+    #[task(binds = USART2, priority = 4, local = [host_uart])]
+    fn host_uart(cx: host_uart::Context) {
+        if let Some(u) = cx.local.host_uart {
+            u.service();
+        }
+    }
+
+    /// The host link (`link`): every millisecond, what arrived, then replies, acks and
+    /// telemetry; pends the UART's interrupt when bytes wait to go out.
+    #[cfg(feature = "qemu")]
+    #[task(priority = 2, local = [link_task])]
+    async fn link(cx: link::Context) {
+        let Some(task) = cx.local.link_task else {
+            return;
+        };
+        loop {
+            Mono::delay(1.millis()).await;
+            if task.run() {
+                rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
             }
         }
     }

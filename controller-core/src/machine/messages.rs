@@ -58,6 +58,8 @@ pub enum Request {
     },
     /// Store the last identification's model of the axis in the settings (outputs off).
     AcceptIdentified { axis: u8 },
+    /// Telemetry: one sample every `every_periods` control periods (0: off).
+    Subscribe { every_periods: u32 },
 }
 
 /// How the last executed request ended.

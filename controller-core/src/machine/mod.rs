@@ -2,13 +2,17 @@
 //! behind the host link. It owns the servo step, the motion planner and the settings, and
 //! turns link requests into servo commands, planner segments and settings changes at a
 //! period boundary ([`Machine::period`]); the link's real-time requests (hold, resume,
-//! stop, status) act at once ([`Machine::realtime`]), and link loss stops the machine.
+//! stop, status) act at the next period boundary, and link loss stops the machine.
 //!
-//! Message types: [`messages`]. Transport: [`crate::link`].
+//! Message types: [`messages`]. The link's end: [`Endpoint`], which reaches the machine
+//! only through the lock-free queues of [`port`] (on the board the link task and the
+//! control interrupt). Transport: [`crate::link`].
 
 mod endpoint;
 pub mod messages;
+pub mod port;
 mod supervisor;
 
 pub use endpoint::Endpoint;
-pub use supervisor::{Machine, MachineError, MachinePlanner, REQUEST_QUEUE};
+pub use port::{Channels, ControlSide, Down, LinkSide, MachinePort, Up};
+pub use supervisor::{Machine, MachineError, MachinePlanner, REQUEST_QUEUE, SEGMENTS_PER_PERIOD};

@@ -8,15 +8,22 @@
 //! could make the output jump. Each period the planner plans ahead and samples the
 //! reference the servo follows in `Run`.
 //!
-//! On the board the planner's planning half belongs in a lower-priority task; here
-//! both halves run in [`Machine::period`] (host simulation, and the board until the link
-//! task is wired).
+//! Behind the link, [`Machine::linked_period`] first takes what the link task queued
+//! (requests, real-time requests, session and link-loss events: [`super::port`]), runs
+//! the period, and hands status replies and telemetry back up, all without waiting.
+//!
+//! Both halves of the planner (planning ahead and sampling) run in the period, and at
+//! most [`SEGMENTS_PER_PERIOD`] segments enter the planner per period, so the cost of a
+//! period stays bounded on the board (servo step + one segment's look-ahead + one
+//! sample); moving the planning half to a lower-priority task is left open.
 
 use core::fmt::Write;
+use core::ops::DerefMut;
 
 use heapless::{Deque, String};
 
 use super::messages::{IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry};
+use super::port::{ControlSide, Down, Up};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
 use crate::motion::planner::{MotionPlanner, PathSample, PlannerConfig, PlannerConfigError};
@@ -29,6 +36,11 @@ use crate::sysid::IdentifyStatus;
 /// in flight than [`Machine::free_slots`] says).
 pub const REQUEST_QUEUE: usize = 16;
 
+/// Segments taken into the planner per control period at most (one segment's look-ahead
+/// costs about 4,300 instructions, `cargo insns` `planner_segment`; at 10 kHz this still
+/// admits 10,000 segments/s).
+pub const SEGMENTS_PER_PERIOD: usize = 1;
+
 /// The machine's planner: 32 segments, 128 spans, 64 spans and 32 steps between its halves.
 pub type MachinePlanner = MotionPlanner<32, 128, 64, 32>;
 
@@ -40,22 +52,30 @@ pub enum MachineError {
     Servo(crate::config::ConfigError),
 }
 
-/// The supervisor (see the module docs).
-pub struct Machine {
+/// The supervisor (see the module docs). The planner (40 KiB) lives where `P` points:
+/// a `Box` on the host, a static on the board (built in place from
+/// [`MotionPlanner::BLANK`](crate::motion::planner::MotionPlanner::BLANK), never copied
+/// through the stack).
+pub struct Machine<P: DerefMut<Target = MachinePlanner>> {
     servo: Servo<f32>,
-    planner: MachinePlanner,
+    planner: P,
     planner_cfg: PlannerConfig,
     settings: Settings,
     rate_hz: u32,
     queue: Deque<Request, REQUEST_QUEUE>,
     executed: u32,
+    /// Requests that left the queue (executed, refused or flushed): the link's credit.
+    retired: u32,
     last: Outcome,
+    /// One telemetry sample every this many periods (0: none).
+    telemetry_every: u32,
+    last_telemetry_period: u32,
     /// A program is running (after `Run`), and its end was announced.
     program: bool,
     program_ended: bool,
     identify: Option<IdentifyMsg>,
     /// A servo command of the supervisor's own (stop at program end, link loss).
-    pending: Option<Command>,
+    pending: heapless::Vec<Command, 2>,
     sample: PathSample,
     held: bool,
 }
@@ -74,14 +94,16 @@ fn refused(s: &str) -> Outcome {
     Outcome::Refused(text(s))
 }
 
-impl Machine {
-    /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder registers now,
-    /// standing for wide counts `start_counts` (0 on a board at boot).
+impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
+    /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder
+    /// registers now, standing for wide counts `start_counts` (0 on a board at boot);
+    /// `planner` is restarted in place.
     pub fn new(
         settings: &Settings,
         rate_hz: u32,
         raw: [u32; 3],
         start_counts: [i64; 3],
+        mut planner: P,
     ) -> Result<Self, MachineError> {
         let cfg = settings
             .servo_config(rate_hz)
@@ -90,7 +112,7 @@ impl Machine {
         // (validated with the rest of the tree by `servo_config` above)
         let pc = settings.planner_config(rate_hz);
         let start = servo.snapshot().pos;
-        let planner = MachinePlanner::new(&pc, start).map_err(MachineError::Planner)?;
+        planner.restart(&pc, start).map_err(MachineError::Planner)?;
         let sample = PathSample {
             pos_mm: crate::Vec3::from_array(start),
             vel_mm_s: crate::Vec3::zero(),
@@ -110,11 +132,14 @@ impl Machine {
             rate_hz,
             queue: Deque::new(),
             executed: 0,
+            retired: 0,
             last: Outcome::None,
+            telemetry_every: 0,
+            last_telemetry_period: 0,
             program: false,
             program_ended: false,
             identify: None,
-            pending: None,
+            pending: heapless::Vec::new(),
             sample,
             held: false,
         })
@@ -130,13 +155,26 @@ impl Machine {
     pub fn submit(&mut self, r: Request) {
         if self.queue.push_back(r).is_err() {
             self.executed = self.executed.wrapping_add(1);
+            self.retired = self.retired.wrapping_add(1);
             self.last = refused("request queue full (the host ignored the link's credit)");
         }
     }
 
-    /// A new link session: requests of the old one are dropped, numbering restarts.
+    /// A servo command of the supervisor's own for the next period (the newest wins when
+    /// two are already waiting).
+    fn pend(&mut self, c: Command) {
+        if let Err(c) = self.pending.push(c) {
+            if let Some(last) = self.pending.last_mut() {
+                *last = c;
+            }
+        }
+    }
+
+    /// A new link session: requests of the old one are dropped, numbering restarts, and a
+    /// `LinkLost` fault's cause is gone (a reset can clear it).
     pub fn session_started(&mut self) {
-        self.queue.clear();
+        self.pend(Command::LinkUp);
+        self.retire_queue();
         self.executed = 0;
         self.last = Outcome::None;
     }
@@ -174,8 +212,64 @@ impl Machine {
         self.stop_program(Some(Command::LinkLost));
     }
 
-    fn stop_program(&mut self, cmd: Option<Command>) {
+    /// Flush the request queue (counted as retired for the link's credit).
+    fn retire_queue(&mut self) {
+        self.retired = self.retired.wrapping_add(self.queue.len() as u32);
         self.queue.clear();
+    }
+
+    /// Requests retired so far (executed, refused or flushed).
+    pub fn retired(&self) -> u32 {
+        self.retired
+    }
+
+    /// Telemetry every `periods` control periods (0: off).
+    pub fn set_telemetry_every(&mut self, periods: u32) {
+        self.telemetry_every = periods;
+    }
+
+    /// One control period behind the link: the link's events, the period, the replies
+    /// and telemetry (see the module docs).
+    pub fn linked_period<IO: ServoIo<f32>>(&mut self, io: &mut IO, link: &mut ControlSide<'_>) {
+        while let Some(d) = link.take() {
+            match d {
+                Down::Request(r) => self.submit(r),
+                Down::SessionStarted => self.session_started(),
+                Down::Realtime { id, req } => {
+                    self.realtime(req);
+                    link.send(Up::Status {
+                        id,
+                        status: self.status(),
+                    });
+                }
+                Down::StatusOnly { id } => link.send(Up::Status {
+                    id,
+                    status: self.status(),
+                }),
+                Down::LinkLost => self.link_lost(),
+            }
+        }
+        self.period(io);
+        link.publish_retired(self.retired);
+        if let Some(t) = self.telemetry_due() {
+            link.send(Up::Telemetry(t));
+        }
+    }
+
+    /// The telemetry sample of this period, when one is due.
+    pub fn telemetry_due(&mut self) -> Option<Telemetry> {
+        let p = self.servo.snapshot().period;
+        if self.telemetry_every == 0
+            || p.wrapping_sub(self.last_telemetry_period) < self.telemetry_every
+        {
+            return None;
+        }
+        self.last_telemetry_period = p;
+        Some(self.telemetry())
+    }
+
+    fn stop_program(&mut self, cmd: Option<Command>) {
+        self.retire_queue();
         self.sample.vel_mm_s = crate::Vec3::zero();
         self.sample.acc_mm_s2 = crate::Vec3::zero();
         if self.program {
@@ -185,21 +279,28 @@ impl Machine {
         self.program_ended = false;
         self.held = false;
         if let Some(c) = cmd {
-            self.pending = Some(c);
+            self.pend(c);
         }
     }
 
     /// One control period: execute what is queued, plan, sample, run the servo step.
     pub fn period<IO: ServoIo<f32>>(&mut self, io: &mut IO) {
         let mut cmds: heapless::Vec<Command, 4> = heapless::Vec::new();
-        if let Some(c) = self.pending.take() {
+        for c in self.pending.drain(..) {
             let _ = cmds.push(c);
         }
         // a servo command's outcome is known after the servo step: one per period
         let mut servo_request = false;
+        let mut segments = 0;
         while let Some(r) = self.queue.front() {
             if servo_request {
                 break;
+            }
+            if matches!(r, Request::Segment(_)) {
+                if segments == SEGMENTS_PER_PERIOD {
+                    break;
+                }
+                segments += 1;
             }
             let r = r.clone();
             match self.execute(&r, &mut cmds) {
@@ -210,7 +311,9 @@ impl Machine {
                 Step::Servo => servo_request = true,
                 Step::Wait => break,
             }
-            self.queue.pop_front();
+            if self.queue.pop_front().is_some() {
+                self.retired = self.retired.wrapping_add(1);
+            }
         }
         if self.program {
             self.sample = self.planner.tick();
@@ -228,7 +331,7 @@ impl Machine {
             match s.state {
                 ServoState::Run => {
                     if self.program_ended && self.planner.is_idle() && !self.held {
-                        self.pending = Some(Command::Stop);
+                        self.pend(Command::Stop);
                         self.program = false;
                         self.program_ended = false;
                     }
@@ -294,9 +397,9 @@ impl Machine {
                 if self.servo.state() != ServoState::Idle {
                     return Step::Done(refused("run: a program is already running"));
                 }
-                match MachinePlanner::new(&self.planner_cfg, start) {
-                    Ok(p) => self.planner = p,
-                    Err(_) => return Step::Done(refused("run: planner configuration invalid")),
+                // in place: a planner is 40 KiB, too much for the interrupt's stack
+                if self.planner.restart(&self.planner_cfg, start).is_err() {
+                    return Step::Done(refused("run: planner configuration invalid"));
                 }
                 self.program = true;
                 self.program_ended = false;
@@ -320,6 +423,11 @@ impl Machine {
                         Step::Done(Outcome::Refused(t))
                     }
                 }
+            }
+            Request::Subscribe { every_periods } => {
+                self.telemetry_every = *every_periods;
+                self.last_telemetry_period = self.servo.snapshot().period;
+                Step::Done(Outcome::Done)
             }
             Request::EndProgram => {
                 if self.program {
@@ -443,7 +551,7 @@ impl Machine {
             vel_mm_s: s.vel,
             planner_free: self.planner.free_slots() as u16,
             queued: self.queue.len() as u16,
-            program_done: !self.program && self.queue.is_empty() && self.pending.is_none(),
+            program_done: !self.program && self.queue.is_empty() && self.pending.is_empty(),
             progress: s.progress,
             identify: self.identify,
         }

@@ -90,6 +90,28 @@ impl SwitchConfig {
         max_mm: f64::INFINITY,
         index_period_counts: 0,
     };
+
+    /// The limit switches where `settings`' homing expects them, per axis: on the side
+    /// the axis homes towards, at its `switch_pos_mm`; none where homing is off. The
+    /// simulated machine of `gantry --sim` and of the firmware's QEMU link rig.
+    pub fn for_homing(settings: &crate::settings::Settings) -> [Self; AXES] {
+        settings.axis.map(|a| {
+            let h = a.homing;
+            if !h.enabled {
+                Self::NONE
+            } else if h.direction.switch() == 0 {
+                Self {
+                    min_mm: f64::from(h.switch_pos_mm),
+                    ..Self::NONE
+                }
+            } else {
+                Self {
+                    max_mm: f64::from(h.switch_pos_mm),
+                    ..Self::NONE
+                }
+            }
+        })
+    }
 }
 
 /// Imperfections of the simulated sensors and actuators beyond quantisation.

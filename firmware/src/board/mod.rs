@@ -50,6 +50,8 @@ pub mod inputs;
 pub mod io;
 pub mod leds;
 pub mod pwm;
+#[cfg_attr(not(feature = "qemu"), allow(dead_code))]
+pub mod serial;
 pub mod shutdown;
 pub mod tick;
 #[cfg(not(feature = "qemu"))]
@@ -81,6 +83,9 @@ pub struct Board {
     /// The independent watchdog, not started yet.
     #[cfg(not(feature = "qemu"))]
     pub watchdog: watchdog::Watchdog,
+    /// The host link's USART2 (PA2/PA3), configured with its receive interrupt.
+    #[cfg(feature = "qemu")]
+    pub host_uart: Option<stm32f4xx_hal::serial::Serial<pac::USART2>>,
 }
 
 /// Safe pins, clocks, timers. Outputs end up disabled; the control timer is configured but
@@ -205,6 +210,15 @@ pub fn init(dp: pac::Peripherals) -> Board {
 
     let tick = ControlTick::new(dp.TIM4.counter_hz(&mut rcc));
 
+    #[cfg(feature = "qemu")]
+    let host_uart = match serial::init(dp.USART2, gpioa.pa2, gpioa.pa3, &mut rcc) {
+        Ok(s) => Some(s),
+        Err(_) => {
+            defmt::error!("USART2: {=u32} baud cannot be set", serial::HOST_BAUD);
+            None
+        }
+    };
+
     Board {
         encoders,
         servo,
@@ -215,5 +229,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         clock,
         #[cfg(not(feature = "qemu"))]
         watchdog: watchdog::Watchdog::new(dp.IWDG),
+        #[cfg(feature = "qemu")]
+        host_uart,
     }
 }

@@ -4,7 +4,9 @@
 //! against the simulated world instead of encoders and PWM, then the world advances.
 //!
 //! - [`cmdline`]: the scenario name from the semihosting command line;
-//! - [`rig`]: the per-period work of the control interrupt;
+//! - [`rig`]: the per-period work of the control interrupt for a scenario;
+//! - [`link_rig`]: the machine behind the host link on USART2 (name `link`: what
+//!   `gantry --qemu` boots);
 //! - [`report`]: the final lines (human-readable figures, interrupt statistics, and one
 //!   machine-readable `gantry-figures` line) and the exit.
 //!
@@ -20,8 +22,82 @@
 //! step differs: they exit here instead of waiting for the watchdog.
 
 pub mod cmdline;
+pub mod link_rig;
 pub mod report;
 pub mod rig;
+
+use controller_core::machine::ControlSide;
+use controller_core::servo::snapshot::Snapshot;
+
+use crate::board::inputs::SafetyPins;
+use link_rig::{FwMachine, LinkRig};
+use rig::{End, Rig};
+
+/// Command-line name of the link rig.
+pub const LINK_RIG: &str = "link";
+
+/// What the control interrupt runs in QEMU: a scenario ([`Rig`]) or the machine behind
+/// the host link ([`LinkRig`]).
+// (it lives in a static: its size is the larger rig's whichever runs)
+#[allow(clippy::large_enum_variant)]
+pub enum Period {
+    Scenario(Rig),
+    Link(LinkRig),
+}
+
+impl Period {
+    /// The rig the command line names (`link`, or a scenario).
+    pub fn boot(
+        safety: SafetyPins,
+        machine: &'static mut Option<FwMachine>,
+        control: ControlSide<'static>,
+    ) -> Self {
+        if cmdline::with_scenario_name(|n| n == LINK_RIG) {
+            Self::Link(LinkRig::boot(machine, control))
+        } else {
+            Self::Scenario(Rig::boot(safety))
+        }
+    }
+
+    pub fn is_link(&self) -> bool {
+        matches!(self, Self::Link(_))
+    }
+
+    #[inline]
+    pub fn control(&mut self) -> &Snapshot {
+        match self {
+            Self::Scenario(r) => r.control(),
+            Self::Link(r) => r.control(),
+        }
+    }
+
+    #[inline]
+    pub fn end_of_period(&mut self, overran: bool) {
+        if let Self::Scenario(r) = self {
+            r.end_of_period(overran);
+        }
+    }
+
+    pub fn snapshot(&self) -> &Snapshot {
+        match self {
+            Self::Scenario(r) => r.snapshot(),
+            Self::Link(r) => r.snapshot(),
+        }
+    }
+
+    /// The period's figures and the world's advance; the result once a scenario is over
+    /// (the link rig runs until QEMU is stopped).
+    #[inline]
+    pub fn finish(&mut self) -> Option<End> {
+        match self {
+            Self::Scenario(r) => r.finish(),
+            Self::Link(r) => {
+                r.finish();
+                None
+            }
+        }
+    }
+}
 
 /// The run completed.
 pub const EXIT_COMPLETED: i32 = 0;

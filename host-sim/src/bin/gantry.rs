@@ -1,17 +1,19 @@
 //! `gantry`: command a machine over the host link. `--sim` runs the machine's supervisor,
-//! planner and servo step in-process against the simulated physical gantry (one machine
-//! per invocation: it powers up at the work origin, unhomed, disarmed). See the README
-//! ("The gantry CLI") and docs/link-protocol.md.
+//! planner and servo step in-process against the simulated physical gantry; `--qemu`
+//! boots the firmware's QEMU build in its link rig and talks to it over its emulated
+//! USART2 (one machine per invocation either way: it powers up at the work origin,
+//! unhomed, disarmed). See the README ("The gantry CLI") and docs/link-protocol.md.
 
 use anyhow::{bail, Context, Result};
 
 /// The simulated machine's control rate (host-sim/scenarios/gcode.toml), Hz.
 const CONTROL_RATE_HZ: u32 = 10_000;
-use clap::{Parser, Subcommand};
+use clap::{ArgGroup, Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use host_sim::cli::client::{expect_done, Client};
+use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
 use host_sim::cli::sim::{SimMachine, SimModels};
-use host_sim::cli::{self, Hold, AXES};
+use host_sim::cli::{self, Hold, Transport, AXES};
 use host_sim::output::report::write_json;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -19,13 +21,20 @@ use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(name = "gantry", about = "Command a gantry over the host link")]
+#[command(group(ArgGroup::new("machine").required(true).args(["sim", "qemu"])))]
 struct Cli {
-    /// The simulated gantry in-process (the only target in this build: the firmware's
-    /// link task for a board or QEMU is not wired yet).
-    #[arg(long, required = true)]
-    sim: bool,
-    /// Start the simulated machine with factory settings (no axis model: identify first).
+    /// The simulated gantry in-process.
     #[arg(long)]
+    sim: bool,
+    /// The firmware's QEMU build (its link rig: the simulated gantry behind the real
+    /// firmware's USART2 link), booted on qemu-system-arm.
+    #[arg(long)]
+    qemu: bool,
+    /// The firmware ELF for --qemu (default: what `cargo fw-qemu-build` builds).
+    #[arg(long, requires = "qemu")]
+    elf: Option<PathBuf>,
+    /// Start the simulated machine with factory settings (no axis model: identify first).
+    #[arg(long, requires = "sim")]
     factory: bool,
     /// Telemetry rate of the session, Hz (1-10000).
     #[arg(long, default_value_t = 1000)]
@@ -133,9 +142,6 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
-    if !cli.sim {
-        bail!("only --sim is available");
-    }
     if cli.telemetry_hz == 0 || cli.telemetry_hz > 10_000 {
         bail!(
             "--telemetry-hz must be within 1-10000, got {}",
@@ -148,8 +154,28 @@ fn run(cli: Cli) -> Result<ExitCode> {
         SimModels::Designed
     };
     let decimation = 10_000 / cli.telemetry_hz;
-    let mut c = Client::connect(SimMachine::new(models, decimation)?)?;
-    match cli.command {
+    if cli.qemu {
+        let elf = cli.elf.unwrap_or_else(|| PathBuf::from(DEFAULT_ELF));
+        let mut c = Client::connect(QemuMachine::boot(&elf)?)?;
+        expect_done(
+            "telemetry subscription",
+            c.exec(Request::Subscribe {
+                every_periods: decimation,
+            })?,
+        )?;
+        session(c, cli.command, decimation)
+    } else {
+        session(
+            Client::connect(SimMachine::new(models, decimation)?)?,
+            cli.command,
+            decimation,
+        )
+    }
+}
+
+/// What the subcommand does with the machine behind `c`.
+fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Result<ExitCode> {
+    match command {
         Cmd::Status { json } => {
             let s = c.status()?;
             if json {

@@ -37,6 +37,8 @@ pub struct Client<T: Transport> {
     /// Telemetry received since the last [`Client::take_telemetry`].
     telemetry: Vec<Telemetry>,
     pub telemetry_gaps: u32,
+    /// The newest control period number seen in a status or telemetry frame.
+    last_period: u32,
 }
 
 impl<T: Transport> Client<T> {
@@ -61,6 +63,7 @@ impl<T: Transport> Client<T> {
             status_id: None,
             telemetry: Vec::new(),
             telemetry_gaps: 0,
+            last_period: 0,
         };
         while c.link.state() == HostState::Handshaking {
             c.pump()?;
@@ -86,6 +89,12 @@ impl<T: Transport> Client<T> {
             self.transport.send(&f)?;
         }
         res.map_err(|e| anyhow!("link failed: {e:?}"))?;
+        self.receive()
+    }
+
+    /// Handle what arrived, sending nothing (not even heartbeats: a host gone silent).
+    pub fn receive(&mut self) -> Result<()> {
+        let now = self.transport.now_ms();
         self.transport.recv(&mut self.rx)?;
         let bytes = std::mem::take(&mut self.rx);
         let mut rest: &[u8] = &bytes;
@@ -103,6 +112,7 @@ impl<T: Transport> Client<T> {
                                 arrival,
                                 Arrival::InOrder | Arrival::Gap { .. } | Arrival::Late
                             ) {
+                                self.last_period = self.last_period.max(sample.period);
                                 self.telemetry.push(sample);
                             }
                         }
@@ -110,6 +120,7 @@ impl<T: Transport> Client<T> {
                             if Some(id) == self.status_id {
                                 self.status_id = None;
                             }
+                            self.last_period = self.last_period.max(status.period);
                             self.status = Some(status);
                         }
                         Ok(_) => {}
@@ -208,6 +219,17 @@ impl<T: Transport> Client<T> {
             self.transport.wait()?;
         }
         Ok(())
+    }
+
+    /// The newest control period number the machine reported (status or telemetry): the
+    /// machine's clock as the host sees it.
+    pub fn last_period(&self) -> u32 {
+        self.last_period
+    }
+
+    /// The transport, for a new session on the same line.
+    pub fn into_transport(self) -> T {
+        self.transport
     }
 
     /// Telemetry received since the last call.

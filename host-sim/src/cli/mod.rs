@@ -1,12 +1,14 @@
 //! The `gantry` command line: a session over the host link with a machine, and what each
 //! subcommand does with it. The machine is `--sim` (the supervisor, planner and servo step
-//! in-process against the simulated gantry, [`sim`]); the board (`--port`) and the
-//! firmware in QEMU (`--qemu`) need the firmware's link task, which is not wired yet.
+//! in-process against the simulated gantry, [`sim`]) or `--qemu` (the firmware's QEMU
+//! build in its link rig, over its emulated USART2, [`qemu`]); a board (`--port`) needs
+//! the machine in the board's control interrupt, which is not wired yet.
 //!
 //! Every subcommand speaks the link protocol ([`client`]): requests on the reliable
 //! channel, status by real-time request, telemetry for the program run.
 
 pub mod client;
+pub mod qemu;
 pub mod sim;
 
 use crate::gcode::Travel;
@@ -145,12 +147,15 @@ pub struct Hold {
 fn operator<T: Transport>(
     c: &mut Client<T>,
     hold: Option<Hold>,
-    t0: u32,
+    p0: u32,
+    period_s: f64,
     held_at: &mut Option<u32>,
     resumed: &mut bool,
 ) -> Result<()> {
     let Some(h) = hold else { return Ok(()) };
-    let now = c.transport.now_ms().wrapping_sub(t0);
+    // machine time since the program started (the machine's periods, whatever the
+    // transport's clock)
+    let now = (f64::from(c.last_period().wrapping_sub(p0)) * period_s * 1000.0) as u32;
     match *held_at {
         None if now as f32 >= h.at_s * 1000.0 => {
             c.realtime(RealtimeRequest::Hold)?;
@@ -208,7 +213,8 @@ pub fn run_program<T: Transport>(
     expect_done("run", c.exec(Request::Run)?)?;
     c.take_telemetry();
     let started = Instant::now();
-    let t0 = c.transport.now_ms();
+    // the program's time is the machine's: its period count
+    let p0 = c.status()?.period;
     let bar = progress.then(|| {
         let b = ProgressBar::new(segs.len() as u64);
         b.set_style(
@@ -222,7 +228,7 @@ pub fn run_program<T: Transport>(
     for (k, seg) in segs.iter().enumerate() {
         c.send(Request::Segment(*seg))?;
         c.pump()?;
-        operator(c, hold, t0, &mut held_at, &mut resumed)?;
+        operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         samples.extend(c.take_telemetry());
         if let Some(b) = &bar {
             b.set_position(k as u64 + 1);
@@ -233,7 +239,7 @@ pub fn run_program<T: Transport>(
         b.finish_and_clear();
     }
     let end = loop {
-        operator(c, hold, t0, &mut held_at, &mut resumed)?;
+        operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         let s = c.status()?;
         samples.extend(c.take_telemetry());
         if matches!(s.last, Outcome::Refused(_)) {
@@ -250,7 +256,7 @@ pub fn run_program<T: Transport>(
         }
         c.sleep_ms(POLL_MS)?;
     };
-    let duration_s = f64::from(c.transport.now_ms().wrapping_sub(t0)) / 1000.0;
+    let duration_s = f64::from(end.period.wrapping_sub(p0)) * period_s;
     let compute_s = started.elapsed().as_secs_f64();
 
     // figures from telemetry: every sample in Run (a jerk only between consecutive ones)

@@ -1,14 +1,15 @@
 //! `gantry --sim`: the machine's supervisor ([`Machine`]), planner and servo step
 //! in-process against the simulated physical gantry, behind the device end of the link
 //! ([`Endpoint`]). The host talks to it in link frames, byte for byte what a board gets on
-//! its USART; simulated time advances only when the host waits
-//! ([`Transport::wait`]), one control period after another.
+//! its USART, and the endpoint reaches the machine through the same lock-free queues as
+//! the firmware's link task and control interrupt ([`Channels`]); simulated time advances
+//! only when the host waits ([`Transport::wait`]), one control period after another.
 
 use super::Transport;
 use crate::studies::gcode::machine_and_planner;
 use anyhow::{anyhow, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
-use controller_core::machine::{Endpoint, Machine};
+use controller_core::machine::{Channels, Endpoint, Machine, MachinePlanner};
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::world::{Injection, SwitchConfig, World};
 
@@ -18,7 +19,8 @@ const WAIT_MS: u32 = 1;
 /// The simulated machine and its link end.
 pub struct SimMachine {
     world: World,
-    machine: Box<Machine>,
+    machine: Machine<Box<MachinePlanner>>,
+    channels: Box<Channels>,
     endpoint: Endpoint,
     rate_hz: u32,
     periods: u64,
@@ -47,39 +49,27 @@ impl SimMachine {
             }
         }
         let mut wcfg = run.world;
-        for (sw, a) in wcfg.switches.iter_mut().zip(&settings.axis) {
-            let h = a.homing;
-            *sw = if !h.enabled {
-                SwitchConfig::NONE
-            } else if h.direction.switch() == 0 {
-                SwitchConfig {
-                    min_mm: f64::from(h.switch_pos_mm),
-                    ..SwitchConfig::NONE
-                }
-            } else {
-                SwitchConfig {
-                    max_mm: f64::from(h.switch_pos_mm),
-                    ..SwitchConfig::NONE
-                }
-            };
-        }
+        wcfg.switches = SwitchConfig::for_homing(&settings);
         let rate_hz = run.servo.rate_hz;
         let servo_cfg = settings
             .servo_config(rate_hz)
             .map_err(|e| anyhow!("settings: {e:?}"))?;
         let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
-        let machine = Machine::new(
+        let mut machine = Machine::new(
             &settings,
             rate_hz,
             world.counter_registers(),
             world.counts(),
+            Box::new(MachinePlanner::BLANK),
         )
         .map_err(|e| anyhow!("machine: {e:?}"))?;
-        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG, telemetry_periods)
-            .map_err(|e| anyhow!("link: {e}"))?;
+        machine.set_telemetry_every(telemetry_periods);
+        let endpoint =
+            Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).map_err(|e| anyhow!("link: {e}"))?;
         Ok(Self {
             world,
-            machine: Box::new(machine),
+            machine,
+            channels: Box::new(Channels::new()),
             endpoint,
             rate_hz,
             periods: 0,
@@ -102,7 +92,7 @@ impl SimMachine {
         self.periods
     }
 
-    pub fn machine(&self) -> &Machine {
+    pub fn machine(&self) -> &Machine<Box<MachinePlanner>> {
         &self.machine
     }
 
@@ -114,13 +104,13 @@ impl SimMachine {
     pub fn advance(&mut self, n: u32) {
         let mut out = std::mem::take(&mut self.to_host);
         for _ in 0..n {
-            self.machine.period(&mut self.world);
+            let (mut link, mut control) = self.channels.split();
+            self.machine.linked_period(&mut self.world, &mut control);
             self.world.advance();
             self.periods += 1;
-            let now = self.ms();
-            self.endpoint.poll(&mut self.machine, now, &mut |b: &[u8]| {
-                out.extend_from_slice(b)
-            });
+            let now = (self.periods * 1000 / u64::from(self.rate_hz)) as u32;
+            self.endpoint
+                .poll(&mut link, now, &mut |b: &[u8]| out.extend_from_slice(b));
         }
         self.to_host = out;
     }
@@ -130,8 +120,9 @@ impl Transport for SimMachine {
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
         let now = self.ms();
         let mut out = std::mem::take(&mut self.to_host);
+        let (mut link, _) = self.channels.split();
         self.endpoint
-            .on_bytes(&mut self.machine, bytes, now, &mut |b: &[u8]| {
+            .on_bytes(&mut link, bytes, now, &mut |b: &[u8]| {
                 out.extend_from_slice(b)
             });
         self.to_host = out;

@@ -97,6 +97,21 @@ fn positive3(v: [f32; 3], name: &'static str) -> Result<[f32; 3], PlannerConfigE
 }
 
 impl Settings {
+    /// No configuration (zero limits): what [`super::planner::Planner::BLANK`] holds
+    /// until it is restarted with a validated one.
+    pub const BLANK: Self = Self {
+        period_s: 0.0,
+        vel_max: [0.0; 3],
+        acc_max: [0.0; 3],
+        jerk_max: [0.0; 3],
+        tolerance_mm: 0.0,
+        share: 0.0,
+        arc_tol_mm: 0.0,
+        min_segment_mm: 0.0,
+        acc_floor: 0.0,
+        jerk_floor: 0.0,
+    };
+
     /// Shortest span the planner cuts (mm): half the shortest segment.
     pub fn min_span_mm(&self) -> f32 {
         0.5 * self.min_segment_mm

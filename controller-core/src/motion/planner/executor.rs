@@ -130,7 +130,7 @@ fn seq_before(a: u32, b: u32) -> bool {
 impl Executor {
     /// At rest at `start_mm`; `period_s` is the control period (validated by the planner's
     /// settings: use `Planner::settings().period_s`).
-    pub fn new(period_s: f32, start_mm: [f32; 3]) -> Self {
+    pub const fn new(period_s: f32, start_mm: [f32; 3]) -> Self {
         Self {
             period_s,
             mode: ExecMode::Idle,

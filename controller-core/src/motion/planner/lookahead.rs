@@ -68,11 +68,29 @@ pub(crate) struct SpeedConstraint {
     pub soft: bool,
 }
 
+impl SpeedConstraint {
+    pub const ZERO: Self = Self {
+        dist: 0.0,
+        w: 0.0,
+        acc: 0.0,
+        jerk: 0.0,
+        soft: false,
+    };
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct AccConstraint {
     pub dist: f32,
     pub acc: f32,
     pub jerk: f32,
+}
+
+impl AccConstraint {
+    pub const ZERO: Self = Self {
+        dist: 0.0,
+        acc: 0.0,
+        jerk: 0.0,
+    };
 }
 
 /// What the scan found ahead.
@@ -90,11 +108,11 @@ pub(crate) struct Ahead {
 }
 
 impl Ahead {
-    pub fn new(cap: f32, acc: f32, jerk: f32) -> Self {
+    pub const fn new(cap: f32, acc: f32, jerk: f32) -> Self {
         Self {
-            speed: [SpeedConstraint::default(); MAX_CONSTRAINTS],
+            speed: [SpeedConstraint::ZERO; MAX_CONSTRAINTS],
             n_speed: 0,
-            accel: [AccConstraint::default(); MAX_CONSTRAINTS],
+            accel: [AccConstraint::ZERO; MAX_CONSTRAINTS],
             n_accel: 0,
             cap,
             acc,

@@ -19,7 +19,7 @@ impl<const S: usize> MinTree<S> {
         "the span capacity must be a power of two (≥ 2)"
     );
 
-    pub fn new() -> Self {
+    pub const fn new() -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::POW2;
         Self {

@@ -38,6 +38,29 @@ impl<const N: usize, const S: usize, const C: usize, const B: usize> MotionPlann
         })
     }
 
+    /// A planner with no configuration, to be [`MotionPlanner::restart`]ed before use: a
+    /// constant, so a static can hold one without a copy on the stack (the firmware).
+    pub const BLANK: Self = Self {
+        planner: Planner::BLANK,
+        executor: Executor::new(0.0, [0.0; 3]),
+        spans: Deque::new(),
+        steps: Deque::new(),
+    };
+
+    /// As [`MotionPlanner::new`], in place (no copy of the planner on the stack: the
+    /// firmware restarts it in the control interrupt). Nothing changes on an error.
+    pub fn restart(
+        &mut self,
+        cfg: &PlannerConfig,
+        start_mm: [f32; 3],
+    ) -> Result<(), PlannerConfigError> {
+        self.planner.restart(cfg, start_mm)?;
+        self.executor = Executor::new(self.planner.settings().period_s, start_mm);
+        self.spans.clear();
+        self.steps.clear();
+        Ok(())
+    }
+
     /// Queues a segment (see [`Planner::push`]).
     pub fn push(&mut self, seg: &Segment) -> Result<(), SegmentError> {
         self.planner.push(seg)

@@ -80,7 +80,7 @@ struct GenState {
 }
 
 impl GenState {
-    fn at(seq: u32, sigma: f32) -> Self {
+    const fn at(seq: u32, sigma: f32) -> Self {
         Self {
             seq,
             sigma,
@@ -194,6 +194,61 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             scan: ScanCache::new(),
             ahead: Ahead::new(0.0, 0.0, 0.0),
         })
+    }
+
+    /// A planner with no configuration, to be [`Planner::restart`]ed before use: a
+    /// constant, so a static can hold one without a copy on the stack (the firmware).
+    pub const BLANK: Self = Self {
+        set: Settings::BLANK,
+        pieces: Deque::new(),
+        front_piece_id: 0,
+        spans: SpanRing::new(),
+        next_seq: 1,
+        sent_end: 1,
+        gen: GenState::at(1, 0.0),
+        epoch: 0,
+        path_gen: 0,
+        feed_override: 1.0,
+        run: RunState::Run,
+        hold_point: None,
+        exec_mode: ExecMode::Idle,
+        end_pos: [0.0; 3],
+        slips: 0,
+        scan: ScanCache::new(),
+        ahead: Ahead::new(0.0, 0.0, 0.0),
+    };
+
+    /// As [`Planner::new`], in place (a planner is large: no copy of it on the stack).
+    /// Nothing changes on an error.
+    pub fn restart(
+        &mut self,
+        cfg: &PlannerConfig,
+        start_mm: [f32; 3],
+    ) -> Result<(), PlannerConfigError> {
+        let set = Settings::new(cfg)?;
+        for x in start_mm {
+            if !x.is_finite() {
+                return Err(PlannerConfigError::NotFinite("start_mm"));
+            }
+        }
+        self.set = set;
+        self.pieces.clear();
+        self.front_piece_id = 0;
+        self.spans.reset();
+        self.next_seq = 1;
+        self.sent_end = 1;
+        self.gen = GenState::at(1, 0.0);
+        self.epoch = 0;
+        self.path_gen = 0;
+        self.feed_override = 1.0;
+        self.run = RunState::Run;
+        self.hold_point = None;
+        self.exec_mode = ExecMode::Idle;
+        self.end_pos = start_mm;
+        self.slips = 0;
+        self.scan = ScanCache::new();
+        self.ahead = Ahead::new(0.0, 0.0, 0.0);
+        Ok(())
     }
 
     pub fn settings(&self) -> &Settings {

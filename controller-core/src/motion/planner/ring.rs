@@ -109,7 +109,7 @@ pub(crate) struct SpanRing<const S: usize> {
 }
 
 impl<const S: usize> SpanRing<S> {
-    pub fn new() -> Self {
+    pub const fn new() -> Self {
         Self {
             slots: Deque::new(),
             stops: Deque::new(),
@@ -223,6 +223,14 @@ impl<const S: usize> SpanRing<S> {
     pub fn clear(&mut self) {
         self.slots.clear();
         self.stops.clear();
+    }
+
+    /// As [`SpanRing::new`], in place (the ring is large).
+    pub fn reset(&mut self) {
+        self.clear();
+        self.ovr = 1.0;
+        self.caps = MinTree::new();
+        self.accs = MinTree::new();
     }
 
     /// The first span at index ≥ `from` that stops at its end.

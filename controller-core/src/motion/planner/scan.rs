@@ -31,10 +31,23 @@ struct SpeedAt {
     soft: bool,
 }
 
+impl SpeedAt {
+    const ZERO: Self = Self {
+        pos: 0,
+        w: 0.0,
+        acc: 0.0,
+        soft: false,
+    };
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct AccAt {
     pos: i64,
     acc: f32,
+}
+
+impl AccAt {
+    const ZERO: Self = Self { pos: 0, acc: 0.0 };
 }
 
 /// What to scan.
@@ -97,12 +110,12 @@ pub(crate) struct ScanCache {
 }
 
 impl ScanCache {
-    pub fn new() -> Self {
+    pub const fn new() -> Self {
         Self {
             valid: false,
-            speed: [SpeedAt::default(); MAX_CONSTRAINTS],
+            speed: [SpeedAt::ZERO; MAX_CONSTRAINTS],
             n_speed: 0,
-            accel: [AccAt::default(); MAX_CONSTRAINTS],
+            accel: [AccAt::ZERO; MAX_CONSTRAINTS],
             n_accel: 0,
             cap_thr: 0.0,
             horizon_end: None,

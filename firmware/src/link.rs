@@ -1,0 +1,97 @@
+//! The host link task: bytes from the UART's receive queue through the link's device end
+//! ([`Endpoint`]: frames, sessions, acks and credit, watchdog) to the machine's queues
+//! ([`LinkSide`]), and the replies, acks and telemetry frames back into the UART's
+//! transmit queue. It runs every millisecond at a priority below the control interrupt
+//! and never touches the machine or the UART itself (see `board::serial`).
+//!
+//! The link's clock is the control clock: [`LINK_CLOCK_MS`], the machine time the control
+//! interrupt publishes (periods run × period), so the watchdog and every timeout count
+//! control periods — on the board that is real time, in QEMU it is the emulated
+//! machine's time, whatever the emulator's speed.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
+use controller_core::machine::{Endpoint, LinkSide};
+use heapless::spsc::{Consumer, Producer};
+
+/// Machine time, ms, published by the control interrupt after every period.
+pub static LINK_CLOCK_MS: AtomicU32 = AtomicU32::new(0);
+
+/// Bytes handed to the endpoint per call.
+const CHUNK: usize = 64;
+
+/// The link task's state.
+pub struct LinkTask {
+    endpoint: Endpoint,
+    port: LinkSide<'static>,
+    rx: Consumer<'static, u8>,
+    tx: Producer<'static, u8>,
+    /// Frames dropped whole because the transmit queue had no room for them.
+    tx_dropped: u32,
+}
+
+impl LinkTask {
+    /// The link with the default device configuration (500 ms watchdog).
+    pub fn new(
+        port: LinkSide<'static>,
+        rx: Consumer<'static, u8>,
+        tx: Producer<'static, u8>,
+    ) -> Option<Self> {
+        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).ok()?;
+        Some(Self {
+            endpoint,
+            port,
+            rx,
+            tx,
+            tx_dropped: 0,
+        })
+    }
+
+    /// One run: what arrived, then the watchdog, replies and telemetry. Returns whether
+    /// bytes wait to be sent (the caller pends the UART interrupt).
+    pub fn run(&mut self) -> bool {
+        let now_ms = LINK_CLOCK_MS.load(Ordering::Acquire);
+        let (tx, dropped) = (&mut self.tx, &mut self.tx_dropped);
+        let mut out = |frame: &[u8]| {
+            // a frame goes out whole or not at all (the host retransmits)
+            if tx.capacity() - tx.len() < frame.len() {
+                *dropped = dropped.wrapping_add(1);
+                return;
+            }
+            for &b in frame {
+                let _ = tx.enqueue(b);
+            }
+        };
+        let mut buf = [0u8; CHUNK];
+        loop {
+            let mut n = 0;
+            for slot in buf.iter_mut() {
+                match self.rx.dequeue() {
+                    Some(b) => {
+                        *slot = b;
+                        n += 1;
+                    }
+                    None => break,
+                }
+            }
+            if n == 0 {
+                break;
+            }
+            self.endpoint.on_bytes(
+                &mut self.port,
+                buf.get(..n).unwrap_or(&[]),
+                now_ms,
+                &mut out,
+            );
+        }
+        self.endpoint.poll(&mut self.port, now_ms, &mut out);
+        !self.tx.is_empty()
+    }
+
+    /// Frames dropped for want of room in the transmit queue, and frames the decoder
+    /// dropped (CRC, COBS, length).
+    pub fn dropped(&self) -> (u32, u32) {
+        (self.tx_dropped, self.endpoint.decode_errors())
+    }
+}

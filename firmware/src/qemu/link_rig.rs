@@ -1,0 +1,123 @@
+//! The link rig (QEMU, command-line name `link`): the machine a host commands over
+//! USART2 — the core's [`Machine`] (supervisor, planner, servo step) with factory
+//! settings and the designed axis models, against the simulated physical gantry of
+//! `gantry --sim` (host-sim/scenarios/gcode.toml, with limit switches where homing
+//! expects them). The control interrupt runs [`Machine::linked_period`] and advances the
+//! world; the link task (`crate::link`) talks to the host. It runs until QEMU is stopped.
+
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use controller_core::machine::{ControlSide, Machine, MachinePlanner};
+use controller_core::servo::snapshot::Snapshot;
+use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
+use controller_core::sim::run::RunConfig;
+use controller_core::sim::world::{SwitchConfig, World};
+
+use super::{exit, EXIT_CONFIG};
+use crate::link::LINK_CLOCK_MS;
+
+/// The machine as the firmware holds it: its planner in a static.
+pub type FwMachine = Machine<&'static mut MachinePlanner>;
+
+/// The planner's place: 40 KiB, initialised at reset from a constant (no copy through
+/// the stack, which is smaller than two of them).
+static mut PLANNER: MachinePlanner = MachinePlanner::BLANK;
+static PLANNER_TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// The planner, once.
+fn take_planner() -> Option<&'static mut MachinePlanner> {
+    if PLANNER_TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    // SAFETY: the flag above hands out the only reference to `PLANNER`, once.
+    Some(unsafe { &mut *core::ptr::addr_of_mut!(PLANNER) })
+}
+
+/// The control interrupt's state in the link rig.
+pub struct LinkRig {
+    machine: &'static mut FwMachine,
+    world: World,
+    control: ControlSide<'static>,
+    rate_hz: u32,
+    periods: u64,
+}
+
+impl LinkRig {
+    /// The machine built in `slot` (in place: it is too large to pass around on the
+    /// stack); exits QEMU with [`EXIT_CONFIG`] if the machine description is rejected.
+    pub fn boot(slot: &'static mut Option<FwMachine>, control: ControlSide<'static>) -> Self {
+        let run: RunConfig = match postcard::from_bytes(firmware::scenarios::LINK_RUN) {
+            Ok(r) => r,
+            Err(_) => {
+                defmt::error!("link rig: the machine description does not decode");
+                exit(EXIT_CONFIG)
+            }
+        };
+        let mut settings: Settings = FACTORY;
+        for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
+            a.model = Some(m);
+        }
+        let rate_hz = run.servo.rate_hz;
+        let mut wcfg = run.world;
+        wcfg.switches = SwitchConfig::for_homing(&settings);
+        let world = match settings
+            .servo_config(rate_hz)
+            .ok()
+            .and_then(|cfg| World::new(&wcfg, &cfg).ok())
+        {
+            Some(w) => w,
+            None => {
+                defmt::error!("link rig: the simulated machine is rejected");
+                exit(EXIT_CONFIG)
+            }
+        };
+        let Some(planner) = take_planner() else {
+            defmt::error!("link rig: booted twice");
+            exit(EXIT_CONFIG)
+        };
+        *slot = Machine::new(
+            &settings,
+            rate_hz,
+            world.counter_registers(),
+            world.counts(),
+            planner,
+        )
+        .ok();
+        let Some(machine) = slot.as_mut() else {
+            defmt::error!("link rig: the factory settings are rejected");
+            exit(EXIT_CONFIG)
+        };
+        defmt::info!(
+            "link rig: the simulated gantry at {=u32} Hz, host link on USART2",
+            rate_hz
+        );
+        Self {
+            machine,
+            world,
+            control,
+            rate_hz,
+            periods: 0,
+        }
+    }
+
+    /// The machine's period: the link's events, supervisor, planner, servo step.
+    #[inline]
+    pub fn control(&mut self) -> &Snapshot {
+        self.machine
+            .linked_period(&mut self.world, &mut self.control);
+        self.machine.servo().snapshot()
+    }
+
+    pub fn snapshot(&self) -> &Snapshot {
+        self.machine.servo().snapshot()
+    }
+
+    /// The world advances; the link's clock follows the machine's.
+    #[inline]
+    pub fn finish(&mut self) {
+        self.world.advance();
+        self.periods += 1;
+        let ms = self.periods * 1000 / u64::from(self.rate_hz.max(1));
+        LINK_CLOCK_MS.store(ms as u32, Ordering::Release);
+    }
+}

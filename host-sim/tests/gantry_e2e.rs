@@ -1,0 +1,204 @@
+//! End to end over the link, one scenario against two machines: the real firmware binary
+//! in QEMU (its link rig: the machine behind USART2, reached over QEMU's emulated UART on
+//! a TCP socket) and the in-process simulated machine (`--sim`). Handshake; settings set
+//! and get, a value out of range refused with nothing changed; arm; a program to
+//! completion with telemetry; the same program with a feed hold and resume; abort of a
+//! running program; the host going silent: the machine stops with `LinkLost` within the
+//! watchdog's timeout, measured in control periods; a new session finds the fault.
+//!
+//! The QEMU half needs `qemu-system-arm` and the firmware's QEMU build (`cargo
+//! fw-qemu-build`, or `GANTRY_QEMU_ELF`): it is `#[ignore]`d in a plain `cargo test` and
+//! run by `.ci/run` (`cargo test -p host-sim --release --test gantry_e2e -- --ignored`).
+
+use controller_core::link::RealtimeRequest;
+use controller_core::machine::messages::{MachineState, Request};
+use controller_core::motion::planner::Segment;
+use host_sim::cli::client::{expect_done, Client};
+use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
+use host_sim::cli::sim::{SimMachine, SimModels};
+use host_sim::cli::{self, Hold, Transport};
+use std::path::PathBuf;
+
+/// 1 kHz telemetry at 10 kHz.
+const DECIMATION: u32 = 10;
+const TELEMETRY_PERIOD_S: f64 = 1e-3;
+/// The device's link watchdog (controller-core `DEFAULT_WATCHDOG_CONFIG`), in periods.
+const WATCHDOG_PERIODS: u32 = 5_000;
+
+/// A 20 mm square at 50 mm/s around where the machine stands, sharp corners.
+const SMALL_SQUARE: &str = "G21 G90 G61\nG1 X10 F3000\nY10\nX-10\nY-10\nX10\nY0\nX0\nM2\n";
+
+/// What the scenario measured (printed: `-- --nocapture`).
+struct Figures {
+    /// Control periods between consecutive status replies (request sent on the previous
+    /// reply): the round trip of a status request.
+    status_round_trip_periods: f64,
+    /// Periods from the last one the host heard of to the end of the session (the last
+    /// telemetry sample): the link-loss detection.
+    link_loss_periods: u32,
+    program_s: f64,
+    held_s: f64,
+}
+
+impl Figures {
+    fn line(&self) -> String {
+        format!(
+            "status round trip {:.1} periods, link loss detected {} periods after the \
+             last one heard, program {:.3} s, with a 0.3 s hold {:.3} s",
+            self.status_round_trip_periods, self.link_loss_periods, self.program_s, self.held_s
+        )
+    }
+}
+
+fn program_file(name: &str) -> PathBuf {
+    let p = std::env::temp_dir().join(format!("gantry_e2e_{}_{name}.nc", std::process::id()));
+    std::fs::write(&p, SMALL_SQUARE).unwrap();
+    p
+}
+
+fn scenario<T: Transport>(mut c: Client<T>, tag: &str) -> Figures {
+    // handshake done; the machine is up, outputs off
+    assert_eq!(c.status().unwrap().state, MachineState::Disabled);
+
+    // status round trip, in the machine's periods
+    let mut last = c.status().unwrap().period;
+    let mut sum = 0u32;
+    for _ in 0..20 {
+        let p = c.status().unwrap().period;
+        sum += p.wrapping_sub(last);
+        last = p;
+    }
+    let status_round_trip_periods = f64::from(sum) / 20.0;
+
+    // settings: a value out of range changes nothing, a good one is taken
+    let key = "axis.x.following_error_mm";
+    let before = cli::get(&mut c, key).unwrap();
+    let err = cli::set(&mut c, key, "1000").unwrap_err().to_string();
+    assert!(err.contains("outside the allowed range"), "{err}");
+    assert_eq!(cli::get(&mut c, key).unwrap(), before);
+    cli::set(&mut c, key, "0.8").unwrap();
+    assert_eq!(cli::get(&mut c, key).unwrap(), "0.8");
+    // (no homing: the axes count as homed where they are armed; keeps the run short)
+    for a in ["x", "y", "z"] {
+        cli::set(&mut c, &format!("axis.{a}.homing.enabled"), "false").unwrap();
+    }
+    expect_done(
+        "subscribe",
+        c.exec(Request::Subscribe {
+            every_periods: DECIMATION,
+        })
+        .unwrap(),
+    )
+    .unwrap();
+
+    // arm, a program to completion, with telemetry
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    assert_eq!(c.status().unwrap().state, MachineState::Idle);
+    let file = program_file(tag);
+    let plain = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, None).unwrap();
+    assert_eq!(plain.status, "completed", "{plain:?}");
+    assert!(
+        plain.contour_max_mm > 0.0 && plain.contour_max_mm < 0.02,
+        "{plain:?}"
+    );
+    assert!(plain.corner_deviation_max_mm <= 0.0101, "{plain:?}");
+    assert!(plain.feed_ratio_mean > 0.5, "{plain:?}");
+
+    // the same with a feed hold of 0.3 s after 0.4 s
+    let hold = Hold {
+        at_s: 0.4,
+        for_s: 0.3,
+    };
+    let held = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, Some(hold)).unwrap();
+    assert_eq!(held.status, "completed", "{held:?}");
+    assert!(
+        held.duration_s >= plain.duration_s + 0.29,
+        "{} vs {}",
+        held.duration_s,
+        plain.duration_s
+    );
+    assert!(held.contour_max_mm < 0.02, "{held:?}");
+    let _ = std::fs::remove_file(&file);
+
+    // abort: a long move, stopped on the path while running
+    let start = c.status().unwrap().pos_mm;
+    expect_done("run", c.exec(Request::Run).unwrap()).unwrap();
+    let target = [start[0] + 100.0, start[1], start[2]];
+    expect_done(
+        "segment",
+        c.exec(Request::Segment(Segment::line(target, 50.0, 1)))
+            .unwrap(),
+    )
+    .unwrap();
+    cli::wait_while(&mut c, |s| s.vel_mm_s[0] < 40.0).unwrap();
+    c.realtime(RealtimeRequest::Stop).unwrap();
+    let s = cli::wait_while(&mut c, |s| {
+        s.state != MachineState::Idle || s.vel_mm_s[0].abs() > 0.5
+    })
+    .unwrap();
+    assert!(s.program_done, "{s:?}");
+    assert!(s.fault_bits == (0, [0; 3]), "{s:?}");
+    assert!(s.pos_mm[0] < target[0] - 50.0, "{s:?}");
+    assert!(
+        (s.pos_mm[1] - start[1]).abs() < 0.02,
+        "stopped on the path: {s:?}"
+    );
+
+    // the host goes silent: telemetry goes on until the machine's watchdog ends the
+    // session
+    let heard = c.status().unwrap().period;
+    let mut last_sample = heard;
+    let mut quiet_since = c.transport.now_ms();
+    while c.transport.now_ms().wrapping_sub(quiet_since) < 3_000 {
+        c.transport.wait().unwrap();
+        c.receive().unwrap();
+        for t in c.take_telemetry() {
+            if t.period > last_sample {
+                last_sample = t.period;
+                quiet_since = c.transport.now_ms();
+            }
+        }
+    }
+    let link_loss_periods = last_sample.wrapping_sub(heard);
+    assert!(
+        (WATCHDOG_PERIODS - 100..=WATCHDOG_PERIODS + 200).contains(&link_loss_periods),
+        "{link_loss_periods} periods"
+    );
+    // a new session on the same line finds the machine stopped with the fault latched
+    let mut c = Client::connect_session(c.into_transport(), 9).unwrap();
+    let s = c.status().unwrap();
+    assert_eq!(s.state, MachineState::Fault, "{s:?}");
+    assert_eq!(s.first_fault.as_deref(), Some("link_lost"), "{s:?}");
+    expect_done("reset", c.exec(Request::Reset).unwrap()).unwrap();
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    assert_eq!(c.status().unwrap().state, MachineState::Idle);
+
+    Figures {
+        status_round_trip_periods,
+        link_loss_periods,
+        program_s: plain.duration_s,
+        held_s: held.duration_s,
+    }
+}
+
+#[test]
+fn the_scenario_against_the_simulated_machine() {
+    let m = SimMachine::new(SimModels::Designed, 0).unwrap();
+    let f = scenario(Client::connect_session(m, 7).unwrap(), "sim");
+    println!("--sim: {}", f.line());
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu-build`; .ci/run runs it"]
+fn the_scenario_against_the_firmware_in_qemu() {
+    let elf = std::env::var_os("GANTRY_QEMU_ELF")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("..")
+                .join(DEFAULT_ELF)
+        });
+    let m = QemuMachine::boot(&elf).unwrap();
+    let f = scenario(Client::connect_session(m, 7).unwrap(), "qemu");
+    println!("--qemu: {}", f.line());
+}
