@@ -3,7 +3,9 @@
 //! stopping the program, settings only with the outputs off, link loss.
 
 use controller_core::machine::messages::{Outcome, Request};
-use controller_core::machine::{Machine, MachinePlanner};
+use controller_core::machine::{
+    Channels, Down, LinkSide, LinkState, Machine, MachinePlanner, MachinePort,
+};
 
 type M = Machine<Box<MachinePlanner>>;
 use controller_core::motion::planner::Segment;
@@ -103,25 +105,94 @@ fn a_bad_segment_is_refused_and_stops_the_program() {
     assert!(matches!(m.status().last, Outcome::Refused(_)));
 }
 
+/// `requests` through the link's queues (as the firmware's link task hands them down),
+/// one period after each; the outcome of the last.
+fn through_link(
+    m: &mut M,
+    w: &mut World,
+    ch: &mut Channels,
+    st: &mut LinkState,
+    requests: Vec<Request>,
+) -> Outcome {
+    for r in requests {
+        let (ends, mut ctl) = ch.split();
+        let mut link = LinkSide::new(ends, st);
+        link.down(Down::Request(r));
+        m.linked_period(w, &mut ctl);
+        w.advance();
+        // settings requests wait for the ones before them: a few periods
+        for _ in 0..3 {
+            let (ends, mut ctl) = ch.split();
+            LinkSide::new(ends, st).poll();
+            m.linked_period(w, &mut ctl);
+            w.advance();
+        }
+    }
+    m.status().last
+}
+
 #[test]
 fn settings_change_only_with_the_outputs_off_and_a_refusal_says_why() {
     let (mut m, mut w) = machine();
+    let mut ch = Channels::new();
+    let mut st = LinkState::new(m.settings(), RATE_HZ);
     let set = |k: &str, v: &str| Request::SettingSet {
         key: k.try_into().unwrap(),
         value: v.try_into().unwrap(),
     };
-    m.submit(set("axis.x.law.bandwidth_rad_s", "300"));
-    periods(&mut m, &mut w, 1);
-    assert_eq!(m.status().last, Outcome::Done);
+    let get = |k: &str| Request::SettingGet {
+        key: k.try_into().unwrap(),
+    };
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![set("axis.x.law.bandwidth_rad_s", "300")],
+    );
+    assert_eq!(o, Outcome::Done);
     assert_eq!(m.settings().axis[0].law.bandwidth_rad_s, 300.0);
-    m.submit(Request::Arm);
-    m.submit(set("axis.x.law.bandwidth_rad_s", "400"));
-    periods(&mut m, &mut w, 3);
-    let Outcome::Refused(why) = m.status().last else {
-        panic!()
+    // the link side's copy follows the machine's
+    assert_eq!(st.settings().axis[0].law.bandwidth_rad_s, 300.0);
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![get("axis.x.law.bandwidth_rad_s")],
+    );
+    assert_eq!(o, Outcome::Value("300".try_into().unwrap()));
+    // out of range: refused naming the key, nothing changes
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![set("axis.x.law.bandwidth_rad_s", "-5")],
+    );
+    let Outcome::Refused(why) = o else {
+        panic!("{o:?}")
+    };
+    assert!(why.contains("axis.x.law.bandwidth_rad_s"), "{why}");
+    assert_eq!(m.settings().axis[0].law.bandwidth_rad_s, 300.0);
+    // arm and a set, pipelined: the set is resolved once the arm was executed, and the
+    // gain change is refused with the outputs on
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![Request::Arm, set("axis.x.law.bandwidth_rad_s", "400")],
+    );
+    let Outcome::Refused(why) = o else {
+        panic!("{o:?}")
     };
     assert!(why.contains("outputs off"), "{why}");
     assert_eq!(m.settings().axis[0].law.bandwidth_rad_s, 300.0);
+    assert_eq!(st.settings().axis[0].law.bandwidth_rad_s, 300.0);
+    // every request counted, in order
+    assert_eq!(m.status().executed, 5);
+    assert_eq!(m.retired(), 5);
     m.submit(Request::Jog {
         axis: 7,
         vel_mm_s: 1.0,
@@ -155,9 +226,10 @@ fn link_loss_stops_a_running_program_with_a_link_lost_fault() {
 #[test]
 fn requests_through_the_link_queues_respect_the_credit_and_get_replies() {
     use controller_core::link::{RealtimeRequest, Seq};
-    use controller_core::machine::{Channels, Down, MachinePort, Up, REQUEST_QUEUE};
+    use controller_core::machine::{Up, REQUEST_QUEUE};
     let (mut m, mut w) = machine();
     let mut ch = Channels::new();
+    let mut st = LinkState::new(m.settings(), RATE_HZ);
     let mut program = vec![
         Request::Subscribe { every_periods: 100 },
         Request::Arm,
@@ -174,7 +246,8 @@ fn requests_through_the_link_queues_respect_the_credit_and_get_replies() {
     let (mut statuses, mut telemetry, mut max_queued) = (0u32, 0u32, 0usize);
     let mut periods_run = 0u32;
     loop {
-        let (mut link, mut ctl) = ch.split();
+        let (ends, mut ctl) = ch.split();
+        let mut link = LinkSide::new(ends, &mut st);
         // the host sends while the credit allows
         while let Some(r) = pending.take() {
             if link.free_slots() == 0 {

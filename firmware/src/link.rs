@@ -12,7 +12,8 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
-use controller_core::machine::{Endpoint, LinkSide};
+use controller_core::machine::{Endpoint, LinkEnds, LinkSide, LinkState};
+use controller_core::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
 /// Machine time, ms, published by the control interrupt after every period.
@@ -24,7 +25,8 @@ const CHUNK: usize = 64;
 /// The link task's state.
 pub struct LinkTask {
     endpoint: Endpoint,
-    port: LinkSide<'static>,
+    ends: Option<LinkEnds<'static>>,
+    state: LinkState,
     rx: Consumer<'static, u8>,
     tx: Producer<'static, u8>,
     /// Frames dropped whole because the transmit queue had no room for them.
@@ -32,16 +34,20 @@ pub struct LinkTask {
 }
 
 impl LinkTask {
-    /// The link with the default device configuration (500 ms watchdog).
+    /// The link with the default device configuration (500 ms watchdog), for a machine
+    /// that runs `settings` at `rate_hz`.
     pub fn new(
-        port: LinkSide<'static>,
+        ends: LinkEnds<'static>,
+        settings: &Settings,
+        rate_hz: u32,
         rx: Consumer<'static, u8>,
         tx: Producer<'static, u8>,
     ) -> Option<Self> {
         let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).ok()?;
         Some(Self {
             endpoint,
-            port,
+            ends: Some(ends),
+            state: LinkState::new(settings, rate_hz),
             rx,
             tx,
             tx_dropped: 0,
@@ -52,6 +58,10 @@ impl LinkTask {
     /// bytes wait to be sent (the caller pends the UART interrupt).
     pub fn run(&mut self) -> bool {
         let now_ms = LINK_CLOCK_MS.load(Ordering::Acquire);
+        let Some(ends) = self.ends.take() else {
+            return false;
+        };
+        let mut port = LinkSide::new(ends, &mut self.state);
         let (tx, dropped) = (&mut self.tx, &mut self.tx_dropped);
         let mut out = |frame: &[u8]| {
             // a frame goes out whole or not at all (the host retransmits)
@@ -78,14 +88,11 @@ impl LinkTask {
             if n == 0 {
                 break;
             }
-            self.endpoint.on_bytes(
-                &mut self.port,
-                buf.get(..n).unwrap_or(&[]),
-                now_ms,
-                &mut out,
-            );
+            self.endpoint
+                .on_bytes(&mut port, buf.get(..n).unwrap_or(&[]), now_ms, &mut out);
         }
-        self.endpoint.poll(&mut self.port, now_ms, &mut out);
+        self.endpoint.poll(&mut port, now_ms, &mut out);
+        self.ends = Some(port.into_ends());
         !self.tx.is_empty()
     }
 

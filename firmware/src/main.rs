@@ -28,12 +28,12 @@ fn main() {
 
 #[cfg(target_os = "none")]
 mod board;
-// (the board build does not run the machine behind the link yet: see link.rs)
 #[cfg(target_os = "none")]
-#[cfg_attr(not(feature = "qemu"), allow(dead_code))]
 mod link;
 #[cfg(target_os = "none")]
 mod logger;
+#[cfg(target_os = "none")]
+mod machine_slot;
 #[cfg(all(target_os = "none", not(feature = "qemu")))]
 mod period;
 #[cfg(all(target_os = "none", feature = "qemu"))]
@@ -63,19 +63,14 @@ mod app {
     use crate::logger::Logger;
     use crate::Mono;
 
+    use crate::board::serial::{HostUart, RxQueue, TxQueue};
+    use crate::link::LinkTask;
+    use crate::machine_slot::FwMachine;
     #[cfg(not(feature = "qemu"))]
     use crate::period::{BoardPeriod as Period, End};
     #[cfg(feature = "qemu")]
     use crate::qemu::{rig::End, Period};
-    // (RTIC names the types of every local resource, cfg'd ones too)
-    #[allow(unused_imports)]
-    use {crate::board::serial::HostUart, crate::link::LinkTask};
-    #[cfg(feature = "qemu")]
-    use {
-        crate::board::serial::{RxQueue, TxQueue},
-        crate::qemu::link_rig::FwMachine,
-        controller_core::machine::Channels,
-    };
+    use controller_core::machine::Channels;
 
     // (RTIC names the types of every local resource, cfg'd ones too.)
     use controller_core::servo::Command;
@@ -83,9 +78,10 @@ mod app {
     #[cfg(not(feature = "qemu"))]
     use {
         crate::board::clock::ClockStart,
-        controller_core::servo::{faults::FaultKind, Servo},
+        crate::machine_slot,
+        controller_core::servo::faults::FaultKind,
         firmware::button::{press_commands, Debounce},
-        firmware::config::{ARM_BUTTON_HOLD_SAMPLES, BUTTON_POLL_MS, SERVO},
+        firmware::config::{ARM_BUTTON_HOLD_SAMPLES, BUTTON_POLL_MS},
         firmware::watchdog::iwdg_setting,
     };
 
@@ -113,9 +109,7 @@ mod app {
         arm: board::inputs::ArmButton,
         #[cfg(not(feature = "qemu"))]
         commands: Producer<'static, Command>,
-        #[cfg(feature = "qemu")]
         host_uart: Option<HostUart>,
-        #[cfg(feature = "qemu")]
         link_task: Option<LinkTask>,
     }
 
@@ -133,20 +127,55 @@ mod app {
         let board = board::init(cx.device);
         Mono::start(core.SYST, SYSCLK_HZ);
 
+        // The link's queues and the machine's place (init runs once: each `singleton!`
+        // yields its static).
+        let (Some(channels), Some(rx_queue), Some(tx_queue), Some(machine)) = (
+            cortex_m::singleton!(: Channels = Channels::new()),
+            cortex_m::singleton!(: RxQueue = RxQueue::new()),
+            cortex_m::singleton!(: TxQueue = TxQueue::new()),
+            cortex_m::singleton!(: Option<FwMachine> = None),
+        ) else {
+            halt("init ran twice")
+        };
+        let (port, control) = channels.split();
+        let (rx_in, rx_out) = rx_queue.split();
+        let (tx_in, tx_out) = tx_queue.split();
+
         #[cfg(not(feature = "qemu"))]
-        let (mut period, arm, commands) = {
+        let (mut period, arm, commands, host_uart, link_task) = {
             let (producer, consumer) = cx.local.mailbox.split();
-            let io = board::io::BoardIo::new(
-                board.encoders,
-                board.servo,
-                board.safety,
-                SERVO.amplifiers.map(|a| a.full_scale),
-            );
-            let servo = match Servo::<f32>::new(&SERVO, io.encoder_raw(), [0; 3]) {
-                Ok(s) => s,
-                Err(e) => config_error(e),
+            // the stored settings (before the watchdog starts: a load may repair an
+            // interrupted erase), the factory ones and a fault if the store is corrupt
+            let (settings, load) = crate::board::flash::load_settings(board.flash, CONTROL_RATE_HZ);
+            let io = board::io::BoardIo::new(board.encoders, board.servo, board.safety);
+            let machine = match machine_slot::build(
+                machine,
+                &settings,
+                CONTROL_RATE_HZ,
+                io.encoder_raw(),
+                [0; 3],
+            ) {
+                Ok(m) => m,
+                Err(e) => {
+                    defmt::error!("machine: {}", defmt::Debug2Format(&e));
+                    halt("the settings give no machine (outputs stay off)")
+                }
             };
-            let mut period = BoardPeriod::new(servo, io, consumer, board.watchdog);
+            let mut period = BoardPeriod::new(
+                machine,
+                control,
+                io,
+                consumer,
+                board.watchdog,
+                CONTROL_RATE_HZ,
+            );
+            if load.is_fault() {
+                defmt::error!(
+                    "settings store: {}; factory settings, fault latched",
+                    defmt::Debug2Format(&load)
+                );
+                period.latch_board_fault(FaultKind::SettingsCorrupt);
+            }
             if board.clock == ClockStart::HsiFallback {
                 defmt::error!(
                     "crystal did not start within {=u32} ms: running on the HSI, clock fault latched",
@@ -154,7 +183,9 @@ mod app {
                 );
                 period.latch_board_fault(FaultKind::ClockFault);
             }
-            (period, board.arm, producer)
+            let host_uart = board.host_uart.map(|s| HostUart::new(s, rx_in, tx_out));
+            let link_task = LinkTask::new(port, &settings, CONTROL_RATE_HZ, rx_out, tx_in);
+            (period, board.arm, producer, host_uart, link_task)
         };
         #[cfg(feature = "qemu")]
         let (period, host_uart, link_task) = {
@@ -162,30 +193,14 @@ mod app {
             // The encoder timers and TIM1 are configured (and TIM1's outputs disabled)
             // but not used: the simulated world stands in for them.
             let _ = (board.encoders, board.servo, board.arm, board.clock);
-            // the link's queues and the machine's place: statics of the QEMU build only
-            // (init runs once, so each `singleton!` yields its static)
-            let (Some(channels), Some(rx_queue), Some(tx_queue), Some(machine)) = (
-                cortex_m::singleton!(: Channels = Channels::new()),
-                cortex_m::singleton!(: RxQueue = RxQueue::new()),
-                cortex_m::singleton!(: TxQueue = TxQueue::new()),
-                cortex_m::singleton!(: Option<FwMachine> = None),
-            ) else {
-                crate::qemu::exit(crate::qemu::EXIT_CONFIG)
-            };
-            let (port, control) = channels.split();
-            let (rx_in, rx_out) = rx_queue.split();
-            let (tx_in, tx_out) = tx_queue.split();
             let period = Period::boot(board.safety, machine, control);
-            let link = period.is_link();
+            let link = period.link_machine();
             let host_uart = board
                 .host_uart
-                .filter(|_| link)
+                .filter(|_| link.is_some())
                 .map(|s| HostUart::new(s, rx_in, tx_out));
-            let link_task = if link {
-                LinkTask::new(port, rx_out, tx_in)
-            } else {
-                None
-            };
+            let link_task = link
+                .and_then(|(settings, rate)| LinkTask::new(port, &settings, rate, rx_out, tx_in));
             (period, host_uart, link_task)
         };
 
@@ -213,7 +228,6 @@ mod app {
         if button::spawn().is_err() {
             defmt::error!("button task already running");
         }
-        #[cfg(feature = "qemu")]
         if link_task.is_some() && link::spawn().is_err() {
             defmt::error!("link task already running");
         }
@@ -230,9 +244,7 @@ mod app {
                 arm,
                 #[cfg(not(feature = "qemu"))]
                 commands,
-                #[cfg(feature = "qemu")]
                 host_uart,
-                #[cfg(feature = "qemu")]
                 link_task,
             },
         )
@@ -241,10 +253,12 @@ mod app {
     #[cfg(not(feature = "qemu"))]
     use crate::period::BoardPeriod;
 
-    /// Invalid build-time configuration: outputs stay off, nothing runs.
-    #[cfg(not(feature = "qemu"))]
-    fn config_error(e: controller_core::config::ConfigError) -> ! {
-        defmt::error!("invalid configuration: {}", defmt::Display2Format(&e));
+    /// Nothing can run: outputs stay off (board: until reset; QEMU: exit 2).
+    fn halt(why: &str) -> ! {
+        defmt::error!("{=str}", why);
+        #[cfg(feature = "qemu")]
+        crate::qemu::exit(crate::qemu::EXIT_CONFIG);
+        #[cfg(not(feature = "qemu"))]
         loop {
             cortex_m::asm::wfi();
         }
@@ -307,7 +321,6 @@ mod app {
 
     /// The host link's UART (`board::serial`): above the control interrupt, so that no
     /// received byte waits longer than this handler; a few dozen cycles per byte.
-    #[cfg(feature = "qemu")]
     #[task(binds = USART2, priority = 4, local = [host_uart])]
     fn host_uart(cx: host_uart::Context) {
         if let Some(u) = cx.local.host_uart {
@@ -317,7 +330,6 @@ mod app {
 
     /// The host link (`link`): every millisecond, what arrived, then replies, acks and
     /// telemetry; pends the UART's interrupt when bytes wait to go out.
-    #[cfg(feature = "qemu")]
     #[task(priority = 2, local = [link_task])]
     async fn link(cx: link::Context) {
         let Some(task) = cx.local.link_task else {

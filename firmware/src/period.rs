@@ -1,44 +1,61 @@
 //! One control period on the board: a clock fault flagged by the clock security system,
-//! the commands that arrived since the last period (from the mailbox: the arm button
-//! today, the host link later), then the core's servo step on the board's IO. This is the
-//! whole measured body of the control interrupt; it never logs, allocates or blocks.
+//! the arm button's commands (its mailbox), then the machine's period — the host link's
+//! requests from its queues, supervisor, planner and servo step on the board's IO — and
+//! the link's clock. This is the whole measured body of the control interrupt; it never
+//! logs, allocates, formats or blocks.
 
+use core::sync::atomic::Ordering;
+
+use controller_core::machine::ControlSide;
 use controller_core::servo::faults::FaultKind;
 use controller_core::servo::io::ServoIo;
 use controller_core::servo::snapshot::Snapshot;
-use controller_core::servo::{Command, Servo};
+use controller_core::servo::Command;
 use heapless::spsc::Consumer;
 
 use crate::board::{clock, io::BoardIo, watchdog::Watchdog};
+use crate::link::LINK_CLOCK_MS;
+use crate::machine_slot::FwMachine;
 use firmware::watchdog::IwdgSetting;
 
-/// Commands the control task takes at most per period (the rest wait for the next one).
-pub const COMMANDS_PER_PERIOD: usize = 4;
+/// Button commands the control task takes at most per period (the rest wait).
+pub const COMMANDS_PER_PERIOD: usize = 2;
 
-/// A finished run's result; the board's servo runs forever.
+/// A finished run's result; the board's machine runs forever.
 pub type End = core::convert::Infallible;
 
 /// The control interrupt's state on the board.
 pub struct BoardPeriod {
-    servo: Servo<f32>,
+    machine: &'static mut FwMachine,
+    link: ControlSide<'static>,
     io: BoardIo,
     commands: Consumer<'static, Command>,
     /// Fed at the end of every period that ran on time, by nothing else.
     watchdog: Watchdog,
+    rate_hz: u32,
+    /// The link's clock: ms, and periods' worth of ms beyond it (× rate).
+    clock_ms: u32,
+    clock_sub: u32,
 }
 
 impl BoardPeriod {
     pub fn new(
-        servo: Servo<f32>,
+        machine: &'static mut FwMachine,
+        link: ControlSide<'static>,
         io: BoardIo,
         commands: Consumer<'static, Command>,
         watchdog: Watchdog,
+        rate_hz: u32,
     ) -> Self {
         Self {
-            servo,
+            machine,
+            link,
             io,
             commands,
             watchdog,
+            rate_hz: rate_hz.max(1),
+            clock_ms: 0,
+            clock_sub: 0,
         }
     }
 
@@ -47,11 +64,11 @@ impl BoardPeriod {
         self.watchdog.start(setting);
     }
 
-    /// Latch a board fault found outside the servo step (e.g. the crystal failed to start)
-    /// and switch the outputs off now.
+    /// Latch a board fault found outside the servo step (the crystal failed to start,
+    /// the settings store is corrupt) and switch the outputs off now.
     pub fn latch_board_fault(&mut self, kind: FaultKind) {
         self.io.disable_outputs();
-        self.servo.latch_board_fault(kind);
+        self.machine.latch_board_fault(kind);
     }
 
     /// The end of the control interrupt: `overran` (the period that just ended missed its
@@ -67,30 +84,35 @@ impl BoardPeriod {
         self.watchdog.feed();
     }
 
-    /// Latch a clock fault from the clock security system, drain the mailbox, run the
-    /// servo step.
+    /// Latch a clock fault from the clock security system, take the button's commands,
+    /// run the machine's period, advance the link's clock.
     #[inline]
     pub fn control(&mut self) -> &Snapshot {
         if clock::take_css_fault() {
             self.latch_board_fault(FaultKind::ClockFault);
         }
-        let mut cmds = [Command::Disarm; COMMANDS_PER_PERIOD];
-        let mut n = 0;
-        while n < COMMANDS_PER_PERIOD {
+        for _ in 0..COMMANDS_PER_PERIOD {
             match self.commands.dequeue() {
-                Some(c) => {
-                    cmds[n] = c;
-                    n += 1;
-                }
+                Some(c) => self.machine.local(c),
                 None => break,
             }
         }
-        self.servo.period(&mut self.io, &cmds[..n])
+        let full_scale = self.machine.settings().axis.map(|a| a.amplifier.full_scale);
+        self.io.set_full_scale(full_scale);
+        self.machine.linked_period(&mut self.io, &mut self.link);
+        // (no division in the interrupt: 1000 ms per `rate_hz` periods, carried)
+        self.clock_sub += 1000;
+        while self.clock_sub >= self.rate_hz {
+            self.clock_sub -= self.rate_hz;
+            self.clock_ms = self.clock_ms.wrapping_add(1);
+        }
+        LINK_CLOCK_MS.store(self.clock_ms, Ordering::Release);
+        self.machine.servo().snapshot()
     }
 
     /// The last period's snapshot.
     pub fn snapshot(&self) -> &Snapshot {
-        self.servo.snapshot()
+        self.machine.servo().snapshot()
     }
 
     /// After the measured part: nothing to do on the board.

@@ -91,6 +91,7 @@ impl Endpoint {
     /// After control periods at `now_ms`: watchdog (expiry stops the machine), credit
     /// updates, and the status replies and telemetry the machine handed up.
     pub fn poll(&mut self, port: &mut impl MachinePort, now_ms: u32, out: &mut impl FnMut(&[u8])) {
+        port.poll();
         let p = self.link.poll(now_ms, port.free_slots());
         if p.link_lost {
             port.down(Down::LinkLost);

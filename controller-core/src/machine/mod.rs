@@ -11,8 +11,10 @@
 mod endpoint;
 pub mod messages;
 pub mod port;
+mod settings_agent;
 mod supervisor;
 
 pub use endpoint::Endpoint;
-pub use port::{Channels, ControlSide, Down, LinkSide, MachinePort, Up};
+pub use port::{Channels, ControlSide, Down, LinkEnds, LinkSide, LinkState, MachinePort, Up};
+pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{Machine, MachineError, MachinePlanner, REQUEST_QUEUE, SEGMENTS_PER_PERIOD};

@@ -6,9 +6,16 @@
 //! and never waits for the link; the link task never touches the machine.
 //!
 //! The link's credit (free request slots) is computed on the link side from two counters
-//! — requests it passed down, requests the machine has retired (executed, refused or
+//! — requests it accepted, requests the machine has retired (executed, refused or
 //! flushed) — so the host never has more requests in flight than the machine's queue
 //! holds, whichever side runs when.
+//!
+//! Settings requests are resolved on the link side ([`SettingsAgent`]): the text, the
+//! key table and the error messages stay out of the control interrupt, which gets a
+//! validated tree ([`Down::Apply`]) or a decided outcome ([`Down::Resolved`]) in the
+//! request's place. Such a request waits (and everything behind it) until the requests
+//! before it were executed, so that it reads the settings the machine runs; the machine
+//! echoes each tree it took back up (a queue of its own).
 //!
 //! `gantry --sim` uses the very same queues in one thread (split per call).
 //!
@@ -18,15 +25,31 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use super::messages::{Request, Status, Telemetry};
+use heapless::Deque;
+
+use super::messages::{Outcome, Request, Status, Telemetry};
+use super::settings_agent::{Resolution, SettingsAgent};
 use super::REQUEST_QUEUE;
 use crate::link::{RealtimeRequest, Seq};
+use crate::settings::{Apply, Settings};
 
 /// What the link hands the machine.
 #[derive(Clone, Debug, PartialEq)]
+// (a queue slot holds any of them: a settings tree is 412 bytes, so the queues are
+// 25 and 16 of those — 17 KiB of RAM, within the board's budget)
+#[allow(clippy::large_enum_variant)]
 pub enum Down {
     /// A request of the reliable channel, for the machine's queue.
     Request(Request),
+    /// A request already decided on the link side (a settings value read, a refusal):
+    /// the machine records the outcome in the request's place.
+    Resolved(Outcome),
+    /// A settings change validated on the link side: swap it in at a period boundary
+    /// (only with the outputs off when `class` is not `None`), in the request's place.
+    Apply {
+        settings: Settings,
+        class: Option<Apply>,
+    },
     /// A new session: the old one's queued requests are dropped.
     SessionStarted,
     /// A real-time request: act at once, then answer with [`Up::Status`] and `id`.
@@ -52,12 +75,14 @@ pub const DOWN_QUEUE: usize = REQUEST_QUEUE + 8;
 /// the link task; when full, telemetry is dropped and counted as a gap by the host).
 pub const UP_QUEUE: usize = 8;
 
-/// The two queues and the credit counters.
+/// Settings trees the machine took, on their way back to the link side.
+const ECHO_QUEUE: usize = 4;
+
+/// The queues and the credit counter.
 pub struct Channels {
     down: Queue<Down, { DOWN_QUEUE + 1 }>,
     up: Queue<Up, { UP_QUEUE + 1 }>,
-    /// Requests passed down (link side writes).
-    sent: AtomicU32,
+    echo: Queue<Settings, { ECHO_QUEUE + 1 }>,
     /// Requests retired by the machine (control side writes).
     retired: AtomicU32,
 }
@@ -73,30 +98,41 @@ impl Channels {
         Self {
             down: Queue::new(),
             up: Queue::new(),
-            sent: AtomicU32::new(0),
+            echo: Queue::new(),
             retired: AtomicU32::new(0),
         }
     }
 
     /// The link's end and the control interrupt's end.
-    pub fn split(&mut self) -> (LinkSide<'_>, ControlSide<'_>) {
+    pub fn split(&mut self) -> (LinkEnds<'_>, ControlSide<'_>) {
         let (down_tx, down_rx) = self.down.split();
         let (up_tx, up_rx) = self.up.split();
+        let (echo_tx, echo_rx) = self.echo.split();
         (
-            LinkSide {
+            LinkEnds {
                 down: down_tx,
                 up: up_rx,
-                sent: &self.sent,
+                echo: echo_rx,
                 retired: &self.retired,
             },
             ControlSide {
                 down: down_rx,
                 up: up_tx,
+                echo: echo_tx,
                 retired: &self.retired,
                 dropped_up: 0,
             },
         )
     }
+}
+
+/// The link's ends of [`Channels`], before the link side's state joins them
+/// ([`LinkSide::new`]).
+pub struct LinkEnds<'a> {
+    down: Producer<'a, Down>,
+    up: Consumer<'a, Up>,
+    echo: Consumer<'a, Settings>,
+    retired: &'a AtomicU32,
 }
 
 /// What the link's endpoint needs of the machine.
@@ -105,39 +141,135 @@ pub trait MachinePort {
     fn free_slots(&self) -> u16;
     /// Hand an event down (a request only within the credit).
     fn down(&mut self, d: Down);
+    /// Called every link task run: pass down what waited.
+    fn poll(&mut self) {}
     /// The next reply or telemetry sample, if any.
     fn up(&mut self) -> Option<Up>;
 }
 
-/// The link task's end of [`Channels`].
-pub struct LinkSide<'a> {
-    down: Producer<'a, Down>,
-    up: Consumer<'a, Up>,
-    sent: &'a AtomicU32,
-    retired: &'a AtomicU32,
+/// Link-side state that outlives a split of [`Channels`] (`gantry --sim` splits them
+/// anew for every call; the firmware once).
+pub struct LinkState {
+    agent: SettingsAgent,
+    /// Requests accepted from the host, waiting to go down in order.
+    held: Deque<Request, REQUEST_QUEUE>,
+    /// Requests accepted (held or passed down) and requests dropped unsent (a new
+    /// session): the credit is `REQUEST_QUEUE - (accepted - dropped - retired)`.
+    accepted: u32,
+    dropped: u32,
+    /// Requests passed down.
+    passed: u32,
 }
 
-impl MachinePort for LinkSide<'_> {
+impl LinkState {
+    /// The link side of a machine that runs `settings` at `rate_hz`.
+    pub fn new(settings: &Settings, rate_hz: u32) -> Self {
+        Self {
+            agent: SettingsAgent::new(settings, rate_hz),
+            held: Deque::new(),
+            accepted: 0,
+            dropped: 0,
+            passed: 0,
+        }
+    }
+
+    /// The settings the machine runs, as the link side knows them.
+    pub fn settings(&self) -> &Settings {
+        self.agent.settings()
+    }
+}
+
+/// The link task's end of [`Channels`], with its state.
+pub struct LinkSide<'a, 's> {
+    ends: LinkEnds<'a>,
+    state: &'s mut LinkState,
+}
+
+impl<'a, 's> LinkSide<'a, 's> {
+    pub fn new(ends: LinkEnds<'a>, state: &'s mut LinkState) -> Self {
+        Self { ends, state }
+    }
+
+    /// The ends back (the state stays where it is).
+    pub fn into_ends(self) -> LinkEnds<'a> {
+        self.ends
+    }
+
+    /// Pass held requests down in order while the machine's queue has room; a settings
+    /// request only once everything before it was executed (it is resolved then).
+    fn flush(&mut self) {
+        let retired = self.ends.retired.load(Ordering::Acquire);
+        // (after `retired`: every tree the retired requests applied is in the queue)
+        while let Some(s) = self.ends.echo.dequeue() {
+            self.state.agent.machine_took(&s);
+        }
+        while let Some(r) = self.state.held.front() {
+            let d = if SettingsAgent::handles(r) {
+                if self.state.passed != retired {
+                    break;
+                }
+                match self.state.agent.resolve(r) {
+                    Resolution::Outcome(o) => Down::Resolved(o),
+                    Resolution::Apply { settings, class } => Down::Apply { settings, class },
+                }
+            } else {
+                Down::Request(r.clone())
+            };
+            if self.ends.down.enqueue(d).is_err() {
+                break;
+            }
+            self.state.held.pop_front();
+            self.state.passed = self.state.passed.wrapping_add(1);
+        }
+    }
+}
+
+impl MachinePort for LinkSide<'_, '_> {
     fn free_slots(&self) -> u16 {
         let in_flight = self
-            .sent
-            .load(Ordering::Relaxed)
-            .wrapping_sub(self.retired.load(Ordering::Acquire));
+            .state
+            .accepted
+            .wrapping_sub(self.state.dropped)
+            .wrapping_sub(self.ends.retired.load(Ordering::Acquire));
         (REQUEST_QUEUE as u32).saturating_sub(in_flight) as u16
     }
 
     fn down(&mut self, d: Down) {
-        let is_request = matches!(d, Down::Request(_));
-        // a full queue can only drop real-time traffic (requests stay within the
-        // credit): the host repeats what it does not get an answer to
-        if self.down.enqueue(d).is_ok() && is_request {
-            let n = self.sent.load(Ordering::Relaxed).wrapping_add(1);
-            self.sent.store(n, Ordering::Release);
+        match d {
+            Down::Request(r) => {
+                // within the credit there is room (a request beyond it is the host's
+                // error: dropped, and the host's retransmission finds it refused)
+                if self.state.held.push_back(r).is_ok() {
+                    self.state.accepted = self.state.accepted.wrapping_add(1);
+                }
+            }
+            Down::SessionStarted => {
+                // the old session's requests that never went down are dropped here, those
+                // queued in the machine there
+                let n = self.state.held.len() as u32;
+                self.state.held.clear();
+                self.state.dropped = self.state.dropped.wrapping_add(n);
+                let _ = self.ends.down.enqueue(Down::SessionStarted);
+            }
+            // real-time traffic skips the queue; a full queue drops it (the host repeats
+            // what it gets no answer to)
+            other => {
+                let _ = self.ends.down.enqueue(other);
+            }
         }
+        self.flush();
+    }
+
+    fn poll(&mut self) {
+        self.flush();
     }
 
     fn up(&mut self) -> Option<Up> {
-        self.up.dequeue()
+        let u = self.ends.up.dequeue()?;
+        if let Up::Status { status, .. } = &u {
+            self.state.agent.identified(status.identify);
+        }
+        Some(u)
     }
 }
 
@@ -145,6 +277,7 @@ impl MachinePort for LinkSide<'_> {
 pub struct ControlSide<'a> {
     down: Consumer<'a, Down>,
     up: Producer<'a, Up>,
+    echo: Producer<'a, Settings>,
     retired: &'a AtomicU32,
     dropped_up: u32,
 }
@@ -160,6 +293,14 @@ impl ControlSide<'_> {
         if self.up.enqueue(u).is_err() {
             self.dropped_up = self.dropped_up.wrapping_add(1);
         }
+    }
+
+    /// The machine took `settings` (echoed to the link side before the request that
+    /// applied them is published as retired).
+    pub fn echo(&mut self, settings: &Settings) {
+        // (room: at most one per retired request the link side has not seen, and it
+        // passes no settings request down before it saw them all)
+        let _ = self.echo.enqueue(*settings);
     }
 
     /// Publish how many requests the machine has retired in total.

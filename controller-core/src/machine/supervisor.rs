@@ -17,19 +17,21 @@
 //! period stays bounded on the board (servo step + one segment's look-ahead + one
 //! sample); moving the planning half to a lower-priority task is left open.
 
-use core::fmt::Write;
 use core::ops::DerefMut;
 
 use heapless::{Deque, String};
 
-use super::messages::{IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry};
+use super::messages::{
+    IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry, VALUE_MAX,
+};
 use super::port::{ControlSide, Down, Up};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
+use crate::motion::planner::SegmentError;
 use crate::motion::planner::{MotionPlanner, PathSample, PlannerConfig, PlannerConfigError};
 use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoState};
-use crate::settings::{Settings, SettingsError};
+use crate::settings::{Apply, Settings, SettingsError};
 use crate::sysid::IdentifyStatus;
 
 /// Requests waiting to be executed, at most (the link's credit: the host never has more
@@ -62,7 +64,9 @@ pub struct Machine<P: DerefMut<Target = MachinePlanner>> {
     planner_cfg: PlannerConfig,
     settings: Settings,
     rate_hz: u32,
-    queue: Deque<Request, REQUEST_QUEUE>,
+    queue: Deque<Queued, REQUEST_QUEUE>,
+    /// The settings changed in this period (echoed to the link side).
+    settings_changed: bool,
     executed: u32,
     /// Requests that left the queue (executed, refused or flushed): the link's credit.
     retired: u32,
@@ -92,6 +96,41 @@ fn text<const N: usize>(s: &str) -> String<N> {
 
 fn refused(s: &str) -> Outcome {
     Outcome::Refused(text(s))
+}
+
+/// A request in the machine's queue: as it came, or as the link side resolved it.
+#[derive(Clone, Debug, PartialEq)]
+// (a queue slot holds any of them: a settings tree is 412 bytes, so the queues are
+// 25 and 16 of those — 17 KiB of RAM, within the board's budget)
+#[allow(clippy::large_enum_variant)]
+enum Queued {
+    Request(Request),
+    Resolved(Outcome),
+    Apply {
+        settings: Settings,
+        class: Option<Apply>,
+    },
+}
+
+/// Why a segment was refused, without formatting (the control interrupt never formats).
+fn segment_refusal(e: &SegmentError) -> &'static str {
+    match e {
+        SegmentError::NotFinite(_) => "segment refused: a value is not finite (program stopped)",
+        SegmentError::FeedNotPositive => "segment refused: feed must be > 0 (program stopped)",
+        SegmentError::NegativeTolerance => {
+            "segment refused: blend tolerance must be >= 0 (program stopped)"
+        }
+        SegmentError::NegativeDwell => "segment refused: dwell must be >= 0 (program stopped)",
+        SegmentError::ArcZeroRadius => "segment refused: arc radius too small (program stopped)",
+        SegmentError::ArcRadiusMismatch { .. } => {
+            "segment refused: arc end not on its circle (program stopped)"
+        }
+        SegmentError::ArcTooManyTurns => {
+            "segment refused: arc has too many turns (program stopped)"
+        }
+        SegmentError::QueueFull => "segment refused: planner queue full (program stopped)",
+        SegmentError::Aborting => "segment refused: the program is aborting (program stopped)",
+    }
 }
 
 impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
@@ -131,6 +170,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             settings: *settings,
             rate_hz,
             queue: Deque::new(),
+            settings_changed: false,
             executed: 0,
             retired: 0,
             last: Outcome::None,
@@ -153,7 +193,11 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
     /// Queue a request (the link promised room: a request beyond it is dropped and
     /// reported as refused).
     pub fn submit(&mut self, r: Request) {
-        if self.queue.push_back(r).is_err() {
+        self.enqueue(Queued::Request(r));
+    }
+
+    fn enqueue(&mut self, q: Queued) {
+        if self.queue.push_back(q).is_err() {
             self.executed = self.executed.wrapping_add(1);
             self.retired = self.retired.wrapping_add(1);
             self.last = refused("request queue full (the host ignored the link's credit)");
@@ -168,6 +212,18 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                 *last = c;
             }
         }
+    }
+
+    /// A command from the machine's own panel (the arm button), for the next period.
+    pub fn local(&mut self, c: Command) {
+        self.pend(c);
+    }
+
+    /// Latch a board fault found outside the servo step (the crystal, the settings store)
+    /// and stop driving now.
+    pub fn latch_board_fault(&mut self, kind: crate::servo::faults::FaultKind) {
+        self.stop_program(None);
+        self.servo.latch_board_fault(kind);
     }
 
     /// A new link session: requests of the old one are dropped, numbering restarts, and a
@@ -234,6 +290,8 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         while let Some(d) = link.take() {
             match d {
                 Down::Request(r) => self.submit(r),
+                Down::Resolved(o) => self.enqueue(Queued::Resolved(o)),
+                Down::Apply { settings, class } => self.enqueue(Queued::Apply { settings, class }),
                 Down::SessionStarted => self.session_started(),
                 Down::Realtime { id, req } => {
                     self.realtime(req);
@@ -250,6 +308,10 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             }
         }
         self.period(io);
+        if self.settings_changed {
+            self.settings_changed = false;
+            link.echo(&self.settings);
+        }
         link.publish_retired(self.retired);
         if let Some(t) = self.telemetry_due() {
             link.send(Up::Telemetry(t));
@@ -296,7 +358,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             if servo_request {
                 break;
             }
-            if matches!(r, Request::Segment(_)) {
+            if matches!(r, Queued::Request(Request::Segment(_))) {
                 if segments == SEGMENTS_PER_PERIOD {
                     break;
                 }
@@ -363,7 +425,12 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         }
     }
 
-    fn execute(&mut self, r: &Request, cmds: &mut heapless::Vec<Command, 4>) -> Step {
+    fn execute(&mut self, q: &Queued, cmds: &mut heapless::Vec<Command, 4>) -> Step {
+        let r = match q {
+            Queued::Request(r) => r,
+            Queued::Resolved(o) => return Step::Done(o.clone()),
+            Queued::Apply { settings, class } => return Step::Done(self.apply(*settings, *class)),
+        };
         let mut servo = |c: Command| {
             let _ = cmds.push(c);
             Step::Servo
@@ -417,10 +484,8 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                     Ok(()) => Step::Done(Outcome::Done),
                     Err(e) => {
                         // a program with a bad segment cannot go on: stop on the path
-                        let mut t: String<96> = String::new();
-                        let _ = write!(t, "segment {}: {:?} (program stopped)", seg.tag, e);
                         self.stop_program(Some(Command::Stop));
-                        Step::Done(Outcome::Refused(t))
+                        Step::Done(refused(segment_refusal(&e)))
                     }
                 }
             }
@@ -439,63 +504,22 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                 Ok(()) => Step::Done(Outcome::Done),
                 Err(_) => Step::Done(refused("feed override must be within 0.01-2.0")),
             },
-            Request::SettingGet { key } => match self.settings.get(key) {
-                Ok(v) => {
-                    let mut t = String::new();
-                    let _ = write!(t, "{v}");
-                    Step::Done(Outcome::Value(t))
-                }
-                Err(e) => {
-                    let mut t = String::new();
-                    let _ = write!(t, "{e}");
-                    Step::Done(Outcome::Refused(t))
-                }
-            },
-            Request::SettingSet { key, value } => {
-                let mut next = self.settings;
-                if let Err(e) = next.set_text(key, value, self.rate_hz) {
-                    let mut t = String::new();
-                    let _ = write!(t, "{e}");
-                    return Step::Done(Outcome::Refused(t));
-                }
-                Step::Done(self.apply(next))
-            }
-            Request::SettingsDefaults => Step::Done(self.apply(crate::settings::FACTORY)),
-            Request::AcceptIdentified { axis } => {
-                let i = usize::from(*axis);
-                let model = self
-                    .identify
-                    .filter(|m| usize::from(m.axis) == i && m.done)
-                    .and_then(|m| m.model);
-                let Some(m) = model else {
-                    return Step::Done(refused(
-                        "accept: no finished identification of that axis (run identify first)",
-                    ));
-                };
-                let mut next = self.settings;
-                if let Some(a) = next.axis.get_mut(i) {
-                    a.model = Some(crate::sysid::AxisModel {
-                        inertia: m.inertia,
-                        viscous: m.viscous,
-                        coulomb_pos_mnm: m.coulomb_pos_mnm,
-                        coulomb_neg_mnm: m.coulomb_neg_mnm,
-                    });
-                }
-                Step::Done(self.apply(next))
-            }
+            // resolved on the link side (machine::port): text and the key table stay
+            // out of the control interrupt
+            Request::SettingGet { .. }
+            | Request::SettingSet { .. }
+            | Request::SettingsDefaults
+            | Request::AcceptIdentified { .. } => Step::Done(refused(
+                "settings requests reach the machine through its link (machine::port)",
+            )),
         }
     }
 
-    /// Swap in `next` at this period boundary, if the servo takes it now.
-    fn apply(&mut self, next: Settings) -> Outcome {
-        let class = self.settings.change_class(&next);
-        let cfg = match next.servo_config(self.rate_hz) {
-            Ok(c) => c,
-            Err(e) => {
-                let mut t = String::new();
-                let _ = write!(t, "rejected: {e:?}");
-                return Outcome::Refused(t);
-            }
+    /// Swap in `next` (validated on the link side; `class` from there too) at this
+    /// period boundary, if the servo takes it now.
+    fn apply(&mut self, next: Settings, class: Option<Apply>) -> Outcome {
+        let Ok(cfg) = next.servo_config(self.rate_hz) else {
+            return refused("rejected: the settings give no servo configuration");
         };
         match class {
             None => {
@@ -512,10 +536,8 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                 Err(crate::servo::ReconfigureError::OutputsOn) => {
                     refused("this change needs the outputs off: disarm first")
                 }
-                Err(e) => {
-                    let mut t = String::new();
-                    let _ = write!(t, "rejected: {e:?}");
-                    Outcome::Refused(t)
+                Err(crate::servo::ReconfigureError::Config(_)) => {
+                    refused("rejected: the servo refuses the configuration")
                 }
             },
         }
@@ -524,6 +546,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
     /// The new settings; the planner's take effect with the next program.
     fn take(&mut self, next: Settings) {
         self.settings = next;
+        self.settings_changed = true;
         self.planner_cfg = next.planner_config(self.rate_hz);
     }
 
@@ -531,10 +554,10 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
     pub fn status(&self) -> Status {
         let s = self.servo.snapshot();
         let first_fault = s.fault.map(|f| {
-            let mut t = String::new();
-            let _ = write!(t, "{}", f.fault.kind.name());
+            let mut t: String<VALUE_MAX> = text(f.fault.kind.name());
             if let Some(a) = f.fault.axis {
-                let _ = write!(t, " on {}", a.name());
+                let _ = t.push_str(" on ");
+                let _ = t.push_str(a.name());
             }
             t
         });

@@ -36,10 +36,17 @@ impl<const N: usize> PowerSet<N> {
     pub fn new(exps: [Exponent; N]) -> Self {
         let d = exps.iter().map(|e| e.den).max().unwrap_or(1).max(1);
         let plans = exps.map(|e| {
-            if e.num > 0 && e.den > 0 && d % e.den == 0 && e.num <= MAX_K / (d / e.den) {
-                Plan::Root((e.num * (d / e.den)) as u8)
-            } else {
-                Plan::General(e)
+            // `d / den` when `den` divides `d` (checked: no division panic can reach the
+            // control interrupt, which rebuilds laws on a settings change)
+            let ratio = (e.den > 0 && d.checked_rem(e.den) == Some(0))
+                .then(|| d.checked_div(e.den))
+                .flatten();
+            let k = ratio
+                .filter(|&q| q > 0 && e.num > 0 && e.num <= MAX_K.checked_div(q).unwrap_or(0))
+                .and_then(|q| e.num.checked_mul(q));
+            match k {
+                Some(k) => Plan::Root(k as u8),
+                None => Plan::General(e),
             }
         });
         Self {

@@ -295,11 +295,14 @@ impl<R: Real> Servo<R> {
         let path_start = cfg.path.map_or(PathStart::Absolute, |p| p.start);
         let s = &cfg.safety;
         let positive = |v: f32, n| crate::config::positive(v, n);
-        let counters =
-            [0, 1, 2].map(|i| WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i]));
-        let model_missing = commands::axis_mask(
-            [0, 1, 2].map(|i| cfg.controller.laws[i].is_model_based() && !cfg.model_known[i]),
-        );
+        // (`from_fn`, not `[0, 1, 2].map`: its indices are provably in range, so no panic
+        // path reaches the control interrupt, which rebuilds the servo on a settings change)
+        let counters = core::array::from_fn(|i| {
+            WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i])
+        });
+        let model_missing = commands::axis_mask(core::array::from_fn(|i| {
+            cfg.controller.laws[i].is_model_based() && !cfg.model_known[i]
+        }));
         let mut snapshot = Snapshot::boot();
         snapshot.model_missing = model_missing;
         snapshot.homed = commands::axis_mask(cfg.homing.axes.map(|a| !a.enabled));

@@ -27,7 +27,8 @@
 //! - load at boot before the watchdog starts (a load may repair an interrupted erase by
 //!   erasing again).
 //!
-//! Not wired into the RTIC tasks yet: the link task (issue 12) owns the store.
+//! [`load_settings`] runs in `init` (before the watchdog); saving over the link is not
+//! wired yet (it needs the watchdog stretched around an erase, above).
 #![expect(
     dead_code,
     reason = "not wired yet: the link/flash task calls settings_store (remove this then)"
@@ -143,4 +144,35 @@ pub fn settings_store(flash: pac::FLASH) -> Result<SettingsStore<SettingsFlash>,
     let window = BlockingFlash::new(InternalFlash::new(flash), STORE_OFFSET, STORE_BYTES)
         .map_err(OpenError::Window)?;
     SettingsStore::new(window, 0..STORE_BYTES).map_err(OpenError::Store)
+}
+
+/// The settings to boot with: the stored record at `rate_hz`, or the factory settings
+/// (with a fault to latch, `LoadOutcome::is_fault`, when the store held something
+/// unusable or could not be opened). Blocking: the HAL's flash is, and `init` may block.
+pub fn load_settings(
+    flash: pac::FLASH,
+    rate_hz: u32,
+) -> (
+    controller_core::settings::Settings,
+    controller_core::settings::store::LoadOutcome,
+) {
+    use controller_core::settings::store::{Corruption, LoadOutcome};
+    match settings_store(flash) {
+        Ok(mut store) => block_on(store.load(rate_hz)),
+        Err(_) => (
+            controller_core::settings::FACTORY,
+            LoadOutcome::Corrupt(Corruption::Storage),
+        ),
+    }
+}
+
+/// Runs a future that never waits (the store over a blocking flash) to its end.
+fn block_on<F: core::future::Future>(f: F) -> F::Output {
+    let mut f = core::pin::pin!(f);
+    let mut cx = core::task::Context::from_waker(core::task::Waker::noop());
+    loop {
+        if let core::task::Poll::Ready(v) = f.as_mut().poll(&mut cx) {
+            return v;
+        }
+    }
 }

@@ -23,19 +23,23 @@ pub struct BoardIo {
 }
 
 impl BoardIo {
-    pub fn new(
-        encoders: Encoders,
-        servo: ServoOutputs,
-        safety: SafetyPins,
-        full_scale: [f32; AXES],
-    ) -> Self {
+    /// The board's IO; no output until the first period (full scale from the settings
+    /// then, [`Self::set_full_scale`]).
+    pub fn new(encoders: Encoders, servo: ServoOutputs, safety: SafetyPins) -> Self {
         Self {
             encoders,
             servo,
             safety,
-            full_scale,
+            full_scale: [f32::INFINITY; AXES],
             overrun: false,
         }
+    }
+
+    /// Effort that maps to 100 % duty, per axis (the settings' amplifier full scale,
+    /// which may change while the outputs are off).
+    #[inline]
+    pub fn set_full_scale(&mut self, full_scale: [f32; AXES]) {
+        self.full_scale = full_scale;
     }
 
     /// Whether the period that just ended overran (read by the next period's inputs).

@@ -50,7 +50,6 @@ pub mod inputs;
 pub mod io;
 pub mod leds;
 pub mod pwm;
-#[cfg_attr(not(feature = "qemu"), allow(dead_code))]
 pub mod serial;
 pub mod shutdown;
 pub mod tick;
@@ -84,8 +83,10 @@ pub struct Board {
     #[cfg(not(feature = "qemu"))]
     pub watchdog: watchdog::Watchdog,
     /// The host link's USART2 (PA2/PA3), configured with its receive interrupt.
-    #[cfg(feature = "qemu")]
     pub host_uart: Option<stm32f4xx_hal::serial::Serial<pac::USART2>>,
+    /// The flash controller (the settings store).
+    #[cfg(not(feature = "qemu"))]
+    pub flash: pac::FLASH,
 }
 
 /// Safe pins, clocks, timers. Outputs end up disabled; the control timer is configured but
@@ -210,7 +211,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
 
     let tick = ControlTick::new(dp.TIM4.counter_hz(&mut rcc));
 
-    #[cfg(feature = "qemu")]
     let host_uart = match serial::init(dp.USART2, gpioa.pa2, gpioa.pa3, &mut rcc) {
         Ok(s) => Some(s),
         Err(_) => {
@@ -229,7 +229,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
         clock,
         #[cfg(not(feature = "qemu"))]
         watchdog: watchdog::Watchdog::new(dp.IWDG),
-        #[cfg(feature = "qemu")]
         host_uart,
+        #[cfg(not(feature = "qemu"))]
+        flash: dp.FLASH,
     }
 }

@@ -5,9 +5,9 @@
 //! expects them). The control interrupt runs [`Machine::linked_period`] and advances the
 //! world; the link task (`crate::link`) talks to the host. It runs until QEMU is stopped.
 
-use core::sync::atomic::{AtomicBool, Ordering};
+use core::sync::atomic::Ordering;
 
-use controller_core::machine::{ControlSide, Machine, MachinePlanner};
+use controller_core::machine::ControlSide;
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::run::RunConfig;
@@ -15,23 +15,7 @@ use controller_core::sim::world::{SwitchConfig, World};
 
 use super::{exit, EXIT_CONFIG};
 use crate::link::LINK_CLOCK_MS;
-
-/// The machine as the firmware holds it: its planner in a static.
-pub type FwMachine = Machine<&'static mut MachinePlanner>;
-
-/// The planner's place: 40 KiB, initialised at reset from a constant (no copy through
-/// the stack, which is smaller than two of them).
-static mut PLANNER: MachinePlanner = MachinePlanner::BLANK;
-static PLANNER_TAKEN: AtomicBool = AtomicBool::new(false);
-
-/// The planner, once.
-fn take_planner() -> Option<&'static mut MachinePlanner> {
-    if PLANNER_TAKEN.swap(true, Ordering::AcqRel) {
-        return None;
-    }
-    // SAFETY: the flag above hands out the only reference to `PLANNER`, once.
-    Some(unsafe { &mut *core::ptr::addr_of_mut!(PLANNER) })
-}
+use crate::machine_slot::{self, FwMachine};
 
 /// The control interrupt's state in the link rig.
 pub struct LinkRig {
@@ -71,20 +55,14 @@ impl LinkRig {
                 exit(EXIT_CONFIG)
             }
         };
-        let Some(planner) = take_planner() else {
-            defmt::error!("link rig: booted twice");
-            exit(EXIT_CONFIG)
-        };
-        *slot = Machine::new(
+        let Ok(machine) = machine_slot::build(
+            slot,
             &settings,
             rate_hz,
             world.counter_registers(),
             world.counts(),
-            planner,
-        )
-        .ok();
-        let Some(machine) = slot.as_mut() else {
-            defmt::error!("link rig: the factory settings are rejected");
+        ) else {
+            defmt::error!("link rig: the machine cannot be built from the factory settings");
             exit(EXIT_CONFIG)
         };
         defmt::info!(
@@ -106,6 +84,11 @@ impl LinkRig {
         self.machine
             .linked_period(&mut self.world, &mut self.control);
         self.machine.servo().snapshot()
+    }
+
+    /// The settings the machine runs and its control rate.
+    pub fn machine_settings(&self) -> (Settings, u32) {
+        (*self.machine.settings(), self.rate_hz)
     }
 
     pub fn snapshot(&self) -> &Snapshot {

@@ -30,7 +30,8 @@ use controller_core::machine::ControlSide;
 use controller_core::servo::snapshot::Snapshot;
 
 use crate::board::inputs::SafetyPins;
-use link_rig::{FwMachine, LinkRig};
+use crate::machine_slot::FwMachine;
+use link_rig::LinkRig;
 use rig::{End, Rig};
 
 /// Command-line name of the link rig.
@@ -59,8 +60,13 @@ impl Period {
         }
     }
 
-    pub fn is_link(&self) -> bool {
-        matches!(self, Self::Link(_))
+    /// The link rig's machine settings and control rate (what the link task starts
+    /// from); `None` for a scenario.
+    pub fn link_machine(&self) -> Option<(controller_core::settings::Settings, u32)> {
+        match self {
+            Self::Link(r) => Some(r.machine_settings()),
+            Self::Scenario(_) => None,
+        }
     }
 
     #[inline]

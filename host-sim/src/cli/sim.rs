@@ -9,7 +9,7 @@ use super::Transport;
 use crate::studies::gcode::machine_and_planner;
 use anyhow::{anyhow, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
-use controller_core::machine::{Channels, Endpoint, Machine, MachinePlanner};
+use controller_core::machine::{Channels, Endpoint, LinkSide, LinkState, Machine, MachinePlanner};
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::world::{Injection, SwitchConfig, World};
 
@@ -21,6 +21,7 @@ pub struct SimMachine {
     world: World,
     machine: Machine<Box<MachinePlanner>>,
     channels: Box<Channels>,
+    link: LinkState,
     endpoint: Endpoint,
     rate_hz: u32,
     periods: u64,
@@ -70,6 +71,7 @@ impl SimMachine {
             world,
             machine,
             channels: Box::new(Channels::new()),
+            link: LinkState::new(&settings, rate_hz),
             endpoint,
             rate_hz,
             periods: 0,
@@ -104,7 +106,8 @@ impl SimMachine {
     pub fn advance(&mut self, n: u32) {
         let mut out = std::mem::take(&mut self.to_host);
         for _ in 0..n {
-            let (mut link, mut control) = self.channels.split();
+            let (ends, mut control) = self.channels.split();
+            let mut link = LinkSide::new(ends, &mut self.link);
             self.machine.linked_period(&mut self.world, &mut control);
             self.world.advance();
             self.periods += 1;
@@ -120,7 +123,8 @@ impl Transport for SimMachine {
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
         let now = self.ms();
         let mut out = std::mem::take(&mut self.to_host);
-        let (mut link, _) = self.channels.split();
+        let (ends, _) = self.channels.split();
+        let mut link = LinkSide::new(ends, &mut self.link);
         self.endpoint
             .on_bytes(&mut link, bytes, now, &mut |b: &[u8]| {
                 out.extend_from_slice(b)

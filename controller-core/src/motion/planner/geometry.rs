@@ -96,10 +96,14 @@ impl Helix {
         self.psi0 + self.omega * s
     }
     fn axes(&self, a: f32, b: f32, nrm: f32) -> V3 {
+        // (the plane's axis indices are 0-2 by construction; `get_mut` keeps a panic
+        // path out of the control interrupt all the same)
         let mut v = [0.0; 3];
-        v[self.i1] = a;
-        v[self.i2] = b;
-        v[self.n] = nrm;
+        for (i, x) in [(self.i1, a), (self.i2, b), (self.n, nrm)] {
+            if let Some(slot) = v.get_mut(i) {
+                *slot = x;
+            }
+        }
         v
     }
 }

@@ -217,10 +217,15 @@ impl ArcSplit {
         let (i1, i2, n) = self.axes;
         let (sn, cs) = fmath::sin_cos(self.psi0 + self.psweep * k as f32);
         let r = self.r0 + self.pdr * k as f32;
+        // (the plane's axes are 0-2 by construction; `get` keeps a panic path out of the
+        // control interrupt all the same)
+        let rise = self.start.get(n).copied().unwrap_or(0.0) + self.prise * k as f32;
         let mut e = self.center;
-        e[i1] += r * cs;
-        e[i2] += r * sn;
-        e[n] = self.start[n] + self.prise * k as f32;
+        for (i, add, x) in [(i1, true, r * cs), (i2, true, r * sn), (n, false, rise)] {
+            if let Some(slot) = e.get_mut(i) {
+                *slot = if add { *slot + x } else { x };
+            }
+        }
         e
     }
 

@@ -1,0 +1,157 @@
+//! The link side's half of the settings requests: everything that reads or writes text
+//! or walks the key table (parsing a value, checking its range, naming a field in an
+//! error, the change's class) happens here, in the link task, never in the control
+//! interrupt. The control interrupt only receives a whole, validated tree to swap in at a
+//! period boundary ([`super::Down::Apply`]) or an outcome already decided here
+//! ([`super::Down::Resolved`]), each in its place among the other requests.
+//!
+//! A settings request reads the settings the machine runs; so it is resolved only once
+//! every request before it was executed (a barrier), with the settings the machine
+//! echoed back after its last change ([`SettingsAgent::machine_took`]).
+
+use core::fmt::Write;
+
+use heapless::String;
+
+use super::messages::{IdentifyMsg, Outcome, Request, TEXT_MAX, VALUE_MAX};
+use crate::settings::{Apply, Settings, FACTORY};
+use crate::sysid::AxisModel;
+
+/// What a settings request turned into.
+#[derive(Clone, Debug, PartialEq)]
+// (a value on its way into a queue slot of the same size: boxing is not possible here)
+#[allow(clippy::large_enum_variant)]
+pub enum Resolution {
+    /// Decided here (a value read, or a refusal that names the field and why).
+    Outcome(Outcome),
+    /// Swap in these settings (validated whole; `class`: `None` when no servo parameter
+    /// changes).
+    Apply {
+        settings: Settings,
+        class: Option<Apply>,
+    },
+}
+
+/// The link side's copy of the machine's settings, and the last identification result
+/// the machine reported.
+#[derive(Clone, Debug)]
+pub struct SettingsAgent {
+    shadow: Settings,
+    rate_hz: u32,
+    identify: Option<IdentifyMsg>,
+}
+
+fn refused<E: core::fmt::Display>(e: E) -> Resolution {
+    let mut t: String<TEXT_MAX> = String::new();
+    // (a message longer than the field is cut: still names the key first)
+    let _ = write!(t, "{e}");
+    Resolution::Outcome(Outcome::Refused(t))
+}
+
+fn refused_text(s: &str) -> Resolution {
+    let mut t: String<TEXT_MAX> = String::new();
+    for c in s.chars() {
+        if t.push(c).is_err() {
+            break;
+        }
+    }
+    Resolution::Outcome(Outcome::Refused(t))
+}
+
+impl SettingsAgent {
+    /// The agent of a machine that runs `settings` at `rate_hz`.
+    pub fn new(settings: &Settings, rate_hz: u32) -> Self {
+        Self {
+            shadow: *settings,
+            rate_hz,
+            identify: None,
+        }
+    }
+
+    /// The machine took `settings` (it echoes every change it applied).
+    pub fn machine_took(&mut self, settings: &Settings) {
+        self.shadow = *settings;
+    }
+
+    /// The settings the machine runs, as far as the link side knows.
+    pub fn settings(&self) -> &Settings {
+        &self.shadow
+    }
+
+    /// The machine reported an identification result (in a status reply).
+    pub fn identified(&mut self, m: Option<IdentifyMsg>) {
+        if m.is_some() {
+            self.identify = m;
+        }
+    }
+
+    /// Whether `r` is resolved here.
+    pub fn handles(r: &Request) -> bool {
+        matches!(
+            r,
+            Request::SettingGet { .. }
+                | Request::SettingSet { .. }
+                | Request::SettingsDefaults
+                | Request::AcceptIdentified { .. }
+        )
+    }
+
+    /// Resolve a settings request (see [`Self::handles`]); any other request is refused.
+    pub fn resolve(&self, r: &Request) -> Resolution {
+        match r {
+            Request::SettingGet { key } => match self.shadow.get(key) {
+                Ok(v) => {
+                    let mut t: String<VALUE_MAX> = String::new();
+                    let _ = write!(t, "{v}");
+                    Resolution::Outcome(Outcome::Value(t))
+                }
+                Err(e) => refused(e),
+            },
+            Request::SettingSet { key, value } => {
+                let mut next = self.shadow;
+                match next.set_text(key, value, self.rate_hz) {
+                    Ok(()) => self.apply(next),
+                    Err(e) => refused(e),
+                }
+            }
+            Request::SettingsDefaults => self.apply(FACTORY),
+            Request::AcceptIdentified { axis } => {
+                let i = usize::from(*axis);
+                let model = self
+                    .identify
+                    .filter(|m| usize::from(m.axis) == i && m.done)
+                    .and_then(|m| m.model);
+                let Some(m) = model else {
+                    return refused_text(
+                        "accept: no finished identification of that axis (run identify first)",
+                    );
+                };
+                let mut next = self.shadow;
+                match next.axis.get_mut(i) {
+                    Some(a) => {
+                        a.model = Some(AxisModel {
+                            inertia: m.inertia,
+                            viscous: m.viscous,
+                            coulomb_pos_mnm: m.coulomb_pos_mnm,
+                            coulomb_neg_mnm: m.coulomb_neg_mnm,
+                        })
+                    }
+                    None => return refused_text("accept: axis must be 0, 1 or 2"),
+                }
+                self.apply(next)
+            }
+            _ => refused_text("not a settings request"),
+        }
+    }
+
+    /// `next` as a whole tree for the machine, if it validates.
+    fn apply(&self, next: Settings) -> Resolution {
+        if let Err(e) = next.validate(self.rate_hz) {
+            return refused(e);
+        }
+        Resolution::Apply {
+            settings: next,
+            class: self.shadow.change_class(&next),
+        }
+    }
+}
