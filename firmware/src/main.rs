@@ -4,7 +4,9 @@
 //!
 //! | task | priority | trigger | does |
 //! | --- | --- | --- | --- |
-//! | `control` | 3 (hardware) | TIM4 update, 10 kHz | commands from the mailbox, the core's servo step, snapshot |
+//! | `host_uart` | 4 (hardware) | USART2 | moves bytes between the UART and the link's byte queues |
+//! | `control` | 3 (hardware) | TIM4 update, 10 kHz | button commands, the core's machine (link requests, supervisor, planner, servo step), snapshot |
+//! | `link` | 2 (software) | every 1 ms | the host link: frames, settings requests, queues to and from the machine |
 //! | `button` | 2 (software) | every 1 ms | debounces the arm button, posts its commands to the mailbox |
 //! | `telemetry` | 1 (software) | every 100 ms | copies the snapshot, logs it with defmt |
 //!

@@ -234,3 +234,35 @@ fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
         0.8
     );
 }
+
+/// A feed hold while the host is still streaming (the planner full, the host waiting for
+/// credit) and its resume get through: the program completes, longer by the hold.
+#[test]
+fn a_feed_hold_while_streaming_short_segments_resumes_and_completes() {
+    let mut text = String::from("G21 G90 G64\nG1 X0 Y0 F1200\n");
+    for k in 1..=400 {
+        let th = std::f64::consts::TAU * f64::from(k) / 400.0;
+        text += &format!("X{:.4} Y{:.4}\n", 12.7 * th.sin(), 12.7 * (1.0 - th.cos()));
+    }
+    text += "M2\n";
+    let file = std::env::temp_dir().join(format!("gantry_link_stream_{}.nc", std::process::id()));
+    std::fs::write(&file, text).unwrap();
+    let mut c = connect(SimModels::Designed);
+    let plain = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, None).unwrap();
+    assert_eq!(plain.status, "completed");
+    let mut c = connect(SimModels::Designed);
+    let hold = Hold {
+        at_s: 1.0,
+        for_s: 0.5,
+    };
+    let held = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, Some(hold)).unwrap();
+    let _ = std::fs::remove_file(&file);
+    assert_eq!(held.status, "completed");
+    assert!(
+        held.duration_s >= plain.duration_s + 0.49,
+        "{} vs {}",
+        held.duration_s,
+        plain.duration_s
+    );
+    assert!(held.contour_max_mm < 0.02, "{}", held.contour_max_mm);
+}

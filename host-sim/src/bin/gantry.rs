@@ -2,7 +2,7 @@
 //! planner and servo step in-process against the simulated physical gantry; `--qemu`
 //! boots the firmware's QEMU build in its link rig and talks to it over its emulated
 //! USART2 (one machine per invocation either way: it powers up at the work origin,
-//! unhomed, disarmed). See the README ("The gantry CLI") and docs/link-protocol.md.
+//! unhomed, disarmed); `--port DEV` talks to a board over its UART. See the README ("The gantry CLI") and docs/link-protocol.md.
 
 use anyhow::{bail, Context, Result};
 
@@ -11,6 +11,7 @@ const CONTROL_RATE_HZ: u32 = 10_000;
 use clap::{ArgGroup, Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use host_sim::cli::client::{expect_done, Client};
+use host_sim::cli::port::BoardPort;
 use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
 use host_sim::cli::sim::{SimMachine, SimModels};
 use host_sim::cli::{self, Hold, Transport, AXES};
@@ -21,7 +22,7 @@ use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(name = "gantry", about = "Command a gantry over the host link")]
-#[command(group(ArgGroup::new("machine").required(true).args(["sim", "qemu"])))]
+#[command(group(ArgGroup::new("machine").required(true).args(["sim", "qemu", "port"])))]
 struct Cli {
     /// The simulated gantry in-process.
     #[arg(long)]
@@ -30,6 +31,9 @@ struct Cli {
     /// firmware's USART2 link), booted on qemu-system-arm.
     #[arg(long)]
     qemu: bool,
+    /// A board: its UART's device (921,600 baud 8N1), e.g. /dev/ttyACM0.
+    #[arg(long, value_name = "DEV")]
+    port: Option<String>,
     /// The firmware ELF for --qemu (default: what `cargo fw-qemu-build` builds).
     #[arg(long, requires = "qemu")]
     elf: Option<PathBuf>,
@@ -69,6 +73,16 @@ enum Cmd {
         vel_mm_s: f32,
         #[arg(long, default_value_t = 1.0)]
         seconds: f32,
+    },
+    /// Move to a point (machine mm) at the rapid rate, homing and arming first; refused
+    /// before anything moves when the point is outside the travel.
+    Move {
+        #[arg(allow_negative_numbers = true)]
+        x_mm: f32,
+        #[arg(allow_negative_numbers = true)]
+        y_mm: f32,
+        #[arg(allow_negative_numbers = true)]
+        z_mm: f32,
     },
     /// Run a G-code program (homes and arms first); prints the `cargo sim gcode` keys.
     Run {
@@ -154,16 +168,19 @@ fn run(cli: Cli) -> Result<ExitCode> {
         SimModels::Designed
     };
     let decimation = 10_000 / cli.telemetry_hz;
-    if cli.qemu {
+    if let Some(dev) = &cli.port {
+        session(
+            subscribed(BoardPort::open(dev)?, decimation)?,
+            cli.command,
+            decimation,
+        )
+    } else if cli.qemu {
         let elf = cli.elf.unwrap_or_else(|| PathBuf::from(DEFAULT_ELF));
-        let mut c = Client::connect(QemuMachine::boot(&elf)?)?;
-        expect_done(
-            "telemetry subscription",
-            c.exec(Request::Subscribe {
-                every_periods: decimation,
-            })?,
-        )?;
-        session(c, cli.command, decimation)
+        session(
+            subscribed(QemuMachine::boot(&elf)?, decimation)?,
+            cli.command,
+            decimation,
+        )
     } else {
         session(
             Client::connect(SimMachine::new(models, decimation)?)?,
@@ -171,6 +188,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
             decimation,
         )
     }
+}
+
+/// A session with the machine behind `t`, telemetry every `decimation` periods.
+fn subscribed<T: Transport>(t: T, decimation: u32) -> Result<Client<T>> {
+    let mut c = Client::connect(t)?;
+    expect_done(
+        "telemetry subscription",
+        c.exec(Request::Subscribe {
+            every_periods: decimation,
+        })?,
+    )?;
+    Ok(c)
 }
 
 /// What the subcommand does with the machine behind `c`.
@@ -245,6 +274,14 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             expect_done("jog", c.exec(stop)?)?;
             let s = cli::wait_while(&mut c, |s| s.state == MachineState::Jog)?;
             println!("{} at {:.3} mm ({:?})", AXES[i], s.pos_mm[i], s.state);
+        }
+        Cmd::Move { x_mm, y_mm, z_mm } => {
+            cli::ready(&mut c, true)?;
+            let s = cli::move_to(&mut c, [x_mm, y_mm, z_mm])?;
+            println!(
+                "at x {:.3} y {:.3} z {:.3} mm",
+                s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
+            );
         }
         Cmd::Run {
             file,

@@ -133,6 +133,11 @@ impl<T: Transport> Client<T> {
         Ok(())
     }
 
+    /// Room for a request now (window and the device's credit).
+    pub fn can_send(&self) -> bool {
+        self.link.can_send()
+    }
+
     /// Queue `req` (waiting for room in the window); does not wait for its outcome.
     pub fn send(&mut self, req: Request) -> Result<()> {
         let mut req = req;

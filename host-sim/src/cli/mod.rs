@@ -1,13 +1,14 @@
 //! The `gantry` command line: a session over the host link with a machine, and what each
 //! subcommand does with it. The machine is `--sim` (the supervisor, planner and servo step
-//! in-process against the simulated gantry, [`sim`]) or `--qemu` (the firmware's QEMU
-//! build in its link rig, over its emulated USART2, [`qemu`]); a board (`--port`) needs
-//! the machine in the board's control interrupt, which is not wired yet.
+//! in-process against the simulated gantry, [`sim`]), `--qemu` (the firmware's QEMU
+//! build in its link rig, over its emulated USART2, [`qemu`]) or `--port DEV` (a board
+//! over its UART, [`port`]).
 //!
 //! Every subcommand speaks the link protocol ([`client`]): requests on the reliable
 //! channel, status by real-time request, telemetry for the program run.
 
 pub mod client;
+pub mod port;
 pub mod qemu;
 pub mod sim;
 
@@ -170,6 +171,51 @@ fn operator<T: Transport>(
     Ok(())
 }
 
+/// The operator's keys during a program (a line each, read on a thread of its own so the
+/// session never waits for the keyboard): `h` feed hold, `r` resume, `a` abort.
+fn keyboard() -> std::sync::mpsc::Receiver<char> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lines() {
+            let Ok(line) = line else { break };
+            if let Some(k) = line.trim().chars().next() {
+                if tx.send(k.to_ascii_lowercase()).is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    rx
+}
+
+/// Act on the keys typed so far; `true` once the program was aborted.
+fn keys<T: Transport>(
+    c: &mut Client<T>,
+    keys: Option<&std::sync::mpsc::Receiver<char>>,
+    aborted: &mut bool,
+) -> Result<()> {
+    let Some(rx) = keys else { return Ok(()) };
+    while let Ok(k) = rx.try_recv() {
+        match k {
+            'h' => {
+                c.realtime(RealtimeRequest::Hold)?;
+                eprintln!("feed hold (r + Enter resumes, a + Enter aborts)");
+            }
+            'r' => {
+                c.realtime(RealtimeRequest::Resume)?;
+                eprintln!("resumed");
+            }
+            'a' => {
+                c.realtime(RealtimeRequest::Stop)?;
+                *aborted = true;
+                eprintln!("aborted: stopping on the path");
+            }
+            _ => eprintln!("keys: h hold, r resume, a abort (then Enter)"),
+        }
+    }
+    Ok(())
+}
+
 /// `gantry run FILE`: parse, check against the machine's travel, stream, follow. The
 /// report has the keys of `cargo sim gcode`; measured from telemetry (actual and
 /// reference positions, the planner's reference velocity and acceleration, at the
@@ -218,28 +264,48 @@ pub fn run_program<T: Transport>(
     let bar = progress.then(|| {
         let b = ProgressBar::new(segs.len() as u64);
         b.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} segments sent, {elapsed}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} segments sent, {elapsed}  (h/r/a + Enter: hold/resume/abort)",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         b
     });
+    // an operator at a terminal: hold, resume and abort from the keyboard
+    let typed = progress.then(keyboard);
+    let mut aborted = false;
     let mut samples = Vec::new();
     let (mut held_at, mut resumed) = (None, false);
     for (k, seg) in segs.iter().enumerate() {
+        // wait for room here, not in `send`: a feed hold stops the planner taking
+        // segments, and the resume must still get through
+        while !c.can_send() && !aborted {
+            c.pump()?;
+            operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
+            keys(c, typed.as_ref(), &mut aborted)?;
+            c.transport.wait()?;
+        }
+        if aborted {
+            break;
+        }
         c.send(Request::Segment(*seg))?;
         c.pump()?;
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
+        keys(c, typed.as_ref(), &mut aborted)?;
         samples.extend(c.take_telemetry());
         if let Some(b) = &bar {
             b.set_position(k as u64 + 1);
         }
     }
-    c.send(Request::EndProgram)?;
+    if !aborted {
+        c.send(Request::EndProgram)?;
+    }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
     let end = loop {
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
+        keys(c, typed.as_ref(), &mut aborted)?;
         let s = c.status()?;
         samples.extend(c.take_telemetry());
         if matches!(s.last, Outcome::Refused(_)) {
@@ -248,7 +314,7 @@ pub fn run_program<T: Transport>(
             };
             bail!("{name}: the machine refused a segment: {why}");
         }
-        let waiting = hold.is_some() && !resumed;
+        let waiting = hold.is_some() && !resumed && !aborted;
         if s.state == MachineState::Fault
             || (s.program_done && s.state == MachineState::Idle && !waiting)
         {
@@ -283,7 +349,7 @@ pub fn run_program<T: Transport>(
     } else {
         0.0
     };
-    Ok(metrics.report(
+    let mut report = metrics.report(
         &program,
         segs.len(),
         duration_s,
@@ -291,12 +357,20 @@ pub fn run_program<T: Transport>(
         tol,
         fault,
         realtime,
-    ))
+    );
+    if aborted && report.status == "completed" {
+        report.status = "aborted".into();
+    }
+    Ok(report)
 }
 
 /// Move to `target_mm` at the rapid rate (a one-segment program: the planner's limits and
 /// the soft limits apply as for any program).
 pub fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<Status> {
+    // outside the machine's travel: refused before anything moves
+    if let Err(v) = travel(c)?.check_point(target_mm.map(f64::from)) {
+        bail!("move: {v}");
+    }
     expect_done("move (run)", c.exec(Request::Run)?)?;
     let seg = controller_core::motion::planner::Segment::rapid(target_mm, 0);
     expect_done("move", c.exec(Request::Segment(seg))?)?;

@@ -15,6 +15,7 @@
 //! - [`parts`]: the blocks of that period one by one (`servo_part_*`).
 #![no_std]
 
+pub mod link;
 pub mod parts;
 pub mod planner;
 

@@ -68,6 +68,7 @@ macro_rules! kernel {
 mod cortex_m4 {
     use super::*;
     use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
+    use insns_kernels::link::{LinkDecode, LinkEncode};
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
     use insns_kernels::planner::PlannerState;
     use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
@@ -155,6 +156,16 @@ mod cortex_m4 {
     );
     kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
         .step());
+    kernel!(link_decode_segment, LinkDecode, LinkDecode::setup(), |k| k
+        .step());
+    kernel!(
+        link_encode_telemetry,
+        LinkEncode,
+        LinkEncode::setup(),
+        |k| k.telemetry()
+    );
+    kernel!(link_encode_status, LinkEncode, LinkEncode::setup(), |k| k
+        .status());
 }
 
 /// The FPU-less Cortex-M3 kernels (`thumbv7m-none-eabi`, e.g. STM32F1): the 3-axis DSMC
