@@ -142,7 +142,11 @@ fn e_stop_switches_the_outputs_off_and_the_fault_is_reported() {
     // the cause is still there: the reset is refused
     let o = c.exec(Request::Reset).unwrap();
     assert!(matches!(o, Outcome::Refused(_)), "{o:?}");
-    let _ = c.realtime(RealtimeRequest::Status).unwrap();
+    let s = c.realtime(RealtimeRequest::Status).unwrap();
+    // the history names it too (a system fault: no axis)
+    let last = s.fault_history.last().expect("a fault in the history");
+    assert_eq!(last.kind().map(|k| k.name()), Some("estop"));
+    assert_eq!(last.axis(), None);
 }
 
 /// A transport that corrupts each byte with probability `p`, both ways.
@@ -265,4 +269,28 @@ fn a_feed_hold_while_streaming_short_segments_resumes_and_completes() {
         plain.duration_s
     );
     assert!(held.contour_max_mm < 0.02, "{}", held.contour_max_mm);
+}
+
+/// `gantry log`: the session's telemetry to CSV, one row per sample at the subscribed rate.
+#[test]
+fn telemetry_logs_to_csv_at_the_session_rate() {
+    let mut c = connect(SimModels::Designed);
+    let out = std::env::temp_dir().join(format!("gantry_log_{}.csv", std::process::id()));
+    let n = cli::log_telemetry(&mut c, &out, 0.2).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let _ = std::fs::remove_file(&out);
+    let rows: Vec<&str> = text.lines().collect();
+    assert_eq!(rows.len(), n + 1);
+    assert!(rows[0].starts_with("period,state,x_mm"), "{}", rows[0]);
+    // 0.2 s at 1 kHz telemetry, periods 10 apart
+    assert!((199..=202).contains(&n), "{n}");
+    let periods: Vec<u32> = rows[1..]
+        .iter()
+        .map(|r| r.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(
+        periods.windows(2).all(|w| w[1] == w[0] + DECIMATION),
+        "{periods:?}"
+    );
+    assert!(cli::log_telemetry(&mut c, &out, -1.0).is_err());
 }

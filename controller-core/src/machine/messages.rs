@@ -116,6 +116,33 @@ pub struct IdentifyMsg {
     pub time_s: f32,
 }
 
+/// One fault of the history in a byte (a status frame has room for 8 of them and no
+/// more: its worst case must fit the link's 256-byte payload): the kind's code in bits
+/// 0-4 (`servo::faults::FaultKind`), the axis in bits 5-6 (0-2, 3 for the system).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub struct FaultCode(pub u8);
+
+impl FaultCode {
+    const SYSTEM: u8 = 3;
+
+    pub fn new(kind: crate::servo::faults::FaultKind, axis: Option<crate::axes::Axis>) -> Self {
+        let a = axis.map_or(Self::SYSTEM, |a| a.index() as u8);
+        Self((kind as u8 & 0x1F) | (a << 5))
+    }
+
+    /// The fault's kind, if the code is known.
+    pub fn kind(self) -> Option<crate::servo::faults::FaultKind> {
+        crate::servo::faults::FaultKind::ALL
+            .into_iter()
+            .find(|k| *k as u8 == self.0 & 0x1F)
+    }
+
+    /// The axis (`None`: a system fault).
+    pub fn axis(self) -> Option<crate::axes::Axis> {
+        crate::axes::Axis::from_index(usize::from((self.0 >> 5) & 0x03))
+    }
+}
+
 /// Answer to every real-time request.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
 pub struct Status {
@@ -129,6 +156,8 @@ pub struct Status {
     /// Latched fault bits (system, per axis) and the first fault's name.
     pub fault_bits: (u32, [u32; 3]),
     pub first_fault: Option<String<VALUE_MAX>>,
+    /// The last faults, oldest first (kept across resets).
+    pub fault_history: heapless::Vec<FaultCode, { crate::servo::faults::FAULT_HISTORY }>,
     /// Homed axes (bit per axis).
     pub homed: u8,
     /// Axes whose model is missing (a model-based law refuses to arm).
@@ -163,3 +192,77 @@ pub struct Telemetry {
 
 /// The handshake's schema hash of this message set.
 pub const SCHEMA_HASH: u32 = schema_hash::<Request, Telemetry, Status>();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::{encode, Seq, ToHost, MAX_FRAME_LEN};
+    use crate::servo::faults::{FaultKind, FAULT_HISTORY};
+
+    fn full<const N: usize>() -> String<N> {
+        let mut t = String::new();
+        while t.push('\u{7f}').is_ok() {}
+        t
+    }
+
+    /// The largest status the machine can send fits one frame (else it would be dropped
+    /// and the host would never hear).
+    #[test]
+    fn the_largest_status_fits_a_frame() {
+        let model = ModelMsg {
+            inertia: f32::MAX,
+            viscous: f32::MAX,
+            coulomb_pos_mnm: f32::MAX,
+            coulomb_neg_mnm: f32::MAX,
+        };
+        let mut fault_history = heapless::Vec::new();
+        while fault_history
+            .push(FaultCode::new(FaultKind::SettingsCorrupt, None))
+            .is_ok()
+        {}
+        assert_eq!(fault_history.len(), FAULT_HISTORY);
+        let status = Status {
+            state: MachineState::Run { held: true },
+            period: u32::MAX,
+            executed: u32::MAX,
+            last: Outcome::Refused(full()),
+            fault_bits: (u32::MAX, [u32::MAX; 3]),
+            first_fault: Some(full()),
+            fault_history,
+            homed: u8::MAX,
+            model_missing: u8::MAX,
+            pos_mm: [f32::MAX; 3],
+            vel_mm_s: [f32::MAX; 3],
+            planner_free: u16::MAX,
+            queued: u16::MAX,
+            program_done: true,
+            progress: f32::MAX,
+            identify: Some(IdentifyMsg {
+                axis: u8::MAX,
+                done: true,
+                model: Some(model),
+                nrmse: f32::MAX,
+                r2: f32::MAX,
+                time_s: f32::MAX,
+            }),
+        };
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let frame: ToHost<Telemetry, Status> = ToHost::Status {
+            id: Seq(u16::MAX),
+            status,
+        };
+        let n = encode(&frame, &mut buf).expect("the largest status must fit a frame");
+        assert!(n <= MAX_FRAME_LEN);
+    }
+
+    #[test]
+    fn fault_codes_round_trip() {
+        for k in FaultKind::ALL {
+            for a in [None, Some(crate::axes::Axis::X), Some(crate::axes::Axis::Z)] {
+                let c = FaultCode::new(k, a);
+                assert_eq!(c.kind(), Some(k));
+                assert_eq!(c.axis(), a);
+            }
+        }
+    }
+}

@@ -62,6 +62,8 @@ pub enum Down {
 
 /// What the machine hands the link.
 #[derive(Clone, Debug, PartialEq)]
+// (a queue slot holds either: 9 slots of 280 bytes)
+#[allow(clippy::large_enum_variant)]
 pub enum Up {
     Status { id: Seq, status: Status },
     Telemetry(Telemetry),

@@ -22,7 +22,7 @@ use core::ops::DerefMut;
 use heapless::{Deque, String};
 
 use super::messages::{
-    IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry, VALUE_MAX,
+    FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry, VALUE_MAX,
 };
 use super::port::{ControlSide, Down, Up};
 use crate::axes::Axis;
@@ -561,7 +561,12 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             }
             t
         });
+        let mut fault_history = heapless::Vec::new();
+        for r in self.servo.faults().history() {
+            let _ = fault_history.push(FaultCode::new(r.fault.kind, r.fault.axis));
+        }
         Status {
+            fault_history,
             state: self.state(),
             period: s.period,
             executed: self.executed,

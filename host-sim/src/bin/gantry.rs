@@ -54,6 +54,14 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Telemetry to a CSV file for a while of machine time (one row per sample: period,
+    /// state, position, reference, reference velocity and acceleration, contour, feed
+    /// ratio, segment tag).
+    Log {
+        out: PathBuf,
+        #[arg(long, default_value_t = 1.0)]
+        seconds: f32,
+    },
     /// Latched faults.
     Faults {
         #[arg(long)]
@@ -213,19 +221,43 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 println!("{s:#?}");
             }
         }
+        Cmd::Log { out, seconds } => {
+            let n = cli::log_telemetry(&mut c, &out, seconds)?;
+            println!("{n} samples written to {}", out.display());
+        }
         Cmd::Faults { json } => {
             let s = c.status()?;
+            let history: Vec<String> = s
+                .fault_history
+                .iter()
+                .map(|f| {
+                    let kind = f.kind().map_or("unknown", |k| k.name());
+                    match f.axis() {
+                        Some(a) => format!("{kind} on {}", a.name()),
+                        None => kind.to_string(),
+                    }
+                })
+                .collect();
             if json {
                 let j = serde_json::json!({
                     "first": s.first_fault.as_deref(),
                     "system_bits": s.fault_bits.0,
                     "axis_bits": s.fault_bits.1,
+                    "history": history,
                 });
                 println!("{}", serde_json::to_string_pretty(&j)?);
             } else {
                 println!(
                     "first fault: {}",
                     s.first_fault.as_deref().unwrap_or("none")
+                );
+                println!(
+                    "history (oldest first, kept across resets): {}",
+                    if history.is_empty() {
+                        "none".into()
+                    } else {
+                        history.join(", ")
+                    }
                 );
             }
         }

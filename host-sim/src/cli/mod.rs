@@ -384,6 +384,67 @@ pub fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<S
     Ok(s)
 }
 
+/// `gantry log`: the session's telemetry for `seconds` of machine time into a CSV file
+/// (header `period,state,x_mm,y_mm,z_mm,ref_x_mm,ref_y_mm,ref_z_mm,ref_vx_mm_s,…,
+/// contour_mm,feed_ratio,tag`); the number of samples. Gaps (lost frames) are counted
+/// by the link and left out.
+pub fn log_telemetry<T: Transport>(c: &mut Client<T>, out: &Path, seconds: f32) -> Result<usize> {
+    if !(seconds > 0.0 && seconds <= 3600.0) {
+        bail!("log: --seconds must be within (0, 3600], got {seconds}");
+    }
+    let mut w =
+        csv::Writer::from_path(out).with_context(|| format!("cannot write {}", out.display()))?;
+    w.write_record([
+        "period",
+        "state",
+        "x_mm",
+        "y_mm",
+        "z_mm",
+        "ref_x_mm",
+        "ref_y_mm",
+        "ref_z_mm",
+        "ref_vx_mm_s",
+        "ref_vy_mm_s",
+        "ref_vz_mm_s",
+        "ref_ax_mm_s2",
+        "ref_ay_mm_s2",
+        "ref_az_mm_s2",
+        "contour_mm",
+        "feed_ratio",
+        "tag",
+    ])?;
+    let (run, _) = machine_and_planner(None)?;
+    let periods = (f64::from(seconds) * f64::from(run.servo.rate_hz)) as u32;
+    c.take_telemetry();
+    let p0 = c.status()?.period;
+    let mut n = 0usize;
+    loop {
+        c.pump()?;
+        for t in c.take_telemetry() {
+            let mut row = vec![t.period.to_string(), format!("{:?}", t.state)];
+            for v in t
+                .pos_mm
+                .iter()
+                .chain(&t.reference_mm)
+                .chain(&t.ref_vel_mm_s)
+                .chain(&t.ref_acc_mm_s2)
+                .chain([&t.contour_mm, &t.feed_ratio])
+            {
+                row.push(v.to_string());
+            }
+            row.push(t.tag.to_string());
+            w.write_record(&row)?;
+            n += 1;
+        }
+        if c.last_period().wrapping_sub(p0) >= periods {
+            break;
+        }
+        c.transport.wait()?;
+    }
+    w.flush()?;
+    Ok(n)
+}
+
 /// `gantry identify` result of one axis (keys are public interface).
 #[derive(Clone, Debug, Serialize)]
 pub struct IdentifyJson {

@@ -79,6 +79,7 @@ impl LinkEncode {
             last: Outcome::Refused(refusal),
             fault_bits: (0, [0; 3]),
             first_fault: None,
+            fault_history: heapless::Vec::new(),
             homed: 0b111,
             model_missing: 0,
             pos_mm: SAMPLE.pos_mm,

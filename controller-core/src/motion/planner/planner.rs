@@ -169,31 +169,9 @@ pub struct Planner<const N: usize, const S: usize> {
 impl<const N: usize, const S: usize> Planner<N, S> {
     /// A planner at rest at `start_mm`.
     pub fn new(cfg: &PlannerConfig, start_mm: [f32; 3]) -> Result<Self, PlannerConfigError> {
-        let set = Settings::new(cfg)?;
-        for x in start_mm {
-            if !x.is_finite() {
-                return Err(PlannerConfigError::NotFinite("start_mm"));
-            }
-        }
-        Ok(Self {
-            set,
-            pieces: Deque::new(),
-            front_piece_id: 0,
-            spans: SpanRing::new(),
-            next_seq: 1,
-            sent_end: 1,
-            gen: GenState::at(1, 0.0),
-            epoch: 0,
-            path_gen: 0,
-            feed_override: 1.0,
-            run: RunState::Run,
-            hold_point: None,
-            exec_mode: ExecMode::Idle,
-            end_pos: start_mm,
-            slips: 0,
-            scan: ScanCache::new(),
-            ahead: Ahead::new(0.0, 0.0, 0.0),
-        })
+        let mut p = Self::BLANK;
+        p.restart(cfg, start_mm)?;
+        Ok(p)
     }
 
     /// A planner with no configuration, to be [`Planner::restart`]ed before use: a
