@@ -294,3 +294,35 @@ fn telemetry_logs_to_csv_at_the_session_rate() {
     );
     assert!(cli::log_telemetry(&mut c, &out, -1.0).is_err());
 }
+
+/// `gantry move` outside the travel is refused before anything moves; inside, it arrives.
+#[test]
+fn a_move_outside_the_travel_is_refused_and_nothing_moves() {
+    let mut c = connect(SimModels::Designed);
+    let s0 = cli::ready(&mut c, true).unwrap();
+    let err = cli::move_to(&mut c, [500.0, 0.0, 0.0])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("X would leave the travel"), "{err}");
+    c.sleep_ms(100).unwrap();
+    let s1 = c.status().unwrap();
+    // only the travel was read (settings gets): no program started, nothing moved
+    assert!(matches!(s1.last, Outcome::Value(_)), "{:?}", s1.last);
+    assert_eq!(s1.state, MachineState::Idle);
+    for i in 0..3 {
+        assert!((s1.pos_mm[i] - s0.pos_mm[i]).abs() < 0.005, "{s0:?} {s1:?}");
+    }
+    let s = cli::move_to(&mut c, [10.0, -5.0, 2.0]).unwrap();
+    assert!((s.pos_mm[0] - 10.0).abs() < 0.02, "{s:?}");
+    assert!((s.pos_mm[1] + 5.0).abs() < 0.02, "{s:?}");
+}
+
+/// `gantry --port` on a device that does not exist: an error naming it.
+#[test]
+fn a_missing_serial_device_is_a_clear_error() {
+    let err = host_sim::cli::port::BoardPort::open("/nonexistent/ttyGANTRY")
+        .err()
+        .expect("no such device")
+        .to_string();
+    assert!(err.contains("/nonexistent/ttyGANTRY"), "{err}");
+}
