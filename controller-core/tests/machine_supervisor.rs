@@ -336,3 +336,162 @@ fn a_planner_restarted_in_place_equals_a_new_one() {
     assert!(used.restart(&bad, [0.0; 3]).is_err());
     assert_eq!(used.planner(), fresh.planner());
 }
+
+/// Settings saves through the link (`machine::save`): written only with the outputs off,
+/// nothing arms while the flash is written, a new session cancels a save on both sides.
+#[cfg(feature = "store")]
+mod save {
+    use super::*;
+    use controller_core::machine::save_due_into;
+    use controller_core::servo::Command;
+    use controller_core::settings::store::{
+        block_on, BlockingFlash, LoadOutcome, RamFlash, SettingsStore,
+    };
+
+    type Store = SettingsStore<BlockingFlash<RamFlash<8192, 4096>>>;
+
+    fn store() -> Store {
+        SettingsStore::new(
+            BlockingFlash::new(RamFlash::new(), 0, 8192).unwrap(),
+            0..8192,
+        )
+        .unwrap()
+    }
+
+    /// One period behind the link, the link side writing a save that is due.
+    fn linked(m: &mut M, w: &mut World, ch: &mut Channels, st: &mut LinkState, s: &mut Store) {
+        let (ends, mut ctl) = ch.split();
+        let mut link = LinkSide::new(ends, st);
+        link.poll();
+        save_due_into(&mut link, s);
+        m.linked_period(w, &mut ctl);
+        w.advance();
+    }
+
+    fn send(ch: &mut Channels, st: &mut LinkState, r: Request) {
+        let (ends, _) = ch.split();
+        LinkSide::new(ends, st).down(Down::Request(r));
+    }
+
+    #[test]
+    fn a_save_stores_the_settings_the_machine_runs_for_the_next_boot() {
+        let (mut m, mut w) = machine();
+        let (mut ch, mut s) = (Channels::new(), store());
+        let mut st = LinkState::new(m.settings(), RATE_HZ);
+        send(
+            &mut ch,
+            &mut st,
+            Request::SettingSet {
+                key: "axis.x.law.bandwidth_rad_s".try_into().unwrap(),
+                value: "300".try_into().unwrap(),
+            },
+        );
+        send(&mut ch, &mut st, Request::SettingsSave);
+        for _ in 0..10 {
+            linked(&mut m, &mut w, &mut ch, &mut st, &mut s);
+        }
+        assert_eq!(m.status().last, Outcome::Done);
+        assert_eq!(m.status().executed, 2);
+        assert_eq!(m.retired(), 2);
+        assert!(!m.saving());
+        let (loaded, how) = block_on(s.load(RATE_HZ));
+        assert_eq!(how, LoadOutcome::Stored);
+        assert_eq!(loaded.axis[0].law.bandwidth_rad_s, 300.0);
+        assert_eq!(loaded, *m.settings());
+    }
+
+    #[test]
+    fn a_save_with_the_outputs_on_is_refused_and_writes_nothing() {
+        let (mut m, mut w) = machine();
+        let (mut ch, mut s) = (Channels::new(), store());
+        let mut st = LinkState::new(m.settings(), RATE_HZ);
+        send(&mut ch, &mut st, Request::Arm);
+        send(&mut ch, &mut st, Request::SettingsSave);
+        for _ in 0..10 {
+            linked(&mut m, &mut w, &mut ch, &mut st, &mut s);
+        }
+        assert!(m.servo().state().drives());
+        let Outcome::Refused(why) = m.status().last else {
+            panic!("{:?}", m.status().last)
+        };
+        assert!(why.contains("disarm first"), "{why}");
+        assert_eq!(m.status().executed, 2);
+        assert_eq!(block_on(s.load(RATE_HZ)).1, LoadOutcome::Empty);
+        // the link side is not stuck: the next request goes through
+        send(&mut ch, &mut st, Request::Disarm);
+        for _ in 0..10 {
+            linked(&mut m, &mut w, &mut ch, &mut st, &mut s);
+        }
+        assert_eq!(m.status().executed, 3);
+        assert!(!m.servo().state().drives());
+    }
+
+    #[test]
+    fn nothing_arms_while_the_flash_is_written() {
+        let (mut m, mut w) = machine();
+        let (mut ch, mut s) = (Channels::new(), store());
+        let mut st = LinkState::new(m.settings(), RATE_HZ);
+        send(&mut ch, &mut st, Request::SettingsSave);
+        // periods without the link side writing: the machine holds the lock
+        for _ in 0..3 {
+            let (ends, mut ctl) = ch.split();
+            LinkSide::new(ends, &mut st).poll();
+            m.linked_period(&mut w, &mut ctl);
+            w.advance();
+        }
+        assert!(m.saving());
+        // the arm button and an arm request behind the save both wait
+        m.local(Command::Arm);
+        send(&mut ch, &mut st, Request::Arm);
+        for _ in 0..20 {
+            let (ends, mut ctl) = ch.split();
+            let mut link = LinkSide::new(ends, &mut st);
+            link.poll();
+            assert!(link.save_due().is_some());
+            m.linked_period(&mut w, &mut ctl);
+            w.advance();
+            assert_eq!(m.servo().state(), ServoState::Disabled);
+        }
+        assert_eq!(m.status().executed, 0);
+        // written: the lock goes, then the button's arm and the queued arm run
+        for _ in 0..10 {
+            linked(&mut m, &mut w, &mut ch, &mut st, &mut s);
+        }
+        assert!(!m.saving());
+        assert!(m.servo().state().drives());
+        assert_eq!(m.status().executed, 2);
+        assert_eq!(block_on(s.load(RATE_HZ)).1, LoadOutcome::Stored);
+    }
+
+    #[test]
+    fn a_new_session_cancels_a_save_on_both_sides() {
+        let (mut m, mut w) = machine();
+        let (mut ch, mut s) = (Channels::new(), store());
+        let mut st = LinkState::new(m.settings(), RATE_HZ);
+        send(&mut ch, &mut st, Request::SettingsSave);
+        for _ in 0..3 {
+            let (ends, mut ctl) = ch.split();
+            LinkSide::new(ends, &mut st).poll();
+            m.linked_period(&mut w, &mut ctl);
+            w.advance();
+        }
+        assert!(m.saving());
+        {
+            let (ends, mut ctl) = ch.split();
+            let mut link = LinkSide::new(ends, &mut st);
+            link.down(Down::SessionStarted);
+            assert!(link.save_due().is_none());
+            m.linked_period(&mut w, &mut ctl);
+            w.advance();
+        }
+        assert!(!m.saving());
+        // nothing is written afterwards, and the new session's requests run
+        send(&mut ch, &mut st, Request::Arm);
+        for _ in 0..10 {
+            linked(&mut m, &mut w, &mut ch, &mut st, &mut s);
+        }
+        assert_eq!(block_on(s.load(RATE_HZ)).1, LoadOutcome::Empty);
+        assert!(m.servo().state().drives());
+        assert_eq!(m.status().executed, 1);
+    }
+}

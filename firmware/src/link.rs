@@ -4,6 +4,10 @@
 //! transmit queue. It runs every millisecond at a priority below the control interrupt
 //! and never touches the machine or the UART itself (see `board::serial`).
 //!
+//! A settings save is written here, never in the control interrupt: once the machine holds
+//! its outputs off, [`Saver`] writes the flash (the board's sectors with the watchdog
+//! stretched; in QEMU, which models no flash controller, a store in RAM).
+//!
 //! The link's clock is the control clock: [`LINK_CLOCK_MS`], the machine time the control
 //! interrupt publishes (periods run × period), so the watchdog and every timeout count
 //! control periods — on the board that is real time, in QEMU it is the emulated
@@ -22,6 +26,12 @@ pub static LINK_CLOCK_MS: AtomicU32 = AtomicU32::new(0);
 /// Bytes handed to the endpoint per call.
 const CHUNK: usize = 64;
 
+/// Where the link task writes settings saves.
+#[cfg(not(feature = "qemu"))]
+pub type Saver = crate::board::flash::BoardSaver;
+#[cfg(feature = "qemu")]
+pub type Saver = crate::qemu::link_rig::RamSaver;
+
 /// The link task's state.
 pub struct LinkTask {
     endpoint: Endpoint,
@@ -31,6 +41,7 @@ pub struct LinkTask {
     tx: Producer<'static, u8>,
     /// Frames dropped whole because the transmit queue had no room for them.
     tx_dropped: u32,
+    saver: Saver,
 }
 
 impl LinkTask {
@@ -42,6 +53,7 @@ impl LinkTask {
         rate_hz: u32,
         rx: Consumer<'static, u8>,
         tx: Producer<'static, u8>,
+        saver: Saver,
     ) -> Option<Self> {
         let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).ok()?;
         Some(Self {
@@ -51,6 +63,7 @@ impl LinkTask {
             rx,
             tx,
             tx_dropped: 0,
+            saver,
         })
     }
 
@@ -92,6 +105,7 @@ impl LinkTask {
                 .on_bytes(&mut port, buf.get(..n).unwrap_or(&[]), now_ms, &mut out);
         }
         self.endpoint.poll(&mut port, now_ms, &mut out);
+        self.saver.save_due(&mut port);
         self.ends = Some(port.into_ends());
         !self.tx.is_empty()
     }

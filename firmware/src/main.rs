@@ -148,7 +148,8 @@ mod app {
             let (producer, consumer) = cx.local.mailbox.split();
             // the stored settings (before the watchdog starts: a load may repair an
             // interrupted erase), the factory ones and a fault if the store is corrupt
-            let (settings, load) = crate::board::flash::load_settings(board.flash, CONTROL_RATE_HZ);
+            let (settings, load, store) =
+                crate::board::flash::load_settings(board.flash, CONTROL_RATE_HZ);
             let io = board::io::BoardIo::new(board.encoders, board.servo, board.safety);
             let machine = match machine_slot::build(
                 machine,
@@ -186,7 +187,15 @@ mod app {
                 period.latch_board_fault(FaultKind::ClockFault);
             }
             let host_uart = board.host_uart.map(|s| HostUart::new(s, rx_in, tx_out));
-            let link_task = LinkTask::new(port, &settings, CONTROL_RATE_HZ, rx_out, tx_in);
+            // SAFETY: the control task's `Watchdog` (feeds only) is the IWDG's other user
+            let stretch = unsafe {
+                board::watchdog::WatchdogStretch::new(
+                    iwdg_setting(CONTROL_RATE_HZ),
+                    firmware::watchdog::iwdg_save_setting(),
+                )
+            };
+            let saver = crate::board::flash::BoardSaver::new(store, stretch);
+            let link_task = LinkTask::new(port, &settings, CONTROL_RATE_HZ, rx_out, tx_in, saver);
             (period, board.arm, producer, host_uart, link_task)
         };
         #[cfg(feature = "qemu")]
@@ -201,8 +210,10 @@ mod app {
                 .host_uart
                 .filter(|_| link.is_some())
                 .map(|s| HostUart::new(s, rx_in, tx_out));
-            let link_task = link
-                .and_then(|(settings, rate)| LinkTask::new(port, &settings, rate, rx_out, tx_in));
+            let link_task = link.and_then(|(settings, rate)| {
+                let saver = crate::qemu::link_rig::RamSaver::new();
+                LinkTask::new(port, &settings, rate, rx_out, tx_in, saver)
+            });
             (period, host_uart, link_task)
         };
 

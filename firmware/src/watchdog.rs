@@ -58,6 +58,11 @@ impl IwdgSetting {
     }
 }
 
+/// The timeout while a settings save writes the flash, at least this long at the fastest
+/// LSI, µs: twice the worst erase of a 128 KiB sector (4 s, DS8626), during which the
+/// CPU stalls and nothing can feed the watchdog. (At the slowest LSI it is 22.1 s.)
+pub const SAVE_TIMEOUT_US: u32 = 8_000_000;
+
 /// The shortest timeout that is at least `max(MIN_TIMEOUT_US, MIN_TIMEOUT_PERIODS
 /// periods)` at the fastest LSI, for a control rate of `control_hz` (100..=50 000 Hz).
 pub const fn iwdg_setting(control_hz: u32) -> IwdgSetting {
@@ -68,6 +73,18 @@ pub const fn iwdg_setting(control_hz: u32) -> IwdgSetting {
     } else {
         MIN_TIMEOUT_US as u64
     };
+    shortest_setting(need_us)
+}
+
+/// The timeout the board switches to around a settings save (outputs off): at least
+/// [`SAVE_TIMEOUT_US`] at the fastest LSI.
+pub const fn iwdg_save_setting() -> IwdgSetting {
+    shortest_setting(SAVE_TIMEOUT_US as u64)
+}
+
+/// The shortest setting whose timeout is at least `need_us` at the fastest LSI (the
+/// longest setting when none is).
+const fn shortest_setting(need_us: u64) -> IwdgSetting {
     let mut pr = 0u8;
     while pr <= 6 {
         let div = 4u64 << pr;
@@ -124,5 +141,23 @@ mod tests {
         let s = iwdg_setting(100);
         assert_eq!(s.timeout_us(LSI_MAX_HZ), 50_042);
         assert_eq!(s.timeout_us(LSI_MIN_HZ), 138_352);
+    }
+
+    #[test]
+    fn the_save_timeout_outlasts_two_worst_sector_erases() {
+        let s = iwdg_save_setting();
+        assert_eq!(
+            s,
+            IwdgSetting {
+                pr: 5,
+                reload: 2937
+            }
+        );
+        let fastest = s.timeout_us(LSI_MAX_HZ);
+        assert!(
+            (SAVE_TIMEOUT_US..SAVE_TIMEOUT_US + 10_000).contains(&fastest),
+            "{fastest}"
+        );
+        assert_eq!(s.timeout_us(LSI_MIN_HZ), 22_121_411);
     }
 }

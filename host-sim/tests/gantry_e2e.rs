@@ -1,7 +1,8 @@
 //! End to end over the link, one scenario against two machines: the real firmware binary
 //! in QEMU (its link rig: the machine behind USART2, reached over QEMU's emulated UART on
 //! a TCP socket) and the in-process simulated machine (`--sim`). Handshake; settings set
-//! and get, a value out of range refused with nothing changed; arm; a program to
+//! and get, a value out of range refused with nothing changed; a settings save (refused
+//! with the outputs on); arm; a program to
 //! completion with telemetry; the same program with a feed hold and resume; abort of a
 //! running program; the host going silent: the machine stops with `LinkLost` within the
 //! watchdog's timeout, measured in control periods; a new session finds the fault.
@@ -11,7 +12,7 @@
 //! run by `.ci/run` (`cargo test -p host-sim --release --test gantry_e2e -- --ignored`).
 
 use controller_core::link::RealtimeRequest;
-use controller_core::machine::messages::{MachineState, Request};
+use controller_core::machine::messages::{MachineState, Outcome, Request};
 use controller_core::motion::planner::Segment;
 use host_sim::cli::client::{expect_done, Client};
 use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
@@ -91,8 +92,17 @@ fn scenario<T: Transport>(mut c: Client<T>, tag: &str) -> Figures {
     )
     .unwrap();
 
+    // saved to the machine's flash with the outputs off
+    expect_done("save", c.exec(Request::SettingsSave).unwrap()).unwrap();
+
     // arm, a program to completion, with telemetry
     expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    assert_eq!(c.status().unwrap().state, MachineState::Idle);
+    // no save with the outputs on, and nothing changes
+    let Outcome::Refused(why) = c.exec(Request::SettingsSave).unwrap() else {
+        panic!("a save with the outputs on was not refused")
+    };
+    assert!(why.contains("disarm first"), "{why}");
     assert_eq!(c.status().unwrap().state, MachineState::Idle);
     let file = program_file(tag);
     let plain = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, None).unwrap();

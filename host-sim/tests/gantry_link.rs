@@ -1,10 +1,11 @@
 //! The `gantry` CLI's session against the simulated machine, end to end over the link
-//! protocol (frames, acks, status requests, telemetry): settings, a program with a feed
+//! protocol (frames, acks, status requests, telemetry): settings and their save, a program with a feed
 //! hold, identification with acceptance, link loss, e-stop, and 1 % byte errors.
 
 use anyhow::Result;
 use controller_core::link::RealtimeRequest;
 use controller_core::machine::messages::{MachineState, Outcome, Request};
+use controller_core::settings::store::{block_on, LoadOutcome};
 use controller_core::sim::rng::SplitMix64;
 use controller_core::sim::world::Injection;
 use host_sim::cli::client::{expect_done, Client};
@@ -40,12 +41,22 @@ fn settings_are_validated_and_a_bad_value_changes_nothing() {
         c.transport.machine().settings().axis[0].following_error_mm,
         0.8
     );
-    // gains change only with the outputs off
+    // saved: what the machine's next boot loads
+    expect_done("save", c.exec(Request::SettingsSave).unwrap()).unwrap();
+    let (stored, how) = block_on(c.transport.store().load(10_000));
+    assert_eq!(how, LoadOutcome::Stored);
+    assert_eq!(stored, *c.transport.machine().settings());
+    // gains change only with the outputs off, and so does the flash
     expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
     let err = cli::set(&mut c, "axis.y.law.bandwidth_rad_s", "300")
         .unwrap_err()
         .to_string();
     assert!(err.contains("outputs off"), "{err}");
+    let err = expect_done("save", c.exec(Request::SettingsSave).unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("disarm first"), "{err}");
+    assert_eq!(block_on(c.transport.store().load(10_000)).0, stored);
 }
 
 #[test]

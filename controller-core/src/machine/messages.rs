@@ -50,6 +50,9 @@ pub enum Request {
     },
     /// Back to the factory settings (outputs off).
     SettingsDefaults,
+    /// Store the settings the machine runs in flash, for the next boot. Only with the
+    /// outputs off (a flash write stalls the control loop); nothing arms until it is done.
+    SettingsSave,
     /// Identify axis 0/1/2: homed, or within the user-confirmed window `[min, max]` in
     /// machine mm (an axis that cannot be homed yet: no model to arm with).
     Identify {

@@ -6,15 +6,20 @@
 //!
 //! Message types: [`messages`]. The link's end: [`Endpoint`], which reaches the machine
 //! only through the lock-free queues of [`port`] (on the board the link task and the
-//! control interrupt). Transport: [`crate::link`].
+//! control interrupt). A settings save is written by the link side (`save`, feature `store`). Transport:
+//! [`crate::link`].
 
 mod endpoint;
 pub mod messages;
 pub mod port;
+#[cfg(feature = "store")]
+pub mod save;
 mod settings_agent;
 mod supervisor;
 
 pub use endpoint::Endpoint;
-pub use port::{Channels, ControlSide, Down, LinkEnds, LinkSide, LinkState, MachinePort, Up};
+pub use port::{Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort, Up};
+#[cfg(feature = "store")]
+pub use save::{save_blocking, save_due_into};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{Machine, MachineError, MachinePlanner, REQUEST_QUEUE, SEGMENTS_PER_PERIOD};

@@ -17,6 +17,14 @@
 //! before it were executed, so that it reads the settings the machine runs; the machine
 //! echoes each tree it took back up (a queue of its own).
 //!
+//! A settings save ([`Request::SettingsSave`]) is the one request the link side carries
+//! out itself, because it owns the flash and the control interrupt must never wait on
+//! it: once everything before it was executed, it goes down as [`Down::SaveLock`]; the
+//! machine, with its outputs off, locks them off and says so ([`Echo::Save`]); the link
+//! task writes the flash ([`LinkSide::save_due`]) and hands the result down
+//! ([`LinkSide::save_finished`], [`Down::SaveDone`]), which releases the lock. A new
+//! session or a lost link cancels a save on both sides.
+//!
 //! `gantry --sim` uses the very same queues in one thread (split per call).
 //!
 //! [`Machine::linked_period`]: super::Machine::linked_period
@@ -58,6 +66,40 @@ pub enum Down {
     StatusOnly { id: Seq },
     /// The link's watchdog expired: controlled stop and a `LinkLost` fault.
     LinkLost,
+    /// A settings save reached the front, everything before it executed: with the
+    /// outputs off, hold them off until [`Down::SaveDone`] with the same `token`, and
+    /// answer with [`Echo::Save`] (in the request's place).
+    SaveLock { token: u32 },
+    /// The link side finished the save `token` (written or failed: `outcome`, the
+    /// request's outcome); the outputs may be armed again.
+    SaveDone { token: u32, outcome: Outcome },
+}
+
+/// What the machine reports back to the link side about settings (a queue of its own).
+#[derive(Clone, Debug, PartialEq)]
+// (a queue slot holds either)
+#[allow(clippy::large_enum_variant)]
+pub enum Echo {
+    /// The machine took these settings.
+    Took(Settings),
+    /// The save `token`: `locked` (outputs off and held off: write the flash now), or
+    /// refused (the outputs are on; the refusal is the request's outcome).
+    Save { token: u32, locked: bool },
+}
+
+/// Where the link side's save is.
+#[derive(Clone, Debug, PartialEq)]
+enum SavePhase {
+    Idle,
+    /// [`Down::SaveLock`] sent, waiting for the machine's [`Echo::Save`].
+    Locking(u32),
+    /// The machine holds the outputs off: the flash may be written.
+    Ready(u32),
+    /// Written (or failed): [`Down::SaveDone`] waits for room in the down queue.
+    Reply {
+        token: u32,
+        outcome: Outcome,
+    },
 }
 
 /// What the machine hands the link.
@@ -77,14 +119,14 @@ pub const DOWN_QUEUE: usize = REQUEST_QUEUE + 8;
 /// the link task; when full, telemetry is dropped and counted as a gap by the host).
 pub const UP_QUEUE: usize = 8;
 
-/// Settings trees the machine took, on their way back to the link side.
+/// Settings trees the machine took and save answers, on their way back to the link side.
 const ECHO_QUEUE: usize = 4;
 
 /// The queues and the credit counter.
 pub struct Channels {
     down: Queue<Down, { DOWN_QUEUE + 1 }>,
     up: Queue<Up, { UP_QUEUE + 1 }>,
-    echo: Queue<Settings, { ECHO_QUEUE + 1 }>,
+    echo: Queue<Echo, { ECHO_QUEUE + 1 }>,
     /// Requests retired by the machine (control side writes).
     retired: AtomicU32,
 }
@@ -133,7 +175,7 @@ impl Channels {
 pub struct LinkEnds<'a> {
     down: Producer<'a, Down>,
     up: Consumer<'a, Up>,
-    echo: Consumer<'a, Settings>,
+    echo: Consumer<'a, Echo>,
     retired: &'a AtomicU32,
 }
 
@@ -161,6 +203,8 @@ pub struct LinkState {
     dropped: u32,
     /// Requests passed down.
     passed: u32,
+    save: SavePhase,
+    save_token: u32,
 }
 
 impl LinkState {
@@ -172,12 +216,19 @@ impl LinkState {
             accepted: 0,
             dropped: 0,
             passed: 0,
+            save: SavePhase::Idle,
+            save_token: 0,
         }
     }
 
     /// The settings the machine runs, as the link side knows them.
     pub fn settings(&self) -> &Settings {
         self.agent.settings()
+    }
+
+    /// The machine's control rate, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.agent.rate_hz()
     }
 }
 
@@ -197,16 +248,69 @@ impl<'a, 's> LinkSide<'a, 's> {
         self.ends
     }
 
+    /// The machine's control rate, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.state.rate_hz()
+    }
+
+    /// The settings to write to flash now, when a save is due: the machine holds its
+    /// outputs off until [`Self::save_finished`].
+    pub fn save_due(&self) -> Option<Settings> {
+        matches!(self.state.save, SavePhase::Ready(_)).then(|| *self.state.agent.settings())
+    }
+
+    /// The save [`Self::save_due`] asked for is over (`outcome`: done, or why not); the
+    /// machine releases its lock.
+    pub fn save_finished(&mut self, outcome: Outcome) {
+        if let SavePhase::Ready(token) = self.state.save {
+            self.state.save = SavePhase::Reply { token, outcome };
+            self.flush();
+        }
+    }
+
     /// Pass held requests down in order while the machine's queue has room; a settings
-    /// request only once everything before it was executed (it is resolved then).
+    /// request only once everything before it was executed (it is resolved then); nothing
+    /// while a save is under way.
     fn flush(&mut self) {
         let retired = self.ends.retired.load(Ordering::Acquire);
         // (after `retired`: every tree the retired requests applied is in the queue)
-        while let Some(s) = self.ends.echo.dequeue() {
-            self.state.agent.machine_took(&s);
+        while let Some(e) = self.ends.echo.dequeue() {
+            match e {
+                Echo::Took(s) => self.state.agent.machine_took(&s),
+                Echo::Save { token, locked } => {
+                    // (a stale answer, of a save a new session cancelled, is ignored)
+                    if self.state.save == SavePhase::Locking(token) {
+                        self.state.save = if locked {
+                            SavePhase::Ready(token)
+                        } else {
+                            SavePhase::Idle
+                        };
+                    }
+                }
+            }
+        }
+        if let SavePhase::Reply { token, outcome } = &self.state.save {
+            let done = Down::SaveDone {
+                token: *token,
+                outcome: outcome.clone(),
+            };
+            if self.ends.down.enqueue(done).is_ok() {
+                self.state.save = SavePhase::Idle;
+            }
         }
         while let Some(r) = self.state.held.front() {
-            let d = if SettingsAgent::handles(r) {
+            if self.state.save != SavePhase::Idle {
+                break;
+            }
+            let mut lock = None;
+            let d = if matches!(r, Request::SettingsSave) {
+                if self.state.passed != retired {
+                    break;
+                }
+                let token = self.state.save_token.wrapping_add(1);
+                lock = Some(token);
+                Down::SaveLock { token }
+            } else if SettingsAgent::handles(r) {
                 if self.state.passed != retired {
                     break;
                 }
@@ -219,6 +323,10 @@ impl<'a, 's> LinkSide<'a, 's> {
             };
             if self.ends.down.enqueue(d).is_err() {
                 break;
+            }
+            if let Some(token) = lock {
+                self.state.save_token = token;
+                self.state.save = SavePhase::Locking(token);
             }
             self.state.held.pop_front();
             self.state.passed = self.state.passed.wrapping_add(1);
@@ -251,7 +359,13 @@ impl MachinePort for LinkSide<'_, '_> {
                 let n = self.state.held.len() as u32;
                 self.state.held.clear();
                 self.state.dropped = self.state.dropped.wrapping_add(n);
+                // (the machine drops its lock at the same event)
+                self.state.save = SavePhase::Idle;
                 let _ = self.ends.down.enqueue(Down::SessionStarted);
+            }
+            Down::LinkLost => {
+                self.state.save = SavePhase::Idle;
+                let _ = self.ends.down.enqueue(Down::LinkLost);
             }
             // real-time traffic skips the queue; a full queue drops it (the host repeats
             // what it gets no answer to)
@@ -279,7 +393,7 @@ impl MachinePort for LinkSide<'_, '_> {
 pub struct ControlSide<'a> {
     down: Consumer<'a, Down>,
     up: Producer<'a, Up>,
-    echo: Producer<'a, Settings>,
+    echo: Producer<'a, Echo>,
     retired: &'a AtomicU32,
     dropped_up: u32,
 }
@@ -302,7 +416,13 @@ impl ControlSide<'_> {
     pub fn echo(&mut self, settings: &Settings) {
         // (room: at most one per retired request the link side has not seen, and it
         // passes no settings request down before it saw them all)
-        let _ = self.echo.enqueue(*settings);
+        let _ = self.echo.enqueue(Echo::Took(*settings));
+    }
+
+    /// The answer to [`Down::SaveLock`] `token` (see [`Echo::Save`]).
+    pub fn echo_save(&mut self, token: u32, locked: bool) {
+        // (room: a save goes down only after the link side saw every earlier echo)
+        let _ = self.echo.enqueue(Echo::Save { token, locked });
     }
 
     /// Publish how many requests the machine has retired in total.

@@ -73,6 +73,11 @@ impl SettingsAgent {
         self.shadow = *settings;
     }
 
+    /// The machine's control rate, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.rate_hz
+    }
+
     /// The settings the machine runs, as far as the link side knows.
     pub fn settings(&self) -> &Settings {
         &self.shadow

@@ -82,6 +82,11 @@ pub struct Machine<P: DerefMut<Target = MachinePlanner>> {
     pending: heapless::Vec<Command, 2>,
     sample: PathSample,
     held: bool,
+    /// A settings save is writing the flash (its token): the outputs stay off, nothing
+    /// queued or pending runs, until the link side's `SaveDone`.
+    save_lock: Option<u32>,
+    /// The answer to a `SaveLock` of this period, for the link side.
+    save_echo: Option<(u32, bool)>,
 }
 
 fn text<const N: usize>(s: &str) -> String<N> {
@@ -110,6 +115,8 @@ enum Queued {
         settings: Settings,
         class: Option<Apply>,
     },
+    /// A settings save (`Down::SaveLock`).
+    SaveLock(u32),
 }
 
 /// Why a segment was refused, without formatting (the control interrupt never formats).
@@ -182,6 +189,8 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             pending: heapless::Vec::new(),
             sample,
             held: false,
+            save_lock: None,
+            save_echo: None,
         })
     }
 
@@ -229,6 +238,8 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
     /// A new link session: requests of the old one are dropped, numbering restarts, and a
     /// `LinkLost` fault's cause is gone (a reset can clear it).
     pub fn session_started(&mut self) {
+        // (the link side cancels its save at the same event)
+        self.save_lock = None;
         self.pend(Command::LinkUp);
         self.retire_queue();
         self.executed = 0;
@@ -265,6 +276,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
 
     /// The link's watchdog expired: controlled stop and a `LinkLost` fault.
     pub fn link_lost(&mut self) {
+        self.save_lock = None;
         self.stop_program(Some(Command::LinkLost));
     }
 
@@ -277,6 +289,11 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
     /// Requests retired so far (executed, refused or flushed).
     pub fn retired(&self) -> u32 {
         self.retired
+    }
+
+    /// A settings save holds the outputs off (the link side is writing the flash).
+    pub fn saving(&self) -> bool {
+        self.save_lock.is_some()
     }
 
     /// Telemetry every `periods` control periods (0: off).
@@ -305,12 +322,23 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                     status: self.status(),
                 }),
                 Down::LinkLost => self.link_lost(),
+                Down::SaveLock { token } => self.enqueue(Queued::SaveLock(token)),
+                Down::SaveDone { token, outcome } => {
+                    if self.save_lock == Some(token) {
+                        self.save_lock = None;
+                        self.executed = self.executed.wrapping_add(1);
+                        self.last = outcome;
+                    }
+                }
             }
         }
         self.period(io);
         if self.settings_changed {
             self.settings_changed = false;
             link.echo(&self.settings);
+        }
+        if let Some((token, locked)) = self.save_echo.take() {
+            link.echo_save(token, locked);
         }
         link.publish_retired(self.retired);
         if let Some(t) = self.telemetry_due() {
@@ -348,14 +376,18 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
     /// One control period: execute what is queued, plan, sample, run the servo step.
     pub fn period<IO: ServoIo<f32>>(&mut self, io: &mut IO) {
         let mut cmds: heapless::Vec<Command, 4> = heapless::Vec::new();
-        for c in self.pending.drain(..) {
-            let _ = cmds.push(c);
+        // during a save nothing may arm: commands wait (a lost link or a new session
+        // ends the save first)
+        if self.save_lock.is_none() {
+            for c in self.pending.drain(..) {
+                let _ = cmds.push(c);
+            }
         }
         // a servo command's outcome is known after the servo step: one per period
         let mut servo_request = false;
         let mut segments = 0;
         while let Some(r) = self.queue.front() {
-            if servo_request {
+            if servo_request || self.save_lock.is_some() {
                 break;
             }
             if matches!(r, Queued::Request(Request::Segment(_))) {
@@ -371,6 +403,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                     self.last = o;
                 }
                 Step::Servo => servo_request = true,
+                Step::Locked => {}
                 Step::Wait => break,
             }
             if self.queue.pop_front().is_some() {
@@ -430,6 +463,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             Queued::Request(r) => r,
             Queued::Resolved(o) => return Step::Done(o.clone()),
             Queued::Apply { settings, class } => return Step::Done(self.apply(*settings, *class)),
+            Queued::SaveLock(token) => return self.lock_for_save(*token, cmds),
         };
         let mut servo = |c: Command| {
             let _ = cmds.push(c);
@@ -509,10 +543,28 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             Request::SettingGet { .. }
             | Request::SettingSet { .. }
             | Request::SettingsDefaults
+            | Request::SettingsSave
             | Request::AcceptIdentified { .. } => Step::Done(refused(
                 "settings requests reach the machine through its link (machine::port)",
             )),
         }
+    }
+
+    /// A save's turn: lock the outputs off while the link side writes the flash, or refuse
+    /// while they are on. Waits a period when a command of this one could still arm.
+    fn lock_for_save(&mut self, token: u32, cmds: &heapless::Vec<Command, 4>) -> Step {
+        if !cmds.is_empty() {
+            return Step::Wait;
+        }
+        if self.servo.state().drives() {
+            self.save_echo = Some((token, false));
+            return Step::Done(refused(
+                "save: the outputs are on; disarm first (writing flash stalls the control loop)",
+            ));
+        }
+        self.save_lock = Some(token);
+        self.save_echo = Some((token, true));
+        Step::Locked
     }
 
     /// Swap in `next` (validated on the link side; `class` from there too) at this
@@ -624,4 +676,7 @@ enum Step {
     Servo,
     /// Cannot be executed yet (planner full): stays at the front of the queue.
     Wait,
+    /// A save locked the outputs off: the request leaves the queue, its outcome comes
+    /// with `Down::SaveDone`.
+    Locked,
 }

@@ -101,6 +101,29 @@ pub enum StoreError<E> {
     Storage(sequential_storage::Error<E>),
 }
 
+impl<E: core::fmt::Debug> core::fmt::Display for StoreError<E> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Range(e) => write!(f, "the store's flash range cannot hold a map ({e:?})"),
+            Self::Invalid(e) => write!(f, "{e}"),
+            Self::Storage(e) => write!(f, "flash: {e:?}"),
+        }
+    }
+}
+
+/// Runs a future that never waits — the store over a blocking flash ([`BlockingFlash`],
+/// [`RamFlash`]) — to its end. For callers without an executor (the firmware's `init`
+/// and link task, the simulator); a future that does wait would spin here.
+pub fn block_on<F: core::future::Future>(f: F) -> F::Output {
+    let mut f = core::pin::pin!(f);
+    let mut cx = core::task::Context::from_waker(core::task::Waker::noop());
+    loop {
+        if let core::task::Poll::Ready(v) = f.as_mut().poll(&mut cx) {
+            return v;
+        }
+    }
+}
+
 /// The record as written: the version, then the tree.
 struct RecordOut<'s>(&'s Settings);
 

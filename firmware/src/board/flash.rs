@@ -27,14 +27,14 @@
 //! - load at boot before the watchdog starts (a load may repair an interrupted erase by
 //!   erasing again).
 //!
-//! [`load_settings`] runs in `init` (before the watchdog); saving over the link is not
-//! wired yet (it needs the watchdog stretched around an erase, above).
-#![expect(
-    dead_code,
-    reason = "not wired yet: the link/flash task calls settings_store (remove this then)"
-)]
+//! [`load_settings`] runs in `init` (before the watchdog) and hands the store to the link
+//! task's [`BoardSaver`], which writes a save over the link once the machine holds its
+//! outputs off (`controller_core::machine::save`), with the watchdog stretched to
+//! [`firmware::watchdog::SAVE_TIMEOUT_US`] around it.
 
-use controller_core::settings::store::{BlockingFlash, SettingsStore, StoreError};
+use controller_core::machine::messages::Outcome;
+use controller_core::machine::{save_blocking, LinkSide};
+use controller_core::settings::store::{block_on, BlockingFlash, SettingsStore, StoreError};
 use embedded_storage::nor_flash::{ErrorType, MultiwriteNorFlash, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::flash::{self, FlashExt, LockedFlash};
 use stm32f4xx_hal::pac;
@@ -54,6 +54,10 @@ pub const FLASH_BYTES: u32 = 1024 * 1024;
 pub const SECTOR_ERASE_MAX_MS: u32 = 4_000;
 
 const _: () = assert!(STORE_OFFSET == 0x000C_0000);
+const _: () =
+    assert!(STORE_OFFSET == 4 * 16 * 1024 + 64 * 1024 + (FIRST_SECTOR as u32 - 5) * SECTOR_BYTES);
+// the watchdog's timeout around a save outlasts the worst erase with room to spare
+const _: () = assert!(firmware::watchdog::SAVE_TIMEOUT_US >= 2 * SECTOR_ERASE_MAX_MS * 1000);
 const _: () = assert!(STORE_OFFSET + STORE_BYTES == FLASH_BYTES);
 
 /// `memory.x` must end the program's FLASH region where the store begins (768 KiB), so the
@@ -138,6 +142,15 @@ pub enum OpenError {
     Store(StoreError<controller_core::settings::store::BlockingFlashError<flash::Error>>),
 }
 
+impl core::fmt::Display for OpenError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Window(e) => write!(f, "flash window: {e:?}"),
+            Self::Store(e) => write!(f, "{e}"),
+        }
+    }
+}
+
 /// The settings store on sectors 10 and 11. Touches no flash; `load` then `save` as the
 /// module docs say.
 pub fn settings_store(flash: pac::FLASH) -> Result<SettingsStore<SettingsFlash>, OpenError> {
@@ -148,31 +161,80 @@ pub fn settings_store(flash: pac::FLASH) -> Result<SettingsStore<SettingsFlash>,
 
 /// The settings to boot with: the stored record at `rate_hz`, or the factory settings
 /// (with a fault to latch, `LoadOutcome::is_fault`, when the store held something
-/// unusable or could not be opened). Blocking: the HAL's flash is, and `init` may block.
+/// unusable or could not be opened); and the store, for saves. Blocking: the HAL's flash
+/// is, and `init` may block.
 pub fn load_settings(
     flash: pac::FLASH,
     rate_hz: u32,
 ) -> (
     controller_core::settings::Settings,
     controller_core::settings::store::LoadOutcome,
+    Option<SettingsStore<SettingsFlash>>,
 ) {
     use controller_core::settings::store::{Corruption, LoadOutcome};
     match settings_store(flash) {
-        Ok(mut store) => block_on(store.load(rate_hz)),
-        Err(_) => (
-            controller_core::settings::FACTORY,
-            LoadOutcome::Corrupt(Corruption::Storage),
-        ),
+        Ok(mut store) => {
+            let (settings, outcome) = block_on(store.load(rate_hz));
+            (settings, outcome, Some(store))
+        }
+        Err(e) => {
+            defmt::error!(
+                "settings store cannot be opened: {}",
+                defmt::Display2Format(&e)
+            );
+            (
+                controller_core::settings::FACTORY,
+                LoadOutcome::Corrupt(Corruption::Storage),
+                None,
+            )
+        }
     }
 }
 
-/// Runs a future that never waits (the store over a blocking flash) to its end.
-fn block_on<F: core::future::Future>(f: F) -> F::Output {
-    let mut f = core::pin::pin!(f);
-    let mut cx = core::task::Context::from_waker(core::task::Waker::noop());
-    loop {
-        if let core::task::Poll::Ready(v) = f.as_mut().poll(&mut cx) {
-            return v;
-        }
+/// The link task's settings saves on the board: the store on sectors 10 and 11, written
+/// with the watchdog stretched (see the module docs).
+pub struct BoardSaver {
+    store: Option<SettingsStore<SettingsFlash>>,
+    watchdog: super::watchdog::WatchdogStretch,
+}
+
+impl BoardSaver {
+    pub fn new(
+        store: Option<SettingsStore<SettingsFlash>>,
+        watchdog: super::watchdog::WatchdogStretch,
+    ) -> Self {
+        Self { store, watchdog }
     }
+
+    /// Write a save that is due on `port` (the machine holds its outputs off).
+    pub fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
+        let Some(settings) = port.save_due() else {
+            return;
+        };
+        let Some(store) = self.store.as_mut() else {
+            port.save_finished(refused(
+                "save failed: the settings store could not be opened",
+            ));
+            return;
+        };
+        if !self.watchdog.stretch() {
+            port.save_finished(refused("save failed: the watchdog could not be stretched"));
+            return;
+        }
+        let outcome = save_blocking(store, &settings, port.rate_hz());
+        let outcome = if self.watchdog.restore() {
+            outcome
+        } else {
+            // (the IWDG's registers never settled: hardware trouble; a hang would now
+            // take seconds to reset the board)
+            refused("save: the watchdog's timeout could not be restored; power-cycle before arming")
+        };
+        port.save_finished(outcome);
+    }
+}
+
+fn refused(s: &str) -> Outcome {
+    let mut t = heapless::String::new();
+    let _ = t.push_str(s);
+    Outcome::Refused(t)
 }

@@ -47,3 +47,80 @@ impl Watchdog {
         self.iwdg.kr().write(|w| w.key().feed());
     }
 }
+
+/// Polls of IWDG_SR before giving up on a register update (each poll is a few cycles; an
+/// update takes up to 5 LSI cycles, 0.3 ms at the slowest LSI, ~50,000 cycles at 168 MHz).
+const UPDATE_POLLS: u32 = 1_000_000;
+
+/// The link task's hold on the IWDG's timeout, for a settings save: the flash erase
+/// stalls the CPU for seconds and nobody can feed the watchdog then. The control task
+/// keeps feeding through [`Watchdog`]; this only reprograms the prescaler and reload.
+///
+/// Sharing the peripheral is sound because the control task only ever writes the feed
+/// key to IWDG_KR, and a reprogramming here (unlock key, PR, RLR) runs with interrupts
+/// off, so a feed (which locks PR and RLR again) cannot fall between the unlock and the
+/// writes.
+pub struct WatchdogStretch {
+    iwdg: pac::IWDG,
+    normal: IwdgSetting,
+    long: IwdgSetting,
+}
+
+impl WatchdogStretch {
+    /// # Safety
+    /// The only other user of the IWDG must be a [`Watchdog`] (feeds only).
+    pub unsafe fn new(normal: IwdgSetting, long: IwdgSetting) -> Self {
+        Self {
+            // SAFETY: see the type's docs (the caller's contract)
+            iwdg: unsafe { pac::IWDG::steal() },
+            normal,
+            long,
+        }
+    }
+
+    /// Switch to the long timeout and wait until it is in force (a feed loads it).
+    /// `false`: the IWDG did not take it (its registers stayed busy), do not erase.
+    pub fn stretch(&mut self) -> bool {
+        self.program(self.long)
+    }
+
+    /// Back to the control rate's timeout.
+    pub fn restore(&mut self) -> bool {
+        self.program(self.normal)
+    }
+
+    fn program(&mut self, setting: IwdgSetting) -> bool {
+        // PR and RLR can be written only while no update of them is pending
+        if !self.settled() {
+            return false;
+        }
+        cortex_m::interrupt::free(|_| {
+            let kr = self.iwdg.kr();
+            kr.write(|w| w.key().unlock());
+            // SAFETY: any 3-bit value is a valid prescaler (6 and 7 both divide by 256).
+            self.iwdg
+                .pr()
+                .write(|w| unsafe { w.pr().bits(setting.pr & 0b111) });
+            self.iwdg.rlr().write(|w| w.rl().set(setting.reload));
+            // (the feed key also write-protects PR and RLR again)
+            kr.write(|w| w.key().feed());
+        });
+        if !self.settled() {
+            return false;
+        }
+        // the counter restarts from the new reload
+        self.iwdg.kr().write(|w| w.key().feed());
+        true
+    }
+
+    /// No prescaler or reload update pending (bounded wait).
+    fn settled(&self) -> bool {
+        for _ in 0..UPDATE_POLLS {
+            let sr = self.iwdg.sr().read();
+            if !sr.pvu().bit_is_set() && !sr.rvu().bit_is_set() {
+                return true;
+            }
+        }
+        false
+    }
+}

@@ -7,8 +7,9 @@
 
 use core::sync::atomic::Ordering;
 
-use controller_core::machine::ControlSide;
+use controller_core::machine::{save_due_into, ControlSide, LinkSide};
 use controller_core::servo::snapshot::Snapshot;
+use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::run::RunConfig;
 use controller_core::sim::world::{SwitchConfig, World};
@@ -16,6 +17,37 @@ use controller_core::sim::world::{SwitchConfig, World};
 use super::{exit, EXIT_CONFIG};
 use crate::link::LINK_CLOCK_MS;
 use crate::machine_slot::{self, FwMachine};
+
+/// The link rig's settings flash: two 4 KiB pages in RAM (QEMU models no flash
+/// controller), empty at boot; saves go through the same store and lock as on the board.
+pub struct RamSaver {
+    store: Option<SettingsStore<BlockingFlash<RamFlash<8192, 4096>>>>,
+}
+
+impl RamSaver {
+    pub fn new() -> Self {
+        let store = BlockingFlash::new(RamFlash::new(), 0, 8192)
+            .ok()
+            .and_then(|f| SettingsStore::new(f, 0..8192).ok());
+        Self { store }
+    }
+
+    /// Write a save that is due on `port`.
+    pub fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
+        match self.store.as_mut() {
+            Some(store) => {
+                save_due_into(port, store);
+            }
+            None => {
+                if port.save_due().is_some() {
+                    let mut t = heapless::String::new();
+                    let _ = t.push_str("save failed: the RAM store could not be made");
+                    port.save_finished(controller_core::machine::messages::Outcome::Refused(t));
+                }
+            }
+        }
+    }
+}
 
 /// The control interrupt's state in the link rig.
 pub struct LinkRig {

@@ -118,7 +118,7 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
-    /// Settings: list, get KEY, set KEY VALUE, defaults, export FILE, import FILE.
+    /// Settings: list, get KEY, set KEY VALUE, defaults, save, export FILE, import FILE.
     Settings {
         #[command(subcommand)]
         op: SettingsOp,
@@ -136,6 +136,9 @@ enum SettingsOp {
         value: String,
     },
     Defaults,
+    /// Store the settings the machine runs in its flash, for the next boot (outputs off:
+    /// disarm first).
+    Save,
     /// Write every setting to a TOML file (dotted keys).
     Export {
         file: PathBuf,
@@ -387,6 +390,10 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             SettingsOp::Defaults => {
                 expect_done("settings defaults", c.exec(Request::SettingsDefaults)?)?;
                 println!("factory settings restored");
+            }
+            SettingsOp::Save => {
+                expect_done("settings save", c.exec(Request::SettingsSave)?)?;
+                println!("settings saved to the machine's flash (loaded at its next boot)");
             }
             SettingsOp::Export { file } => {
                 let all = cli::read_settings(&mut c)?;

@@ -4,17 +4,28 @@
 //! its USART, and the endpoint reaches the machine through the same lock-free queues as
 //! the firmware's link task and control interrupt ([`Channels`]); simulated time advances
 //! only when the host waits ([`Transport::wait`]), one control period after another.
+//! Settings saves go to a flash in RAM through the same store and lock as on the board;
+//! it lasts as long as the simulated machine (one `gantry --sim` invocation).
 
 use super::Transport;
 use crate::studies::gcode::machine_and_planner;
 use anyhow::{anyhow, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
-use controller_core::machine::{Channels, Endpoint, LinkSide, LinkState, Machine, MachinePlanner};
+use controller_core::machine::{
+    save_due_into, Channels, Endpoint, LinkSide, LinkState, Machine, MachinePlanner,
+};
+use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::world::{Injection, SwitchConfig, World};
 
 /// Simulated time one [`Transport::wait`] advances, ms.
 const WAIT_MS: u32 = 1;
+
+/// Bytes of the simulated settings flash (two pages of 4 KiB, like the QEMU rig's).
+const STORE_BYTES: u32 = 8192;
+
+/// The simulated machine's settings flash.
+pub type SimStore = SettingsStore<BlockingFlash<RamFlash<{ STORE_BYTES as usize }, 4096>>>;
 
 /// The simulated machine and its link end.
 pub struct SimMachine {
@@ -26,6 +37,7 @@ pub struct SimMachine {
     rate_hz: u32,
     periods: u64,
     to_host: Vec<u8>,
+    store: Box<SimStore>,
 }
 
 /// How the simulated machine starts.
@@ -67,6 +79,10 @@ impl SimMachine {
         machine.set_telemetry_every(telemetry_periods);
         let endpoint =
             Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).map_err(|e| anyhow!("link: {e}"))?;
+        let flash = BlockingFlash::new(RamFlash::new(), 0, STORE_BYTES)
+            .map_err(|e| anyhow!("settings flash: {e:?}"))?;
+        let store = SettingsStore::new(flash, 0..STORE_BYTES)
+            .map_err(|e| anyhow!("settings store: {e}"))?;
         Ok(Self {
             world,
             machine,
@@ -76,6 +92,7 @@ impl SimMachine {
             rate_hz,
             periods: 0,
             to_host: Vec::new(),
+            store: Box::new(store),
         })
     }
 
@@ -98,6 +115,11 @@ impl SimMachine {
         &self.machine
     }
 
+    /// The settings flash (what the next boot would load).
+    pub fn store(&mut self) -> &mut SimStore {
+        &mut self.store
+    }
+
     fn ms(&self) -> u32 {
         (self.periods * 1000 / u64::from(self.rate_hz)) as u32
     }
@@ -114,6 +136,7 @@ impl SimMachine {
             let now = (self.periods * 1000 / u64::from(self.rate_hz)) as u32;
             self.endpoint
                 .poll(&mut link, now, &mut |b: &[u8]| out.extend_from_slice(b));
+            save_due_into(&mut link, &mut self.store);
         }
         self.to_host = out;
     }
