@@ -4,10 +4,10 @@
 
 use controller_core::machine::messages::{Outcome, Request};
 use controller_core::machine::{
-    Channels, Down, LinkSide, LinkState, Machine, MachinePlanner, MachinePort,
+    Channels, Down, LinkSide, LinkState, Machine, MachineMemory, MachinePlanner, MachinePort,
 };
 
-type M = Machine<Box<MachinePlanner>>;
+type M = Machine<Box<MachineMemory>>;
 use controller_core::motion::planner::Segment;
 use controller_core::presets::gantry::GANTRY_AXES;
 use controller_core::servo::ServoState;
@@ -43,7 +43,7 @@ fn machine() -> (M, World) {
         RATE_HZ,
         world.counter_registers(),
         world.counts(),
-        Box::new(MachinePlanner::BLANK),
+        Box::new(MachineMemory::BLANK),
     )
     .unwrap();
     (m, world)

@@ -211,7 +211,11 @@ mod app {
                 .filter(|_| link.is_some())
                 .map(|s| HostUart::new(s, rx_in, tx_out));
             let link_task = link.and_then(|(settings, rate)| {
-                let saver = crate::qemu::link_rig::RamSaver::new();
+                let flash = cortex_m::singleton!(
+                    : controller_core::settings::store::RamFlash<8192, 4096> =
+                        controller_core::settings::store::RamFlash::new()
+                );
+                let saver = crate::qemu::link_rig::RamSaver::new(flash);
                 LinkTask::new(port, &settings, rate, rx_out, tx_in, saver)
             });
             (period, host_uart, link_task)

@@ -2,7 +2,7 @@
 //! in QEMU (its link rig: the machine behind USART2, reached over QEMU's emulated UART on
 //! a TCP socket) and the in-process simulated machine (`--sim`). Handshake; settings set
 //! and get, a value out of range refused with nothing changed; a settings save (refused
-//! with the outputs on); arm; a program to
+//! with the outputs on); arm; a scope capture read out; a program to
 //! completion with telemetry; the same program with a feed hold and resume; abort of a
 //! running program; the host going silent: the machine stops with `LinkLost` within the
 //! watchdog's timeout, measured in control periods; a new session finds the fault.
@@ -13,6 +13,7 @@
 
 use controller_core::link::RealtimeRequest;
 use controller_core::machine::messages::{MachineState, Outcome, Request};
+use controller_core::machine::scope::{ScopeConfig, Signal, Trigger};
 use controller_core::motion::planner::Segment;
 use host_sim::cli::client::{expect_done, Client};
 use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
@@ -104,6 +105,29 @@ fn scenario<T: Transport>(mut c: Client<T>, tag: &str) -> Figures {
     };
     assert!(why.contains("disarm first"), "{why}");
     assert_eq!(c.status().unwrap().state, MachineState::Idle);
+    // the scope: 200 periods of the held axis, read out over the link
+    let cfg = ScopeConfig {
+        channels: heapless::Vec::from_slice(&[Signal::Pos(0), Signal::Effort(2)]).unwrap(),
+        samples: 200,
+        every_periods: 1,
+        pre_trigger: 0,
+        trigger: Trigger::Now,
+    };
+    let names = vec!["pos.x".into(), "effort.z".into()];
+    let cap = cli::scope::capture(&mut c, cfg, names, 10_000, 5.0, |_| Ok(())).unwrap();
+    assert_eq!(cap.rows.len(), 200);
+    let here = c.status().unwrap().pos_mm[0];
+    assert!(
+        cap.rows.iter().all(|r| (r.1[0] - here).abs() < 0.01),
+        "{:?}",
+        &cap.rows[..3]
+    );
+    // z holds against gravity: a steady, non-zero effort
+    assert!(
+        cap.rows.iter().all(|r| r.1[1] != 0.0),
+        "{:?}",
+        &cap.rows[..3]
+    );
     let file = program_file(tag);
     let plain = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, None).unwrap();
     assert_eq!(plain.status, "completed", "{plain:?}");

@@ -337,3 +337,45 @@ fn a_missing_serial_device_is_a_clear_error() {
         .to_string();
     assert!(err.contains("/nonexistent/ttyGANTRY"), "{err}");
 }
+
+#[test]
+fn a_scope_capture_during_a_program_starts_at_its_trigger() {
+    use controller_core::machine::scope::{ScopeConfig, Signal, Trigger};
+    let mut c = connect(SimModels::Designed);
+    // nothing captured yet: a read is refused with the reason
+    let Outcome::Refused(why) = c.exec(Request::ScopeRead { offset: 0 }).unwrap() else {
+        panic!("a read of no capture was not refused")
+    };
+    assert!(why.contains("arm it first"), "{why}");
+    let cfg = ScopeConfig {
+        channels: heapless::Vec::from_slice(&[Signal::RefVel(0), Signal::Pos(0)]).unwrap(),
+        samples: 400,
+        every_periods: 5,
+        pre_trigger: 40,
+        trigger: Trigger::Rising {
+            signal: Signal::RefVel(0),
+            level: 10.0,
+        },
+    };
+    let names = vec!["ref_vel.x".to_string(), "pos.x".to_string()];
+    let cap = cli::scope::capture(&mut c, cfg, names, 10_000, 30.0, |c| {
+        let r = cli::run_program(c, &square(), TELEMETRY_PERIOD_S, false, None)?;
+        assert_eq!(r.status, "completed");
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(cap.rows.len(), 400);
+    // 5 periods (0.5 ms) apart, the trigger at t = 0, 40 samples in
+    assert_eq!(cap.rows[40].0, 0.0);
+    assert!((cap.rows[1].0 - cap.rows[0].0 - 5e-4).abs() < 1e-9);
+    // the sample that triggered is the first at or above the level
+    assert!(
+        cap.rows[40].1[0] >= 10.0 && cap.rows[39].1[0] < 10.0,
+        "{:?}",
+        &cap.rows[38..42]
+    );
+    assert!(cap.rows[..40].iter().all(|r| r.1[0] < 10.0));
+    // and the axis follows: 0.18 s after the trigger it has moved forward
+    let moved = cap.rows[399].1[1] - cap.rows[40].1[1];
+    assert!(moved > 10.0, "{moved} mm");
+}

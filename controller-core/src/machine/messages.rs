@@ -8,6 +8,7 @@ use heapless::String;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
+use super::scope::{ScopeChunk, ScopeConfig, ScopeState};
 use crate::link::schema_hash;
 use crate::motion::planner::Segment;
 
@@ -63,6 +64,12 @@ pub enum Request {
     AcceptIdentified { axis: u8 },
     /// Telemetry: one sample every `every_periods` control periods (0: off).
     Subscribe { every_periods: u32 },
+    /// Arm a scope capture (a running one is dropped); its progress is in
+    /// [`Status::scope`].
+    ScopeArm(ScopeConfig),
+    /// Read a complete capture from value `offset`: the chunk is in [`Status::last`]
+    /// ([`Outcome::Scope`]).
+    ScopeRead { offset: u16 },
 }
 
 /// How the last executed request ended.
@@ -76,6 +83,8 @@ pub enum Outcome {
     Value(String<VALUE_MAX>),
     /// Not executed: why, and how to fix it.
     Refused(String<TEXT_MAX>),
+    /// A chunk of the scope's capture.
+    Scope(ScopeChunk),
 }
 
 /// The machine's supervisor state.
@@ -175,6 +184,7 @@ pub struct Status {
     /// Homing / identification progress, 0-1.
     pub progress: f32,
     pub identify: Option<IdentifyMsg>,
+    pub scope: ScopeState,
 }
 
 /// One telemetry sample (every `decimation` periods).
@@ -248,6 +258,7 @@ mod tests {
                 r2: f32::MAX,
                 time_s: f32::MAX,
             }),
+            scope: ScopeState::Triggered,
         };
         let mut buf = [0u8; MAX_FRAME_LEN];
         let frame: ToHost<Telemetry, Status> = ToHost::Status {

@@ -14,6 +14,7 @@ pub mod messages;
 pub mod port;
 #[cfg(feature = "store")]
 pub mod save;
+pub mod scope;
 mod settings_agent;
 mod supervisor;
 
@@ -22,4 +23,6 @@ pub use port::{Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState,
 #[cfg(feature = "store")]
 pub use save::{save_blocking, save_due_into};
 pub use settings_agent::{Resolution, SettingsAgent};
-pub use supervisor::{Machine, MachineError, MachinePlanner, REQUEST_QUEUE, SEGMENTS_PER_PERIOD};
+pub use supervisor::{
+    Machine, MachineError, MachineMemory, MachinePlanner, REQUEST_QUEUE, SEGMENTS_PER_PERIOD,
+};

@@ -25,6 +25,7 @@ use super::messages::{
     FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry, VALUE_MAX,
 };
 use super::port::{ControlSide, Down, Up};
+use super::scope::Scope;
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
 use crate::motion::planner::SegmentError;
@@ -46,6 +47,22 @@ pub const SEGMENTS_PER_PERIOD: usize = 1;
 /// The machine's planner: 32 segments, 128 spans, 64 spans and 32 steps between its halves.
 pub type MachinePlanner = MotionPlanner<32, 128, 64, 32>;
 
+/// The machine's large parts: the planner (40 KiB) and the scope's buffer (8 KiB). They
+/// live where the caller puts them (a `Box` on the host, a static on the board, built
+/// from [`Self::BLANK`]) and are never copied through the stack, which on the board
+/// could not hold them.
+pub struct MachineMemory {
+    pub planner: MachinePlanner,
+    pub scope: Scope,
+}
+
+impl MachineMemory {
+    pub const BLANK: Self = Self {
+        planner: MachinePlanner::BLANK,
+        scope: Scope::new(),
+    };
+}
+
 /// Why a machine could not be built.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MachineError {
@@ -54,13 +71,11 @@ pub enum MachineError {
     Servo(crate::config::ConfigError),
 }
 
-/// The supervisor (see the module docs). The planner (40 KiB) lives where `P` points:
-/// a `Box` on the host, a static on the board (built in place from
-/// [`MotionPlanner::BLANK`](crate::motion::planner::MotionPlanner::BLANK), never copied
-/// through the stack).
-pub struct Machine<P: DerefMut<Target = MachinePlanner>> {
+/// The supervisor (see the module docs). Its large parts live where `P` points
+/// ([`MachineMemory`]).
+pub struct Machine<P: DerefMut<Target = MachineMemory>> {
     servo: Servo<f32>,
-    planner: P,
+    mem: P,
     planner_cfg: PlannerConfig,
     settings: Settings,
     rate_hz: u32,
@@ -140,16 +155,16 @@ fn segment_refusal(e: &SegmentError) -> &'static str {
     }
 }
 
-impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
+impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
     /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder
     /// registers now, standing for wide counts `start_counts` (0 on a board at boot);
-    /// `planner` is restarted in place.
+    /// the planner in `mem` is restarted in place, its scope disarmed.
     pub fn new(
         settings: &Settings,
         rate_hz: u32,
         raw: [u32; 3],
         start_counts: [i64; 3],
-        mut planner: P,
+        mut mem: P,
     ) -> Result<Self, MachineError> {
         let cfg = settings
             .servo_config(rate_hz)
@@ -158,7 +173,10 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         // (validated with the rest of the tree by `servo_config` above)
         let pc = settings.planner_config(rate_hz);
         let start = servo.snapshot().pos;
-        planner.restart(&pc, start).map_err(MachineError::Planner)?;
+        mem.planner
+            .restart(&pc, start)
+            .map_err(MachineError::Planner)?;
+        mem.scope.disarm();
         let sample = PathSample {
             pos_mm: crate::Vec3::from_array(start),
             vel_mm_s: crate::Vec3::zero(),
@@ -172,7 +190,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         };
         Ok(Self {
             servo,
-            planner,
+            mem,
             planner_cfg: pc,
             settings: *settings,
             rate_hz,
@@ -259,13 +277,13 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         match req {
             RealtimeRequest::Hold => {
                 if self.program {
-                    self.planner.hold();
+                    self.mem.planner.hold();
                     self.held = true;
                 }
             }
             RealtimeRequest::Resume => {
                 if self.program {
-                    self.planner.resume();
+                    self.mem.planner.resume();
                     self.held = false;
                 }
             }
@@ -363,7 +381,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         self.sample.vel_mm_s = crate::Vec3::zero();
         self.sample.acc_mm_s2 = crate::Vec3::zero();
         if self.program {
-            self.planner.abort();
+            self.mem.planner.abort();
         }
         self.program = false;
         self.program_ended = false;
@@ -411,10 +429,11 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             }
         }
         if self.program {
-            self.sample = self.planner.tick();
+            self.sample = self.mem.planner.tick();
             self.servo.set_planner_reference(&self.sample);
         }
         let s = *self.servo.period(io, &cmds);
+        self.mem.scope.record(&s, &self.sample);
         if servo_request {
             self.executed = self.executed.wrapping_add(1);
             self.last = match s.refused {
@@ -425,7 +444,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
         if self.program {
             match s.state {
                 ServoState::Run => {
-                    if self.program_ended && self.planner.is_idle() && !self.held {
+                    if self.program_ended && self.mem.planner.is_idle() && !self.held {
                         self.pend(Command::Stop);
                         self.program = false;
                         self.program_ended = false;
@@ -499,7 +518,7 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                     return Step::Done(refused("run: a program is already running"));
                 }
                 // in place: a planner is 40 KiB, too much for the interrupt's stack
-                if self.planner.restart(&self.planner_cfg, start).is_err() {
+                if self.mem.planner.restart(&self.planner_cfg, start).is_err() {
                     return Step::Done(refused("run: planner configuration invalid"));
                 }
                 self.program = true;
@@ -511,10 +530,10 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                 if !self.program {
                     return Step::Done(refused("segment: no program running (send run first)"));
                 }
-                if self.planner.free_slots() == 0 {
+                if self.mem.planner.free_slots() == 0 {
                     return Step::Wait;
                 }
-                match self.planner.push(seg) {
+                match self.mem.planner.push(seg) {
                     Ok(()) => Step::Done(Outcome::Done),
                     Err(e) => {
                         // a program with a bad segment cannot go on: stop on the path
@@ -528,13 +547,21 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
                 self.last_telemetry_period = self.servo.snapshot().period;
                 Step::Done(Outcome::Done)
             }
+            Request::ScopeArm(cfg) => match self.mem.scope.arm(cfg.clone()) {
+                Ok(()) => Step::Done(Outcome::Done),
+                Err(why) => Step::Done(refused(why)),
+            },
+            Request::ScopeRead { offset } => match self.mem.scope.read(*offset) {
+                Ok(chunk) => Step::Done(Outcome::Scope(chunk)),
+                Err(why) => Step::Done(refused(why)),
+            },
             Request::EndProgram => {
                 if self.program {
                     self.program_ended = true;
                 }
                 Step::Done(Outcome::Done)
             }
-            Request::FeedOverride(r) => match self.planner.set_feed_override(*r) {
+            Request::FeedOverride(r) => match self.mem.planner.set_feed_override(*r) {
                 Ok(()) => Step::Done(Outcome::Done),
                 Err(_) => Step::Done(refused("feed override must be within 0.01-2.0")),
             },
@@ -629,11 +656,12 @@ impl<P: DerefMut<Target = MachinePlanner>> Machine<P> {
             model_missing: s.model_missing,
             pos_mm: s.pos,
             vel_mm_s: s.vel,
-            planner_free: self.planner.free_slots() as u16,
+            planner_free: self.mem.planner.free_slots() as u16,
             queued: self.queue.len() as u16,
             program_done: !self.program && self.queue.is_empty() && self.pending.is_empty(),
             progress: s.progress,
             identify: self.identify,
+            scope: self.mem.scope.state(),
         }
     }
 

@@ -21,13 +21,14 @@ use crate::machine_slot::{self, FwMachine};
 /// The link rig's settings flash: two 4 KiB pages in RAM (QEMU models no flash
 /// controller), empty at boot; saves go through the same store and lock as on the board.
 pub struct RamSaver {
-    store: Option<SettingsStore<BlockingFlash<RamFlash<8192, 4096>>>>,
+    store: Option<SettingsStore<BlockingFlash<&'static mut RamFlash<8192, 4096>>>>,
 }
 
 impl RamSaver {
-    pub fn new() -> Self {
-        let store = BlockingFlash::new(RamFlash::new(), 0, 8192)
-            .ok()
+    /// The saver on `flash` (a static: 8 KiB are not passed through `init`'s stack).
+    pub fn new(flash: Option<&'static mut RamFlash<8192, 4096>>) -> Self {
+        let store = flash
+            .and_then(|f| BlockingFlash::new(f, 0, 8192).ok())
             .and_then(|f| SettingsStore::new(f, 0..8192).ok());
         Self { store }
     }

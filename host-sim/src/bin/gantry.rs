@@ -10,6 +10,7 @@ use anyhow::{bail, Context, Result};
 const CONTROL_RATE_HZ: u32 = 10_000;
 use clap::{ArgGroup, Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
+use controller_core::machine::scope::ScopeConfig;
 use host_sim::cli::client::{expect_done, Client};
 use host_sim::cli::port::BoardPort;
 use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
@@ -61,6 +62,36 @@ enum Cmd {
         out: PathBuf,
         #[arg(long, default_value_t = 1.0)]
         seconds: f32,
+    },
+    /// Capture signals at the control rate with the machine's scope, to a CSV file (and
+    /// OUT.png / OUT.svg beside it). Signals: pos, ref, vel, tracking, effort, sliding,
+    /// ref_vel (.x .y .z), contour, feed_ratio.
+    Scope {
+        out: PathBuf,
+        /// Up to 4 signals, comma-separated.
+        #[arg(long, default_value = "pos.x,ref.x,tracking.x")]
+        signals: String,
+        /// Samples per signal (samples x signals <= 2048).
+        #[arg(long, default_value_t = 500)]
+        samples: u16,
+        /// One sample every this many control periods.
+        #[arg(long, default_value_t = 1)]
+        every: u16,
+        /// Samples kept from before the trigger.
+        #[arg(long, default_value_t = 0)]
+        pre: u16,
+        /// now, fault, rising:SIGNAL:LEVEL or falling:SIGNAL:LEVEL.
+        #[arg(long, default_value = "now")]
+        trigger: String,
+        /// Run this G-code program while the scope waits (homes and arms first).
+        #[arg(long)]
+        run: Option<PathBuf>,
+        /// Give up when the capture is not complete after this much machine time, s.
+        #[arg(long, default_value_t = 10.0)]
+        timeout_s: f32,
+        /// No figure.
+        #[arg(long)]
+        no_plot: bool,
     },
     /// Latched faults.
     Faults {
@@ -227,6 +258,54 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
         Cmd::Log { out, seconds } => {
             let n = cli::log_telemetry(&mut c, &out, seconds)?;
             println!("{n} samples written to {}", out.display());
+        }
+        Cmd::Scope {
+            out,
+            signals,
+            samples,
+            every,
+            pre,
+            trigger,
+            run,
+            timeout_s,
+            no_plot,
+        } => {
+            let channels = cli::scope::parse_signals(&signals)?;
+            let names: Vec<String> = signals
+                .split(',')
+                .map(|n| n.trim().to_string())
+                .filter(|n| !n.is_empty())
+                .collect();
+            let cfg = ScopeConfig {
+                channels: heapless::Vec::from_slice(&channels)
+                    .map_err(|_| anyhow::anyhow!("--signals: at most 4"))?,
+                samples,
+                every_periods: every,
+                pre_trigger: pre,
+                trigger: cli::scope::parse_trigger(&trigger)?,
+            };
+            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+            let cap = cli::scope::capture(&mut c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
+                if let Some(file) = &run {
+                    let r = cli::run_program(c, file, period_s, false, None)?;
+                    eprint!("{}", host_sim::studies::gcode::table(&r));
+                    if r.status != "completed" {
+                        bail!("the program did not complete: {}", r.status);
+                    }
+                }
+                Ok(())
+            })?;
+            cli::scope::write_csv(&out, &cap)?;
+            println!("{} samples written to {}", cap.rows.len(), out.display());
+            if !no_plot {
+                let dir = out.parent().filter(|p| !p.as_os_str().is_empty());
+                let dir = dir.unwrap_or(std::path::Path::new("."));
+                let stem = out
+                    .file_stem()
+                    .map_or("scope".into(), |s| s.to_string_lossy().into_owned());
+                host_sim::output::scope_plots::figure(dir, &stem, &cap)?;
+                println!("figure: {}", dir.join(format!("{stem}.png")).display());
+            }
         }
         Cmd::Faults { json } => {
             let s = c.status()?;

@@ -10,6 +10,7 @@
 pub mod client;
 pub mod port;
 pub mod qemu;
+pub mod scope;
 pub mod sim;
 
 use crate::gcode::Travel;
@@ -41,7 +42,7 @@ pub trait Transport {
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 
 /// Poll interval while waiting for the machine, ms.
-const POLL_MS: u32 = 20;
+pub(crate) const POLL_MS: u32 = 20;
 /// Longest wait for homing or an identification, ms of machine time.
 const LONG_WAIT_MS: u32 = 300_000;
 

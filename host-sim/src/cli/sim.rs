@@ -12,7 +12,7 @@ use crate::studies::gcode::machine_and_planner;
 use anyhow::{anyhow, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
 use controller_core::machine::{
-    save_due_into, Channels, Endpoint, LinkSide, LinkState, Machine, MachinePlanner,
+    save_due_into, Channels, Endpoint, LinkSide, LinkState, Machine, MachineMemory,
 };
 use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
@@ -30,7 +30,7 @@ pub type SimStore = SettingsStore<BlockingFlash<RamFlash<{ STORE_BYTES as usize 
 /// The simulated machine and its link end.
 pub struct SimMachine {
     world: World,
-    machine: Machine<Box<MachinePlanner>>,
+    machine: Machine<Box<MachineMemory>>,
     channels: Box<Channels>,
     link: LinkState,
     endpoint: Endpoint,
@@ -73,7 +73,7 @@ impl SimMachine {
             rate_hz,
             world.counter_registers(),
             world.counts(),
-            Box::new(MachinePlanner::BLANK),
+            Box::new(MachineMemory::BLANK),
         )
         .map_err(|e| anyhow!("machine: {e:?}"))?;
         machine.set_telemetry_every(telemetry_periods);
@@ -111,7 +111,7 @@ impl SimMachine {
         self.periods
     }
 
-    pub fn machine(&self) -> &Machine<Box<MachinePlanner>> {
+    pub fn machine(&self) -> &Machine<Box<MachineMemory>> {
         &self.machine
     }
 

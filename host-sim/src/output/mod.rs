@@ -5,4 +5,5 @@ pub mod gcode_plots;
 pub mod identify_plots;
 pub mod plots;
 pub mod report;
+pub mod scope_plots;
 pub mod seed_plots;

@@ -89,6 +89,7 @@ impl LinkEncode {
             program_done: false,
             progress: 0.0,
             identify: None,
+            scope: controller_core::machine::scope::ScopeState::Off,
         };
         let mut s = Self {
             out: [0; MAX_FRAME_LEN],
