@@ -62,7 +62,7 @@ fn check_arc(plane: Plane, cw: bool, turns: u32, rise: f32, full: bool) {
     for x in &s {
         let t = x.tangent.to_array();
         let nt = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-        assert!((nt - 1.0).abs() < 1e-4);
+        assert!((nt - 1.0).abs() < 1e-6, "{label}: |tangent| {nt}");
         let v = x.vel_mm_s.to_array();
         let nv = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         if nv > 1.0 {

@@ -345,7 +345,7 @@ impl Executor {
         // Tangent from p' (|p'| ≈ 1); at a reversal cusp p' = 0 and p'' points the new way.
         let n1 = p.d1[0] * p.d1[0] + p.d1[1] * p.d1[1] + p.d1[2] * p.d1[2];
         if n1 > 1.0e-8 {
-            let k = fmath::rsqrt(n1);
+            let k = fmath::rsqrt_near_one(n1);
             self.tangent = [p.d1[0] * k, p.d1[1] * k, p.d1[2] * k];
         } else {
             let n2 = p.d2[0] * p.d2[0] + p.d2[1] * p.d2[1] + p.d2[2] * p.d2[2];

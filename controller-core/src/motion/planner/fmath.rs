@@ -83,6 +83,26 @@ pub fn rsqrt(x: f32) -> f32 {
     y + 0.5 * y * (1.0 - x * y * y)
 }
 
+/// Half-width of the window around 1 where [`rsqrt_near_one`] uses its series.
+pub const NEAR_ONE: f32 = 1.0 / 128.0;
+/// Relative error of [`rsqrt_near_one`] inside the window: the series' remainder
+/// (5/16 e³ ≤ 1.5e-7) plus rounding (`rsqrt_near_one_is_within_its_bound`).
+pub const RSQRT_NEAR_ONE_MAX_REL_ERR: f32 = 3.0e-7;
+
+/// `1/√x` for `x` near 1 by the series `1 − e/2 + 3e²/8` (`e = x − 1`, within
+/// [`RSQRT_NEAR_ONE_MAX_REL_ERR`] while `|e| ≤ NEAR_ONE`), [`rsqrt`] elsewhere. The
+/// planner's path derivative is a unit vector up to the span fit, so its squared norm is
+/// that close to 1 almost always: 6 instructions instead of 25 in the control interrupt.
+#[inline]
+pub fn rsqrt_near_one(x: f32) -> f32 {
+    let e = x - 1.0;
+    if e.abs() <= NEAR_ONE {
+        1.0 + e * (-0.5 + 0.375 * e)
+    } else {
+        rsqrt(x)
+    }
+}
+
 /// `√(a² + b²)` (lengths in mm: no overflow concern below 1e18).
 #[inline]
 pub fn hypot(a: f32, b: f32) -> f32 {
@@ -104,6 +124,36 @@ pub fn cbrt(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rsqrt_near_one_is_within_its_bound() {
+        // every f32 in the window, and beyond it on both sides (where rsqrt takes over)
+        let (lo, hi) = (1.0 - 2.0 * NEAR_ONE, 1.0 + 2.0 * NEAR_ONE);
+        let (mut worst_in, mut x) = (0.0f64, lo);
+        while x <= hi {
+            let exact = 1.0 / (x as f64).sqrt();
+            let rel = ((rsqrt_near_one(x) as f64 - exact) / exact).abs();
+            if (x - 1.0).abs() <= NEAR_ONE {
+                worst_in = worst_in.max(rel);
+            } else {
+                assert!(rel < 1e-6, "{x}: {rel}");
+            }
+            x = f32::from_bits(x.to_bits() + 1);
+        }
+        assert!(
+            worst_in <= f64::from(RSQRT_NEAR_ONE_MAX_REL_ERR),
+            "{worst_in}"
+        );
+        // the bound is not loose by more than 2x
+        assert!(
+            worst_in > f64::from(RSQRT_NEAR_ONE_MAX_REL_ERR) / 2.0,
+            "{worst_in}"
+        );
+        // far from 1 and at the edges of f32 it is rsqrt
+        for x in [1e-30f32, 0.25, 4.0, 1e30] {
+            assert_eq!(rsqrt_near_one(x), rsqrt(x));
+        }
+    }
 
     #[test]
     fn sqrt_is_within_an_ulp_over_many_decades() {

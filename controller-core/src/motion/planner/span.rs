@@ -76,6 +76,8 @@ impl Span {
     #[inline]
     pub fn eval(&self, sigma_mm: f32) -> SpanPoint {
         let u = sigma_mm * self.inv_len;
+        // (p'' = 2 p2 / len², the factor once for the three axes)
+        let d2_scale = 2.0 * self.inv_len * self.inv_len;
         let mut out = SpanPoint::default();
         for (i, c) in self.coef.iter().enumerate() {
             // Horner for p, p' and p'' at once; the first two steps written out (p'' and
@@ -93,7 +95,7 @@ impl Span {
             }
             out.pos[i] = p0;
             out.d1[i] = p1 * self.inv_len;
-            out.d2[i] = 2.0 * p2 * self.inv_len * self.inv_len;
+            out.d2[i] = p2 * d2_scale;
         }
         out
     }
