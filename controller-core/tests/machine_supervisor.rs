@@ -373,6 +373,19 @@ mod save {
         LinkSide::new(ends, st).down(Down::Request(r));
     }
 
+    /// A save sent and periods run without the link side writing: the machine holds the
+    /// lock.
+    fn lock_for_save(m: &mut M, w: &mut World, ch: &mut Channels, st: &mut LinkState) {
+        send(ch, st, Request::SettingsSave);
+        for _ in 0..3 {
+            let (ends, mut ctl) = ch.split();
+            LinkSide::new(ends, st).poll();
+            m.linked_period(w, &mut ctl);
+            w.advance();
+        }
+        assert!(m.saving());
+    }
+
     #[test]
     fn a_save_stores_the_settings_the_machine_runs_for_the_next_boot() {
         let (mut m, mut w) = machine();
@@ -431,15 +444,7 @@ mod save {
         let (mut m, mut w) = machine();
         let (mut ch, mut s) = (Channels::new(), store());
         let mut st = LinkState::new(m.settings(), RATE_HZ);
-        send(&mut ch, &mut st, Request::SettingsSave);
-        // periods without the link side writing: the machine holds the lock
-        for _ in 0..3 {
-            let (ends, mut ctl) = ch.split();
-            LinkSide::new(ends, &mut st).poll();
-            m.linked_period(&mut w, &mut ctl);
-            w.advance();
-        }
-        assert!(m.saving());
+        lock_for_save(&mut m, &mut w, &mut ch, &mut st);
         // the arm button and an arm request behind the save both wait
         m.local(Command::Arm);
         send(&mut ch, &mut st, Request::Arm);
@@ -468,14 +473,7 @@ mod save {
         let (mut m, mut w) = machine();
         let (mut ch, mut s) = (Channels::new(), store());
         let mut st = LinkState::new(m.settings(), RATE_HZ);
-        send(&mut ch, &mut st, Request::SettingsSave);
-        for _ in 0..3 {
-            let (ends, mut ctl) = ch.split();
-            LinkSide::new(ends, &mut st).poll();
-            m.linked_period(&mut w, &mut ctl);
-            w.advance();
-        }
-        assert!(m.saving());
+        lock_for_save(&mut m, &mut w, &mut ch, &mut st);
         {
             let (ends, mut ctl) = ch.split();
             let mut link = LinkSide::new(ends, &mut st);

@@ -415,23 +415,27 @@ mod tests {
         assert_eq!(read_all(&sc).0, want);
     }
 
+    /// `cfg` armed and fed the ramp x = 0, 1, 2, … until complete: the record.
+    fn ramp(cfg: ScopeConfig) -> (std::vec::Vec<f32>, u16) {
+        let mut sc = Scope::new();
+        sc.arm(cfg).unwrap();
+        let mut k = 0;
+        while sc.state() != ScopeState::Done {
+            sc.record(&snap(k as f32), &PathSample::default());
+            k += 1;
+            assert!(k < 1000);
+        }
+        read_all(&sc)
+    }
+
     #[test]
     fn a_rising_edge_keeps_the_pre_trigger_window() {
-        let mut sc = Scope::new();
-        let p = PathSample::default();
         let trigger = Trigger::Rising {
             signal: Signal::Tracking(0),
             level: 25.0,
         };
-        sc.arm(cfg(&[Signal::Pos(0)], 20, 1, 5, trigger)).unwrap();
-        let mut k = 0;
-        while sc.state() != ScopeState::Done {
-            sc.record(&snap(k as f32), &p);
-            k += 1;
-            assert!(k < 1000);
-        }
         // tracking = x / 2 crosses 25 at x = 50: samples 45..=64, the trigger 5th
-        let (v, at) = read_all(&sc);
+        let (v, at) = ramp(cfg(&[Signal::Pos(0)], 20, 1, 5, trigger));
         assert_eq!(v, (45..65).map(|x| x as f32).collect::<std::vec::Vec<_>>());
         assert_eq!(at, 5);
         assert_eq!(v[usize::from(at)], 50.0);
@@ -439,21 +443,12 @@ mod tests {
 
     #[test]
     fn a_falling_edge_with_decimation() {
-        let mut sc = Scope::new();
-        let p = PathSample::default();
         let trigger = Trigger::Falling {
             signal: Signal::Pos(2),
             level: -30.0,
         };
-        sc.arm(cfg(&[Signal::Pos(0)], 8, 3, 2, trigger)).unwrap();
-        let mut k = 0;
-        while sc.state() != ScopeState::Done {
-            sc.record(&snap(k as f32), &p);
-            k += 1;
-            assert!(k < 1000);
-        }
         // every 3rd period: 0, 3, 6, …; -x <= -30 first at x = 30
-        let (v, at) = read_all(&sc);
+        let (v, at) = ramp(cfg(&[Signal::Pos(0)], 8, 3, 2, trigger));
         assert_eq!(v, [24.0, 27.0, 30.0, 33.0, 36.0, 39.0, 42.0, 45.0]);
         assert_eq!(at, 2);
     }

@@ -30,13 +30,8 @@ impl Watchdog {
     /// longest timeout, 0.5 s) at boot, so nothing waits for it here. A feed writes the
     /// new reload value into the counter once it is in.
     pub fn start(&mut self, setting: IwdgSetting) {
+        write_setting(&self.iwdg, setting);
         let kr = self.iwdg.kr();
-        kr.write(|w| w.key().unlock());
-        // SAFETY: any 3-bit value is a valid prescaler (6 and 7 both divide by 256).
-        self.iwdg
-            .pr()
-            .write(|w| unsafe { w.pr().bits(setting.pr & 0b111) });
-        self.iwdg.rlr().write(|w| w.rl().set(setting.reload));
         kr.write(|w| w.key().start());
         kr.write(|w| w.key().feed());
     }
@@ -46,6 +41,15 @@ impl Watchdog {
     pub fn feed(&mut self) {
         self.iwdg.kr().write(|w| w.key().feed());
     }
+}
+
+/// Unlock PR and RLR and write `setting` into them (they stay unlocked until the next key).
+fn write_setting(iwdg: &pac::IWDG, setting: IwdgSetting) {
+    iwdg.kr().write(|w| w.key().unlock());
+    // SAFETY: any 3-bit value is a valid prescaler (6 and 7 both divide by 256).
+    iwdg.pr()
+        .write(|w| unsafe { w.pr().bits(setting.pr & 0b111) });
+    iwdg.rlr().write(|w| w.rl().set(setting.reload));
 }
 
 /// Polls of IWDG_SR before giving up on a register update (each poll is a few cycles; an
@@ -95,15 +99,9 @@ impl WatchdogStretch {
             return false;
         }
         cortex_m::interrupt::free(|_| {
-            let kr = self.iwdg.kr();
-            kr.write(|w| w.key().unlock());
-            // SAFETY: any 3-bit value is a valid prescaler (6 and 7 both divide by 256).
-            self.iwdg
-                .pr()
-                .write(|w| unsafe { w.pr().bits(setting.pr & 0b111) });
-            self.iwdg.rlr().write(|w| w.rl().set(setting.reload));
+            write_setting(&self.iwdg, setting);
             // (the feed key also write-protects PR and RLR again)
-            kr.write(|w| w.key().feed());
+            self.iwdg.kr().write(|w| w.key().feed());
         });
         if !self.settled() {
             return false;
