@@ -231,7 +231,10 @@ fn requests_through_the_link_queues_respect_the_credit_and_get_replies() {
     let mut ch = Channels::new();
     let mut st = LinkState::new(m.settings(), RATE_HZ);
     let mut program = vec![
-        Request::Subscribe { every_periods: 100 },
+        Request::Subscribe {
+            every_periods: 100,
+            signals: heapless::Vec::new(),
+        },
         Request::Arm,
         Request::Run,
     ];

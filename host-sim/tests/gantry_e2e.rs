@@ -88,6 +88,7 @@ fn scenario<T: Transport>(mut c: Client<T>, tag: &str) -> Figures {
         "subscribe",
         c.exec(Request::Subscribe {
             every_periods: DECIMATION,
+            signals: heapless::Vec::new(),
         })
         .unwrap(),
     )

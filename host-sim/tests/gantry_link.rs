@@ -287,7 +287,7 @@ fn a_feed_hold_while_streaming_short_segments_resumes_and_completes() {
 fn telemetry_logs_to_csv_at_the_session_rate() {
     let mut c = connect(SimModels::Designed);
     let out = std::env::temp_dir().join(format!("gantry_log_{}.csv", std::process::id()));
-    let n = cli::log_telemetry(&mut c, &out, 0.2).unwrap();
+    let n = cli::log_telemetry(&mut c, &out, 0.2, &[]).unwrap();
     let text = std::fs::read_to_string(&out).unwrap();
     let _ = std::fs::remove_file(&out);
     let rows: Vec<&str> = text.lines().collect();
@@ -303,7 +303,37 @@ fn telemetry_logs_to_csv_at_the_session_rate() {
         periods.windows(2).all(|w| w[1] == w[0] + DECIMATION),
         "{periods:?}"
     );
-    assert!(cli::log_telemetry(&mut c, &out, -1.0).is_err());
+    assert!(cli::log_telemetry(&mut c, &out, -1.0, &[]).is_err());
+
+    // chosen signals: more columns, each sample carrying them
+    use controller_core::machine::scope::Signal;
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    let chosen = [Signal::Pos(0), Signal::Effort(2)];
+    expect_done(
+        "subscribe",
+        c.exec(Request::Subscribe {
+            every_periods: DECIMATION,
+            signals: heapless::Vec::from_slice(&chosen).unwrap(),
+        })
+        .unwrap(),
+    )
+    .unwrap();
+    let names = ["pos.x".to_string(), "effort.z".to_string()];
+    let n = cli::log_telemetry(&mut c, &out, 0.1, &names).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let _ = std::fs::remove_file(&out);
+    let rows: Vec<Vec<&str>> = text.lines().map(|r| r.split(',').collect()).collect();
+    assert!(
+        rows[0].ends_with(&["tag", "pos.x", "effort.z"]),
+        "{:?}",
+        rows[0]
+    );
+    assert!(n >= 99);
+    for r in &rows[1..] {
+        // pos.x is the sample's x_mm; z holds against gravity with a non-zero effort
+        assert_eq!(r[r.len() - 2], r[2], "{r:?}");
+        assert!(r[r.len() - 1].parse::<f32>().unwrap() != 0.0, "{r:?}");
+    }
 }
 
 /// `gantry move` outside the travel is refused before anything moves; inside, it arrives.

@@ -8,7 +8,7 @@ use heapless::String;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-use super::scope::{ScopeChunk, ScopeConfig, ScopeState};
+use super::scope::{ScopeChunk, ScopeConfig, ScopeState, Signal};
 use crate::link::schema_hash;
 use crate::motion::planner::Segment;
 
@@ -18,6 +18,8 @@ pub const KEY_MAX: usize = 48;
 pub const VALUE_MAX: usize = 32;
 /// Longest refusal or error text on the wire.
 pub const TEXT_MAX: usize = 96;
+/// Chosen signals a telemetry sample carries at most (each adds 4 bytes to its frame).
+pub const TELEMETRY_SIGNALS: usize = 4;
 
 /// A request on the reliable command channel, executed in order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -62,8 +64,12 @@ pub enum Request {
     },
     /// Store the last identification's model of the axis in the settings (outputs off).
     AcceptIdentified { axis: u8 },
-    /// Telemetry: one sample every `every_periods` control periods (0: off).
-    Subscribe { every_periods: u32 },
+    /// Telemetry: one sample every `every_periods` control periods (0: off), carrying
+    /// the chosen `signals` besides its fixed fields ([`Telemetry::signals`]).
+    Subscribe {
+        every_periods: u32,
+        signals: heapless::Vec<Signal, TELEMETRY_SIGNALS>,
+    },
     /// Arm a scope capture (a running one is dropped); its progress is in
     /// [`Status::scope`].
     ScopeArm(ScopeConfig),
@@ -188,7 +194,7 @@ pub struct Status {
 }
 
 /// One telemetry sample (every `decimation` periods).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
 pub struct Telemetry {
     pub period: u32,
     pub state: MachineState,
@@ -201,6 +207,8 @@ pub struct Telemetry {
     pub feed_ratio: f32,
     /// Tag of the planner segment being executed.
     pub tag: u32,
+    /// The values of the signals chosen in [`Request::Subscribe`], in its order.
+    pub signals: heapless::Vec<f32, TELEMETRY_SIGNALS>,
 }
 
 /// The handshake's schema hash of this message set.
@@ -267,6 +275,36 @@ mod tests {
         };
         let n = encode(&frame, &mut buf).expect("the largest status must fit a frame");
         assert!(n <= MAX_FRAME_LEN);
+    }
+
+    /// A telemetry frame takes at most 80 bytes, and 4 more per chosen signal (the link's
+    /// throughput figures in docs/link-protocol.md count them).
+    #[test]
+    fn telemetry_frames_grow_by_four_bytes_per_signal() {
+        let mut t = Telemetry {
+            period: u32::MAX,
+            state: MachineState::Run { held: true },
+            pos_mm: [f32::MAX; 3],
+            reference_mm: [f32::MAX; 3],
+            ref_vel_mm_s: [f32::MAX; 3],
+            ref_acc_mm_s2: [f32::MAX; 3],
+            contour_mm: f32::MAX,
+            feed_ratio: f32::MAX,
+            tag: u32::MAX,
+            signals: heapless::Vec::new(),
+        };
+        let len = |t: &Telemetry| {
+            let mut buf = [0u8; MAX_FRAME_LEN];
+            let frame: ToHost<Telemetry, Status> = ToHost::Telemetry {
+                seq: Seq(u16::MAX),
+                sample: t.clone(),
+            };
+            encode(&frame, &mut buf).unwrap()
+        };
+        let bare = len(&t);
+        assert!(bare <= 80, "{bare}");
+        while t.signals.push(f32::MAX).is_ok() {}
+        assert_eq!(len(&t), bare + 4 * TELEMETRY_SIGNALS);
     }
 
     #[test]

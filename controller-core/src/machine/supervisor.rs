@@ -22,10 +22,11 @@ use core::ops::DerefMut;
 use heapless::{Deque, String};
 
 use super::messages::{
-    FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry, VALUE_MAX,
+    FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry,
+    TELEMETRY_SIGNALS, VALUE_MAX,
 };
 use super::port::{ControlSide, Down, Up};
-use super::scope::Scope;
+use super::scope::{Scope, Signal};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
 use crate::motion::planner::SegmentError;
@@ -88,6 +89,8 @@ pub struct Machine<P: DerefMut<Target = MachineMemory>> {
     last: Outcome,
     /// One telemetry sample every this many periods (0: none).
     telemetry_every: u32,
+    /// The signals each sample carries besides its fixed fields.
+    telemetry_signals: heapless::Vec<Signal, TELEMETRY_SIGNALS>,
     last_telemetry_period: u32,
     /// A program is running (after `Run`), and its end was announced.
     program: bool,
@@ -200,6 +203,7 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
             retired: 0,
             last: Outcome::None,
             telemetry_every: 0,
+            telemetry_signals: heapless::Vec::new(),
             last_telemetry_period: 0,
             program: false,
             program_ended: false,
@@ -542,8 +546,12 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
                     }
                 }
             }
-            Request::Subscribe { every_periods } => {
+            Request::Subscribe {
+                every_periods,
+                signals,
+            } => {
                 self.telemetry_every = *every_periods;
+                self.telemetry_signals = signals.clone();
                 self.last_telemetry_period = self.servo.snapshot().period;
                 Step::Done(Outcome::Done)
             }
@@ -668,6 +676,11 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
     /// One telemetry sample of the last period.
     pub fn telemetry(&self) -> Telemetry {
         let s = self.servo.snapshot();
+        // (push, not collect: heapless' `collect` panics on overflow; the capacities match)
+        let mut signals = heapless::Vec::new();
+        for sig in &self.telemetry_signals {
+            let _ = signals.push(sig.value(s, &self.sample));
+        }
         Telemetry {
             period: s.period,
             state: self.state(),
@@ -678,6 +691,7 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
             contour_mm: s.contour_norm(),
             feed_ratio: self.sample.feed_ratio,
             tag: self.sample.tag,
+            signals,
         }
     }
 

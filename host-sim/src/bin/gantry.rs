@@ -62,6 +62,10 @@ enum Cmd {
         out: PathBuf,
         #[arg(long, default_value_t = 1.0)]
         seconds: f32,
+        /// Up to 4 more signals per sample, comma-separated (as `scope --signals`):
+        /// columns after the fixed ones.
+        #[arg(long)]
+        signals: Option<String>,
     },
     /// Capture signals at the control rate with the machine's scope, to a CSV file (and
     /// OUT.png / OUT.svg beside it). Signals: pos, ref, vel, tracking, effort, sliding,
@@ -239,6 +243,7 @@ fn subscribed<T: Transport>(t: T, decimation: u32) -> Result<Client<T>> {
         "telemetry subscription",
         c.exec(Request::Subscribe {
             every_periods: decimation,
+            signals: heapless::Vec::new(),
         })?,
     )?;
     Ok(c)
@@ -255,8 +260,30 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 println!("{s:#?}");
             }
         }
-        Cmd::Log { out, seconds } => {
-            let n = cli::log_telemetry(&mut c, &out, seconds)?;
+        Cmd::Log {
+            out,
+            seconds,
+            signals,
+        } => {
+            let names: Vec<String> = match &signals {
+                Some(list) => {
+                    let chosen = cli::scope::parse_signals(list)?;
+                    expect_done(
+                        "telemetry subscription",
+                        c.exec(Request::Subscribe {
+                            every_periods: decimation,
+                            signals: heapless::Vec::from_slice(&chosen)
+                                .map_err(|_| anyhow::anyhow!("--signals: at most 4"))?,
+                        })?,
+                    )?;
+                    list.split(',')
+                        .map(|n| n.trim().to_string())
+                        .filter(|n| !n.is_empty())
+                        .collect()
+                }
+                None => Vec::new(),
+            };
+            let n = cli::log_telemetry(&mut c, &out, seconds, &names)?;
             println!("{n} samples written to {}", out.display());
         }
         Cmd::Scope {

@@ -387,15 +387,20 @@ pub fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<S
 
 /// `gantry log`: the session's telemetry for `seconds` of machine time into a CSV file
 /// (header `period,state,x_mm,y_mm,z_mm,ref_x_mm,ref_y_mm,ref_z_mm,ref_vx_mm_s,…,
-/// contour_mm,feed_ratio,tag`); the number of samples. Gaps (lost frames) are counted
-/// by the link and left out.
-pub fn log_telemetry<T: Transport>(c: &mut Client<T>, out: &Path, seconds: f32) -> Result<usize> {
+/// contour_mm,feed_ratio,tag`, then the names of the subscribed `signals`, one column
+/// each); the number of samples. Gaps (lost frames) are counted by the link and left out.
+pub fn log_telemetry<T: Transport>(
+    c: &mut Client<T>,
+    out: &Path,
+    seconds: f32,
+    signals: &[String],
+) -> Result<usize> {
     if !(seconds > 0.0 && seconds <= 3600.0) {
         bail!("log: --seconds must be within (0, 3600], got {seconds}");
     }
     let mut w =
         csv::Writer::from_path(out).with_context(|| format!("cannot write {}", out.display()))?;
-    w.write_record([
+    let mut head: Vec<String> = [
         "period",
         "state",
         "x_mm",
@@ -413,7 +418,11 @@ pub fn log_telemetry<T: Transport>(c: &mut Client<T>, out: &Path, seconds: f32) 
         "contour_mm",
         "feed_ratio",
         "tag",
-    ])?;
+    ]
+    .map(String::from)
+    .to_vec();
+    head.extend(signals.iter().cloned());
+    w.write_record(&head)?;
     let (run, _) = machine_and_planner(None)?;
     let periods = (f64::from(seconds) * f64::from(run.servo.rate_hz)) as u32;
     c.take_telemetry();
@@ -434,6 +443,10 @@ pub fn log_telemetry<T: Transport>(c: &mut Client<T>, out: &Path, seconds: f32) 
                 row.push(v.to_string());
             }
             row.push(t.tag.to_string());
+            row.extend(
+                (0..signals.len())
+                    .map(|i| t.signals.get(i).map_or(String::new(), |v| v.to_string())),
+            );
             w.write_record(&row)?;
             n += 1;
         }

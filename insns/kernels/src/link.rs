@@ -57,6 +57,7 @@ const SAMPLE: Telemetry = Telemetry {
     contour_mm: 0.0012,
     feed_ratio: 0.998,
     tag: 4321,
+    signals: heapless::Vec::new(),
 };
 
 /// The encoder's output buffer and sequence number.
