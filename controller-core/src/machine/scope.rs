@@ -121,7 +121,8 @@ pub struct ScopeConfig {
     pub samples: u16,
     /// One sample every this many control periods (≥ 1).
     pub every_periods: u16,
-    /// Samples before the trigger (< `samples`).
+    /// Samples before the trigger (< `samples`); a trigger counts only once this many
+    /// are recorded.
     pub pre_trigger: u16,
     pub trigger: Trigger,
 }
@@ -266,27 +267,20 @@ impl Scope {
         self.written = self.written.saturating_add(1);
         match self.state {
             ScopeState::Waiting => {
-                let level_edge = |signal: Signal, level: f32, rising: bool, last: Option<f32>| {
-                    let v = signal.value(s, p);
-                    last.is_some_and(|l| {
-                        if rising {
-                            l < level && v >= level
-                        } else {
-                            l > level && v <= level
-                        }
-                    })
-                };
+                // (a level is watched at the sample rate: one value per recorded sample)
                 let (edge, watched) = match cfg.trigger {
                     Trigger::Now => (true, None),
                     Trigger::Fault => (fault_edge, None),
                     Trigger::Rising { signal, level } => {
-                        (level_edge(signal, level, true, self.last), Some(signal))
+                        let v = signal.value(s, p);
+                        (self.last.is_some_and(|l| l < level && v >= level), Some(v))
                     }
                     Trigger::Falling { signal, level } => {
-                        (level_edge(signal, level, false, self.last), Some(signal))
+                        let v = signal.value(s, p);
+                        (self.last.is_some_and(|l| l > level && v <= level), Some(v))
                     }
                 };
-                self.last = watched.map(|w| w.value(s, p));
+                self.last = watched;
                 if edge && self.written > u32::from(cfg.pre_trigger) {
                     self.trigger_written = self.written - 1;
                     self.remaining = samples - u32::from(cfg.pre_trigger) - 1;
