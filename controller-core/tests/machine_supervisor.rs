@@ -496,3 +496,273 @@ mod save {
         assert_eq!(m.status().executed, 1);
     }
 }
+
+/// The planner across two tasks (`motion::planner::split`), as the board runs it: the
+/// machine's period samples, the planning task (here: called after the period, or not
+/// at all for a while) plans.
+mod split {
+    use super::*;
+    use controller_core::machine::scope::Scope;
+    use controller_core::motion::planner::{
+        Planner, PlannerChannels, PlannerHandle, SplitExecutor, SplitPlanner,
+    };
+
+    type Exec = SplitExecutor<'static>;
+    type SplitMachine = Machine<Box<MachineMemory<Exec>>, Exec>;
+    type Task = SplitPlanner<'static, 32, 128>;
+
+    /// (channels and planner leaked: a test's machine lives as long as the test)
+    fn ends() -> (Exec, Task) {
+        let ch: &'static mut PlannerChannels = Box::leak(Box::new(PlannerChannels::new()));
+        let (ex, pl) = ch.split();
+        let planner: &'static mut Planner<32, 128> = Box::leak(Box::new(Planner::BLANK));
+        let mut exec = SplitExecutor::DETACHED;
+        exec.attach(ex);
+        (exec, SplitPlanner::new(planner, pl))
+    }
+
+    fn split_machine() -> (SplitMachine, Task, World) {
+        let (_, w) = machine();
+        let (exec, task) = ends();
+        let m = Machine::new(
+            &settings(),
+            RATE_HZ,
+            w.counter_registers(),
+            w.counts(),
+            Box::new(MachineMemory {
+                planner: exec,
+                scope: Scope::new(),
+            }),
+        )
+        .unwrap();
+        (m, task, w)
+    }
+
+    /// A zig-zag with arcs between, `n` segments.
+    fn program(n: u32) -> Vec<Request> {
+        let mut r = vec![Request::Arm, Request::Run];
+        for k in 1..=n {
+            let x = if k % 2 == 1 { 8.0 } else { 0.0 };
+            r.push(Request::Segment(Segment::line(
+                [x, k as f32 * 0.5, 0.0],
+                60.0,
+                k,
+            )));
+        }
+        r.push(Request::EndProgram);
+        r
+    }
+
+    /// Periods until the program is done; the largest reference step per period (mm).
+    fn run_split(
+        m: &mut SplitMachine,
+        t: &mut Task,
+        w: &mut World,
+        reqs: &[Request],
+        starve: std::ops::Range<u32>,
+    ) -> (u32, f32) {
+        let mut reqs = reqs.iter();
+        let mut last = m.servo().snapshot().reference;
+        let mut max_step = 0.0f32;
+        for p in 0..400_000u32 {
+            feed(m.free_slots(), &mut reqs, |r| m.submit(r));
+            m.period(w);
+            w.advance();
+            if !starve.contains(&p) {
+                t.run();
+            }
+            let r = m.servo().snapshot().reference;
+            let d = (0..3).map(|i| (r[i] - last[i]).abs()).fold(0.0, f32::max);
+            max_step = max_step.max(d);
+            last = r;
+            if p > 10 && m.status().program_done && m.servo().state() == ServoState::Idle {
+                return (p, max_step);
+            }
+        }
+        panic!("the program did not end");
+    }
+
+    /// Requests within the machine's credit, as the link sends them.
+    fn feed<'a>(
+        free: u16,
+        reqs: &mut impl Iterator<Item = &'a Request>,
+        mut submit: impl FnMut(Request),
+    ) {
+        for _ in 0..free {
+            match reqs.next() {
+                Some(r) => submit(r.clone()),
+                None => return,
+            }
+        }
+    }
+
+    fn run_single(m: &mut M, w: &mut World, reqs: &[Request]) -> u32 {
+        let mut reqs = reqs.iter();
+        for p in 0..400_000u32 {
+            feed(m.free_slots(), &mut reqs, |r| m.submit(r));
+            m.period(w);
+            w.advance();
+            if p > 10 && m.status().program_done && m.servo().state() == ServoState::Idle {
+                return p;
+            }
+        }
+        panic!("the program did not end");
+    }
+
+    #[test]
+    fn the_program_runs_as_with_both_halves_in_the_period() {
+        let reqs = program(24);
+        let (mut a, mut wa) = machine();
+        let single = run_single(&mut a, &mut wa, &reqs);
+        let (mut b, mut task, mut wb) = split_machine();
+        let (split, max_step) = run_split(&mut b, &mut task, &mut wb, &reqs, 0..0);
+        let (sa, sb) = (a.status(), b.status());
+        assert_eq!(sa.executed, sb.executed);
+        assert_eq!(sb.last, Outcome::Done);
+        for i in 0..3 {
+            assert!((sa.pos_mm[i] - sb.pos_mm[i]).abs() < 1e-3, "{sa:?} {sb:?}");
+        }
+        assert!((sb.pos_mm[1] - 12.0).abs() < 0.01, "{:?}", sb.pos_mm);
+        eprintln!("24 segments: split {split} periods, single thread {single} periods");
+        // a segment's result comes back a period later; the motion is the same
+        let diff = split.abs_diff(single);
+        assert!(diff <= 10, "split {split} periods, single {single}");
+        // no jump: at most the 60 mm/s feed (x override 2) per period
+        assert!(max_step < 120.0 / RATE_HZ as f32, "{max_step}");
+        assert!(!b.servo().faults().any());
+    }
+
+    #[test]
+    fn a_starved_planning_task_stops_on_the_path_and_the_program_completes() {
+        let reqs = program(12);
+        let (mut m, mut task, mut w) = split_machine();
+        // the task misses 300 periods (30 ms) in the middle of the program, at speed
+        let (_, max_step) = run_split(&mut m, &mut task, &mut w, &reqs, 3_000..3_300);
+        let s = m.status();
+        assert_eq!(s.last, Outcome::Done);
+        assert!((s.pos_mm[1] - 6.0).abs() < 0.01, "{:?}", s.pos_mm);
+        assert!(max_step < 120.0 / RATE_HZ as f32, "{max_step}");
+        assert!(!m.servo().faults().any());
+    }
+
+    #[test]
+    fn the_task_stopping_leaves_the_executor_at_rest_on_the_path() {
+        let (mut m, mut task, mut w) = split_machine();
+        m.submit(Request::Arm);
+        m.submit(Request::Run);
+        m.submit(Request::Segment(Segment::line([50.0, 0.0, 0.0], 100.0, 1)));
+        for _ in 0..3_000 {
+            m.period(&mut w);
+            w.advance();
+            task.run();
+        }
+        let v0 = m.status().vel_mm_s[0];
+        assert!(v0 > 90.0, "{v0}");
+        // the task never runs again: the steps run out, the executor brakes by itself
+        let mut last_vel = v0;
+        let mut max_dv = 0.0f32;
+        for _ in 0..3_000 {
+            m.period(&mut w);
+            w.advance();
+            let v = m.servo().snapshot().reference[0];
+            let _ = v;
+            let vel = m.status().vel_mm_s[0];
+            max_dv = max_dv.max((vel - last_vel).abs());
+            last_vel = vel;
+        }
+        assert!(
+            m.status().vel_mm_s[0].abs() < 0.5,
+            "{:?}",
+            m.status().vel_mm_s
+        );
+        let x = m.status().pos_mm[0];
+        assert!(x > 20.0 && x < 50.0, "{x}");
+        // braking within the axis' acceleration limit (2000 mm/s²) and the servo's lag
+        assert!(max_dv < 2.0, "{max_dv}");
+        assert!(!m.servo().faults().any());
+    }
+
+    #[test]
+    fn a_bad_segment_is_refused_in_request_order() {
+        let (mut m, mut task, mut w) = split_machine();
+        m.submit(Request::Arm);
+        m.submit(Request::Run);
+        m.submit(Request::Segment(Segment::line([5.0, 0.0, 0.0], 20.0, 1)));
+        m.submit(Request::Segment(Segment::line([6.0, 0.0, 0.0], -1.0, 2)));
+        m.submit(Request::Segment(Segment::line([7.0, 0.0, 0.0], 20.0, 3)));
+        let mut outcomes = Vec::new();
+        let mut executed = 0;
+        for _ in 0..20 {
+            m.period(&mut w);
+            w.advance();
+            task.run();
+            let s = m.status();
+            if s.executed != executed {
+                executed = s.executed;
+                outcomes.push(s.last.clone());
+            }
+        }
+        // arm, run, the good segment, then the bad one refused; the third is flushed
+        assert_eq!(executed, 4, "{outcomes:?}");
+        let Outcome::Refused(why) = outcomes.last().unwrap() else {
+            panic!("{outcomes:?}")
+        };
+        assert!(why.contains("feed must be > 0"), "{why}");
+        assert_eq!(m.status().queued, 0);
+    }
+
+    #[test]
+    fn a_restart_drops_what_the_last_run_left_in_the_queues() {
+        let (mut exec, mut task) = ends();
+        let cfg = settings().planner_config(RATE_HZ);
+        exec.restart(&cfg, [0.0; 3]).unwrap();
+        task.run();
+        for k in 1..=8u32 {
+            let seg = Segment::line([k as f32 * 2.0, 0.0, 0.0], 80.0, k);
+            while exec.offer(&seg) != controller_core::motion::planner::Offer::Taken {
+                exec.tick();
+                task.run();
+            }
+        }
+        for _ in 0..500 {
+            exec.tick();
+            task.run();
+        }
+        let p = exec.tick().pos_mm.to_array();
+        assert!(p[0] > 0.3, "{p:?} {:?}", exec.report());
+        // spans and steps of the first run are in the queues; a new run starts elsewhere
+        let start = [-4.0, 3.0, 1.0];
+        exec.restart(&cfg, start).unwrap();
+        for _ in 0..5 {
+            assert_eq!(exec.tick().pos_mm.to_array(), start);
+        }
+        task.run();
+        let seg = Segment::line([-4.0, 8.0, 1.0], 50.0, 1);
+        let mut last = start;
+        let mut n = 0;
+        loop {
+            match exec.offer(&seg) {
+                controller_core::motion::planner::Offer::Taken => break,
+                controller_core::motion::planner::Offer::Refused(e) => panic!("{e:?}"),
+                controller_core::motion::planner::Offer::Later => {}
+            }
+            let p = exec.tick().pos_mm.to_array();
+            assert_eq!(p, start);
+            task.run();
+            n += 1;
+            assert!(n < 5);
+        }
+        for _ in 0..20_000 {
+            let p = exec.tick().pos_mm.to_array();
+            task.run();
+            assert_eq!(p[0], -4.0);
+            assert!(
+                (p[1] - last[1]).abs() < 0.02 && p[1] >= last[1] - 1e-6,
+                "{p:?} {last:?}"
+            );
+            last = p;
+        }
+        assert!((last[1] - 8.0).abs() < 1e-4, "{last:?}");
+        assert!(exec.is_idle());
+    }
+}

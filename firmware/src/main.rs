@@ -4,8 +4,9 @@
 //!
 //! | task | priority | trigger | does |
 //! | --- | --- | --- | --- |
-//! | `host_uart` | 4 (hardware) | USART2 | moves bytes between the UART and the link's byte queues |
-//! | `control` | 3 (hardware) | TIM4 update, 10 kHz | button commands, the core's machine (link requests, supervisor, planner, servo step), snapshot |
+//! | `host_uart` | 5 (hardware) | USART2 | moves bytes between the UART and the link's byte queues |
+//! | `control` | 4 (hardware) | TIM4 update, 10 kHz | button commands, the core's machine (link requests, supervisor, the planner's executor, servo step), snapshot |
+//! | `plan` | 3 (software) | spawned by `control` every period | the planner's planning half: segments in, look-ahead, spans and steps out (controller-core `motion::planner::split`) |
 //! | `link` | 2 (software) | every 1 ms | the host link: frames, settings requests, queues to and from the machine |
 //! | `button` | 2 (software) | every 1 ms | debounces the arm button, posts its commands to the mailbox |
 //! | `telemetry` | 1 (software) | every 100 ms | copies the snapshot, logs it with defmt |
@@ -52,7 +53,7 @@ use defmt_semihosting as _;
 rtic_monotonics::systick_monotonic!(Mono, 1_000);
 
 #[cfg(target_os = "none")]
-#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART6, UART4])]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART6, UART4, UART5])]
 mod app {
     use rtic_monotonics::fugit::ExtU32 as MonoExtU32;
     use rtic_monotonics::Timebase as _;
@@ -67,7 +68,7 @@ mod app {
 
     use crate::board::serial::{HostUart, RxQueue, TxQueue};
     use crate::link::LinkTask;
-    use crate::machine_slot::FwMachine;
+    use crate::machine_slot::{FwMachine, PlanTask};
     #[cfg(not(feature = "qemu"))]
     use crate::period::{BoardPeriod as Period, End};
     #[cfg(feature = "qemu")]
@@ -113,6 +114,7 @@ mod app {
         commands: Producer<'static, Command>,
         host_uart: Option<HostUart>,
         link_task: Option<LinkTask>,
+        plan_task: Option<PlanTask>,
     }
 
     /// The command mailbox: lock-free single producer (the button task), single consumer
@@ -221,6 +223,9 @@ mod app {
             (period, host_uart, link_task)
         };
 
+        // the machine's planning half (none in QEMU's scenario rigs, which build no machine)
+        let plan_task = crate::machine_slot::take_plan_task();
+
         let mut tick = board.tick;
         tick.start(board::tick::CONTROL_TICK_PROGRAMMED_HZ);
         // Last: the watchdog (from here on the control task must run on time).
@@ -263,6 +268,7 @@ mod app {
                 commands,
                 host_uart,
                 link_task,
+                plan_task,
             },
         )
     }
@@ -289,7 +295,7 @@ mod app {
     }
 
     /// The control period. Highest priority; never logs, allocates or blocks.
-    #[task(binds = TIM4, priority = 3, local = [period, tick, leds], shared = [telemetry, end])]
+    #[task(binds = TIM4, priority = 4, local = [period, tick, leds], shared = [telemetry, end])]
     fn control(mut cx: control::Context) {
         let start = cycles::start();
         cx.local.tick.acknowledge();
@@ -315,6 +321,21 @@ mod app {
             cx.local.tick.stop();
             cx.shared.end.lock(|x| *x = Some(e));
         }
+        // The planning half runs once the interrupt returns. Still running from the last
+        // period (it has 32 buffered steps of slack): it is simply not spawned again.
+        let _ = plan::spawn();
+    }
+
+    /// The planner's planning half (controller-core `motion::planner::SplitPlanner`), after
+    /// every control period: the commands the period passed on, then look-ahead, spans
+    /// and steps. Below the control interrupt, above the link: a run is bounded (at most
+    /// `SPLIT_COMMANDS` segments' look-ahead) and the executor underruns — a jerk-limited
+    /// stop on the path — if it ever falls 32 periods behind.
+    #[task(priority = 3, local = [plan_task])]
+    async fn plan(cx: plan::Context) {
+        if let Some(t) = cx.local.plan_task {
+            t.run();
+        }
     }
 
     /// The arm/reset button, sampled every millisecond: a debounced press posts its
@@ -338,7 +359,7 @@ mod app {
 
     /// The host link's UART (`board::serial`): above the control interrupt, so that no
     /// received byte waits longer than this handler; a few dozen cycles per byte.
-    #[task(binds = USART2, priority = 4, local = [host_uart])]
+    #[task(binds = USART2, priority = 5, local = [host_uart])]
     fn host_uart(cx: host_uart::Context) {
         if let Some(u) = cx.local.host_uart {
             u.service();

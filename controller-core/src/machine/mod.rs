@@ -24,5 +24,6 @@ pub use port::{Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState,
 pub use save::{save_blocking, save_due_into};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{
-    Machine, MachineError, MachineMemory, MachinePlanner, REQUEST_QUEUE, SEGMENTS_PER_PERIOD,
+    Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, MACHINE_SEGMENTS,
+    MACHINE_SPANS, REQUEST_QUEUE,
 };

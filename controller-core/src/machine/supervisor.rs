@@ -12,10 +12,11 @@
 //! (requests, real-time requests, session and link-loss events: [`super::port`]), runs
 //! the period, and hands status replies and telemetry back up, all without waiting.
 //!
-//! Both halves of the planner (planning ahead and sampling) run in the period, and at
-//! most [`SEGMENTS_PER_PERIOD`] segments enter the planner per period, so the cost of a
-//! period stays bounded on the board (servo step + one segment's look-ahead + one
-//! sample); moving the planning half to a lower-priority task is left open.
+//! The planner is reached through [`PlannerHandle`] only: on the host both of its halves
+//! run in the period ([`MachinePlanner`], at most one segment planned per period); on
+//! the board the planning half runs in a task below the control interrupt
+//! ([`crate::motion::planner::split`]) and the period only samples the reference and
+//! passes requests on, in order.
 
 use core::ops::DerefMut;
 
@@ -29,8 +30,11 @@ use super::port::{ControlSide, Down, Up};
 use super::scope::{Scope, Signal};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
-use crate::motion::planner::SegmentError;
-use crate::motion::planner::{MotionPlanner, PathSample, PlannerConfig, PlannerConfigError};
+use crate::motion::planner::split::{SPLIT_SPANS, SPLIT_STEPS};
+use crate::motion::planner::{
+    MotionPlanner, Offer, PathSample, Planner, PlannerConfig, PlannerConfigError, PlannerHandle,
+    RestartError, SegmentError,
+};
 use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoState};
 use crate::settings::{Apply, Settings, SettingsError};
@@ -40,24 +44,30 @@ use crate::sysid::IdentifyStatus;
 /// in flight than [`Machine::free_slots`] says).
 pub const REQUEST_QUEUE: usize = 16;
 
-/// Segments taken into the planner per control period at most (one segment's look-ahead
-/// costs about 4,300 instructions, `cargo insns` `planner_segment`; at 10 kHz this still
-/// admits 10,000 segments/s).
-pub const SEGMENTS_PER_PERIOD: usize = 1;
+/// Segment slots of the machine's planner.
+pub const MACHINE_SEGMENTS: usize = 32;
+/// Spans in the planner's ring.
+pub const MACHINE_SPANS: usize = 128;
 
-/// The machine's planner: 32 segments, 128 spans, 64 spans and 32 steps between its halves.
-pub type MachinePlanner = MotionPlanner<32, 128, 64, 32>;
+/// The machine's planner with both halves in the period (host-sim, tests): 32 segments,
+/// 128 spans, and between its halves as many spans and steps as the board's queues.
+pub type MachinePlanner = MotionPlanner<MACHINE_SEGMENTS, MACHINE_SPANS, SPLIT_SPANS, SPLIT_STEPS>;
 
-/// The machine's large parts: the planner (40 KiB) and the scope's buffer (8 KiB). They
-/// live where the caller puts them (a `Box` on the host, a static on the board, built
-/// from [`Self::BLANK`]) and are never copied through the stack, which on the board
-/// could not hold them.
-pub struct MachineMemory {
-    pub planner: MachinePlanner,
+/// The planning half alone, for a task of its own (the board:
+/// [`crate::motion::planner::SplitPlanner`]).
+pub type MachineTaskPlanner = Planner<MACHINE_SEGMENTS, MACHINE_SPANS>;
+
+/// The machine's large parts: its planner (40 KiB when both halves are in it; on the
+/// board only the executor's half, [`crate::motion::planner::SplitExecutor`]) and the
+/// scope's buffer (8 KiB). They live where the caller puts them (a `Box` on the host, a
+/// static on the board, built from a constant such as [`Self::BLANK`]) and are never
+/// copied through the stack, which on the board could not hold them.
+pub struct MachineMemory<M = MachinePlanner> {
+    pub planner: M,
     pub scope: Scope,
 }
 
-impl MachineMemory {
+impl MachineMemory<MachinePlanner> {
     pub const BLANK: Self = Self {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
@@ -69,12 +79,18 @@ impl MachineMemory {
 pub enum MachineError {
     Settings(SettingsError),
     Planner(PlannerConfigError),
+    /// A split planner whose task's channels were not attached.
+    PlannerDetached,
     Servo(crate::config::ConfigError),
 }
 
 /// The supervisor (see the module docs). Its large parts live where `P` points
 /// ([`MachineMemory`]).
-pub struct Machine<P: DerefMut<Target = MachineMemory>> {
+pub struct Machine<P, M = MachinePlanner>
+where
+    P: DerefMut<Target = MachineMemory<M>>,
+    M: PlannerHandle,
+{
     servo: Servo<f32>,
     mem: P,
     planner_cfg: PlannerConfig,
@@ -158,7 +174,11 @@ fn segment_refusal(e: &SegmentError) -> &'static str {
     }
 }
 
-impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
+impl<P, M> Machine<P, M>
+where
+    P: DerefMut<Target = MachineMemory<M>>,
+    M: PlannerHandle,
+{
     /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder
     /// registers now, standing for wide counts `start_counts` (0 on a board at boot);
     /// the planner in `mem` is restarted in place, its scope disarmed.
@@ -176,9 +196,10 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
         // (validated with the rest of the tree by `servo_config` above)
         let pc = settings.planner_config(rate_hz);
         let start = servo.snapshot().pos;
-        mem.planner
-            .restart(&pc, start)
-            .map_err(MachineError::Planner)?;
+        mem.planner.restart(&pc, start).map_err(|e| match e {
+            RestartError::Config(e) => MachineError::Planner(e),
+            RestartError::Detached => MachineError::PlannerDetached,
+        })?;
         mem.scope.disarm();
         let sample = PathSample {
             pos_mm: crate::Vec3::from_array(start),
@@ -413,7 +434,7 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
                 break;
             }
             if matches!(r, Queued::Request(Request::Segment(_))) {
-                if segments == SEGMENTS_PER_PERIOD {
+                if segments == M::OFFERS_PER_PERIOD {
                     break;
                 }
                 segments += 1;
@@ -522,8 +543,14 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
                     return Step::Done(refused("run: a program is already running"));
                 }
                 // in place: a planner is 40 KiB, too much for the interrupt's stack
-                if self.mem.planner.restart(&self.planner_cfg, start).is_err() {
-                    return Step::Done(refused("run: planner configuration invalid"));
+                match self.mem.planner.restart(&self.planner_cfg, start) {
+                    Ok(()) => {}
+                    Err(RestartError::Config(_)) => {
+                        return Step::Done(refused("run: planner configuration invalid"))
+                    }
+                    Err(RestartError::Detached) => {
+                        return Step::Done(refused("run: the planning task is not connected"))
+                    }
                 }
                 self.program = true;
                 self.program_ended = false;
@@ -534,12 +561,10 @@ impl<P: DerefMut<Target = MachineMemory>> Machine<P> {
                 if !self.program {
                     return Step::Done(refused("segment: no program running (send run first)"));
                 }
-                if self.mem.planner.free_slots() == 0 {
-                    return Step::Wait;
-                }
-                match self.mem.planner.push(seg) {
-                    Ok(()) => Step::Done(Outcome::Done),
-                    Err(e) => {
+                match self.mem.planner.offer(seg) {
+                    Offer::Taken => Step::Done(Outcome::Done),
+                    Offer::Later => Step::Wait,
+                    Offer::Refused(e) => {
                         // a program with a bad segment cannot go on: stop on the path
                         self.stop_program(Some(Command::Stop));
                         Step::Done(refused(segment_refusal(&e)))
@@ -716,7 +741,8 @@ enum Step {
     Done(Outcome),
     /// A servo command: its outcome comes from this period's servo step.
     Servo,
-    /// Cannot be executed yet (planner full): stays at the front of the queue.
+    /// Cannot be executed yet (planner full, or its answer not back from the planning
+    /// task): stays at the front of the queue.
     Wait,
     /// A save locked the outputs off: the request leaves the queue, its outcome comes
     /// with `Down::SaveDone`.

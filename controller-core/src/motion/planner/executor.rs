@@ -29,6 +29,8 @@ pub struct Step {
     pub epoch: u16,
     /// Path generation of the span (incremented by every abort).
     pub path_gen: u16,
+    /// Program run (see [`Span::run`]).
+    pub run: u16,
     /// Span the state lies on.
     pub span_seq: u32,
     /// Local path parameter on that span (mm).
@@ -58,6 +60,8 @@ pub enum ExecMode {
 pub struct ExecutorStatus {
     pub epoch: u16,
     pub path_gen: u16,
+    /// Program run the executor follows (see [`Span::run`]).
+    pub run: u16,
     pub span_seq: u32,
     pub sigma_mm: f32,
     pub mode: ExecMode,
@@ -105,6 +109,8 @@ pub struct Executor {
     underruns: u32,
     epoch: u16,
     path_gen: u16,
+    /// Program run: spans and steps of another run are dropped.
+    run: u16,
     /// The front of the span channel is the current span (sequence number `seq`).
     on_span: bool,
     seq: u32,
@@ -131,12 +137,19 @@ impl Executor {
     /// At rest at `start_mm`; `period_s` is the control period (validated by the planner's
     /// settings: use `Planner::settings().period_s`).
     pub const fn new(period_s: f32, start_mm: [f32; 3]) -> Self {
+        Self::for_run(period_s, start_mm, 0)
+    }
+
+    /// As [`Executor::new`], following program run `run` only (the planner restarted
+    /// with `Planner::restart_run` for the same run).
+    pub const fn for_run(period_s: f32, start_mm: [f32; 3], run: u16) -> Self {
         Self {
             period_s,
             mode: ExecMode::Idle,
             underruns: 0,
             epoch: 0,
             path_gen: 0,
+            run,
             on_span: false,
             seq: 0,
             tag: 0,
@@ -159,6 +172,7 @@ impl Executor {
         ExecutorStatus {
             epoch: self.epoch,
             path_gen: self.path_gen,
+            run: self.run,
             span_seq: self.seq,
             sigma_mm: self.sigma,
             mode: self.mode,
@@ -178,6 +192,12 @@ impl Executor {
             let Some(f) = spans.peek() else {
                 return false;
             };
+            if f.run != self.run {
+                // an earlier program run's span (its planner was restarted)
+                spans.drop_front();
+                self.on_span = false;
+                continue;
+            }
             if f.path_gen == self.path_gen && f.seq == seq {
                 self.on_span = true;
                 self.seq = seq;
@@ -213,7 +233,7 @@ impl Executor {
             }
             spans.drop_front();
             match spans.peek() {
-                Some(f) if f.path_gen == self.path_gen => {
+                Some(f) if f.path_gen == self.path_gen && f.run == self.run => {
                     self.sigma -= len;
                     self.seq = f.seq;
                     self.tag = f.tag;
@@ -269,13 +289,13 @@ impl Executor {
     /// Takes the next step of the current epoch (dropping stale ones, a bounded number).
     fn next_step(&mut self, steps: &mut impl Source<Step>) -> Option<Step> {
         if let Some(s) = self.pending.take() {
-            if s.epoch == self.epoch {
+            if s.epoch == self.epoch && s.run == self.run {
                 return Some(s);
             }
         }
         for _ in 0..DRAIN_PER_PERIOD {
             match steps.try_recv() {
-                Some(s) if s.epoch == self.epoch => return Some(s),
+                Some(s) if s.epoch == self.epoch && s.run == self.run => return Some(s),
                 Some(_) => {}
                 None => return None,
             }

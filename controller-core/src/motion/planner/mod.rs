@@ -18,13 +18,16 @@
 //! **Protocol.** Spans and steps flow planner → executor through two single-producer,
 //! single-consumer queues ([`channel::Sink`]/[`channel::Source`]; `heapless::spsc` on the
 //! board, lock-free). The executor publishes an [`ExecutorStatus`] (a small `Copy` value,
-//! e.g. in an RTIC resource locked only to copy it) that the planner reads with
+//! through a third queue on the board) that the planner reads with
 //! [`Planner::sync`] before each `produce`: it tells which spans may be dropped and, after
 //! the executor stopped on its own (underrun), the new epoch and the exact stop point from
 //! which the planner restarts the profile. Steps of an old epoch are
 //! dropped by the executor, so neither side ever waits for the other.
 //!
-//! [`MotionPlanner`] wires both halves for a single thread (host-sim, tests).
+//! [`MotionPlanner`] wires both halves for a single thread (host-sim, tests);
+//! [`split`] runs them in two tasks (the board: [`SplitPlanner`] in a task below the
+//! control interrupt, [`SplitExecutor`] in it). The supervisor drives either through
+//! [`PlannerHandle`].
 
 mod blend;
 pub mod channel;
@@ -32,6 +35,7 @@ pub mod config;
 mod executor;
 pub mod fmath;
 mod geometry;
+pub mod handle;
 mod lookahead;
 mod mintree;
 mod pipeline;
@@ -42,10 +46,15 @@ mod ring;
 mod scan;
 pub mod segment;
 pub mod span;
+pub mod split;
 
 pub use config::{PlannerConfig, PlannerConfigError, Settings, GANTRY_PLANNER};
 pub use executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step};
+pub use handle::{Offer, PlannerHandle, RestartError};
 pub use pipeline::MotionPlanner;
-pub use planner::{Planner, PlannerState, PlannerStatus, FEED_OVERRIDE_MAX, FEED_OVERRIDE_MIN};
+pub use planner::{
+    check_feed_override, Planner, PlannerState, PlannerStatus, FEED_OVERRIDE_MAX, FEED_OVERRIDE_MIN,
+};
 pub use segment::{Blend, Feed, Motion, Plane, Segment, SegmentError, MAX_ARC_PIECES};
 pub use span::{Span, SpanPoint};
+pub use split::{PlannerChannels, SplitExecutor, SplitPlanner};

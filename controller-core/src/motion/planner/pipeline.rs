@@ -6,6 +6,7 @@ use heapless::Deque;
 
 use super::config::{PlannerConfig, PlannerConfigError};
 use super::executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step};
+use super::handle::{Offer, PlannerHandle, RestartError};
 use super::planner::{Planner, PlannerState, PlannerStatus};
 use super::segment::{Segment, SegmentError};
 use super::span::Span;
@@ -131,5 +132,55 @@ impl<const N: usize, const S: usize, const C: usize, const B: usize> MotionPlann
                 self.planner.status().state,
                 PlannerState::Idle | PlannerState::Held
             )
+    }
+}
+
+/// Both halves in the period: a segment is planned when it is offered, so at most one is
+/// offered per period (one segment's look-ahead, `cargo insns` `planner_segment`).
+impl<const N: usize, const S: usize, const C: usize, const B: usize> PlannerHandle
+    for MotionPlanner<N, S, C, B>
+{
+    const OFFERS_PER_PERIOD: usize = 1;
+
+    fn restart(&mut self, cfg: &PlannerConfig, start_mm: [f32; 3]) -> Result<(), RestartError> {
+        MotionPlanner::restart(self, cfg, start_mm).map_err(RestartError::Config)
+    }
+
+    fn offer(&mut self, seg: &Segment) -> Offer {
+        if self.free_slots() == 0 {
+            return Offer::Later;
+        }
+        match self.push(seg) {
+            Ok(()) => Offer::Taken,
+            Err(e) => Offer::Refused(e),
+        }
+    }
+
+    fn hold(&mut self) {
+        MotionPlanner::hold(self);
+    }
+
+    fn resume(&mut self) {
+        MotionPlanner::resume(self);
+    }
+
+    fn abort(&mut self) {
+        MotionPlanner::abort(self);
+    }
+
+    fn set_feed_override(&mut self, ratio: f32) -> Result<(), PlannerConfigError> {
+        MotionPlanner::set_feed_override(self, ratio)
+    }
+
+    fn free_slots(&self) -> usize {
+        MotionPlanner::free_slots(self)
+    }
+
+    fn tick(&mut self) -> PathSample {
+        MotionPlanner::tick(self)
+    }
+
+    fn is_idle(&self) -> bool {
+        MotionPlanner::is_idle(self)
     }
 }

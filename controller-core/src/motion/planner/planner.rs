@@ -35,6 +35,17 @@ use super::span::{
 pub const FEED_OVERRIDE_MIN: f32 = 0.01;
 pub const FEED_OVERRIDE_MAX: f32 = 2.0;
 
+/// A feed override ratio is finite and within [`FEED_OVERRIDE_MIN`]..=[`FEED_OVERRIDE_MAX`].
+pub fn check_feed_override(ratio: f32) -> Result<(), PlannerConfigError> {
+    if !ratio.is_finite() {
+        return Err(PlannerConfigError::NotFinite("feed_override"));
+    }
+    if !(FEED_OVERRIDE_MIN..=FEED_OVERRIDE_MAX).contains(&ratio) {
+        return Err(PlannerConfigError::OutOfRange("feed_override"));
+    }
+    Ok(())
+}
+
 /// Stop points closer than this (mm) at speeds below [`SNAP_SPEED_MM_S`] are taken as
 /// reached: ends the asymptotic creep of the discrete braking onto a stop point.
 const SNAP_MM: f32 = 2.0e-5;
@@ -155,6 +166,8 @@ pub struct Planner<const N: usize, const S: usize> {
     gen: GenState,
     epoch: u16,
     path_gen: u16,
+    /// Program run: stamped on every span and step (see [`super::split`]).
+    run_id: u16,
     feed_override: f32,
     run: RunState,
     hold_point: Option<HoldPoint>,
@@ -186,6 +199,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         gen: GenState::at(1, 0.0),
         epoch: 0,
         path_gen: 0,
+        run_id: 0,
         feed_override: 1.0,
         run: RunState::Run,
         hold_point: None,
@@ -203,6 +217,18 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         cfg: &PlannerConfig,
         start_mm: [f32; 3],
     ) -> Result<(), PlannerConfigError> {
+        self.restart_run(cfg, start_mm, 0)
+    }
+
+    /// As [`Planner::restart`], for program run `run` (its spans and steps carry it: an
+    /// executor restarted for the same run drops what an earlier run left in the
+    /// channels, [`super::split`]).
+    pub fn restart_run(
+        &mut self,
+        cfg: &PlannerConfig,
+        start_mm: [f32; 3],
+        run: u16,
+    ) -> Result<(), PlannerConfigError> {
         let set = Settings::new(cfg)?;
         for x in start_mm {
             if !x.is_finite() {
@@ -218,6 +244,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.gen = GenState::at(1, 0.0);
         self.epoch = 0;
         self.path_gen = 0;
+        self.run_id = run;
         self.feed_override = 1.0;
         self.run = RunState::Run;
         self.hold_point = None;
@@ -231,6 +258,11 @@ impl<const N: usize, const S: usize> Planner<N, S> {
 
     pub fn settings(&self) -> &Settings {
         &self.set
+    }
+
+    /// Program run its spans and steps carry ([`Planner::restart_run`]).
+    pub fn run_id(&self) -> u16 {
+        self.run_id
     }
 
     /// Free segment slots (flow control: an arc of n extra turns needs n + 1).
@@ -310,12 +342,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
     /// Feed override as a ratio (0.01..=2.0); applied by the look-ahead from the next
     /// generated step on, within the jerk and acceleration limits.
     pub fn set_feed_override(&mut self, ratio: f32) -> Result<(), PlannerConfigError> {
-        if !ratio.is_finite() {
-            return Err(PlannerConfigError::NotFinite("feed_override"));
-        }
-        if !(FEED_OVERRIDE_MIN..=FEED_OVERRIDE_MAX).contains(&ratio) {
-            return Err(PlannerConfigError::OutOfRange("feed_override"));
-        }
+        check_feed_override(ratio)?;
         self.feed_override = ratio;
         self.spans.set_override(ratio);
         self.scan.valid = false;
@@ -449,6 +476,11 @@ impl<const N: usize, const S: usize> Planner<N, S> {
 
     /// Takes the executor's latest status (call before [`Planner::produce`]).
     pub fn sync(&mut self, st: &ExecutorStatus) {
+        if st.run != self.run_id {
+            // the executor's status of another program run (it was restarted before or
+            // after this planner): nothing in it concerns this run
+            return;
+        }
         self.exec_mode = st.mode;
         // Release spans the executor has passed (and the look-ahead too).
         while let Some(front) = self.spans.front() {
@@ -615,6 +647,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             let span = Span {
                 seq: self.next_seq,
                 path_gen: self.path_gen,
+                run: self.run_id,
                 tag: e.attr.tag,
                 len_mm: 0.0,
                 inv_len: 0.0,
@@ -702,6 +735,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let span = Span {
             seq: self.next_seq,
             path_gen: self.path_gen,
+            run: self.run_id,
             tag: e.attr.tag,
             len_mm: h,
             inv_len: if h > 0.0 { 1.0 / h } else { 0.0 },
@@ -977,6 +1011,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         Some(Step {
             epoch: self.epoch,
             path_gen: self.path_gen,
+            run: self.run_id,
             span_seq: self.gen.seq,
             sigma_mm: self.gen.sigma,
             vel_mm_s: self.gen.vel,
@@ -1038,6 +1073,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         Step {
             epoch: self.epoch,
             path_gen: self.path_gen,
+            run: self.run_id,
             span_seq: self.gen.seq,
             sigma_mm: self.gen.sigma,
             vel_mm_s: 0.0,

@@ -384,6 +384,7 @@ mod tests {
             span: Span {
                 seq,
                 path_gen: 0,
+                run: 0,
                 tag: 0,
                 len_mm: len,
                 inv_len: 1.0 / len,

@@ -50,6 +50,10 @@ pub struct Span {
     /// Path generation: incremented by every abort, so that the executor drops spans of a
     /// cleared program.
     pub path_gen: u16,
+    /// Program run (set by every restart): with the planner in a task of its own, the
+    /// executor drops spans of an earlier run still in the channel (see
+    /// [`super::split`]). Fills what was padding: no larger span.
+    pub run: u16,
     /// Tag of the programmed segment this span lies on.
     pub tag: u32,
     /// Length in σ (mm of programmed path).
