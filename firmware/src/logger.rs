@@ -1,4 +1,5 @@
-//! Turns the control interrupt's telemetry into defmt log lines (low-priority task only).
+//! Turns the control interrupt's telemetry into defmt log lines (low-priority task only),
+//! with the stack's high-water mark (`crate::stack`).
 
 use controller_core::servo::ServoState;
 use firmware::telemetry::Telemetry;
@@ -27,8 +28,9 @@ impl Logger {
             }
             self.last_state = s.state;
         }
+        let (stack_size, stack_used) = crate::stack::high_water();
         defmt::info!(
-            "k={=u32} t={=f32}s pos=[{=f32},{=f32},{=f32}] trk=[{=f32},{=f32},{=f32}] ctr={=f32} u=[{=f32},{=f32},{=f32}] overruns={=u32} isr_cyc={=u32}/{=u32}",
+            "k={=u32} t={=f32}s pos=[{=f32},{=f32},{=f32}] trk=[{=f32},{=f32},{=f32}] ctr={=f32} u=[{=f32},{=f32},{=f32}] overruns={=u32} isr_cyc={=u32}/{=u32} stack={=u32}/{=u32}",
             s.period,
             s.motion_t_s,
             s.pos[0],
@@ -43,7 +45,9 @@ impl Logger {
             s.effort[2],
             t.timing.overruns,
             t.timing.last,
-            t.timing.max
+            t.timing.max,
+            stack_used,
+            stack_size
         );
     }
 }

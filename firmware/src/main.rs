@@ -41,6 +41,8 @@ mod machine_slot;
 mod period;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 mod qemu;
+#[cfg(target_os = "none")]
+mod stack;
 
 // The panic handler is the board's own (`board::shutdown`: outputs off first).
 #[cfg(all(target_os = "none", not(feature = "qemu")))]
