@@ -9,6 +9,8 @@
 //! - [`telemetry`]: what the telemetry task gets besides the core's snapshot (interrupt
 //!   timing);
 //! - [`scenarios`] (feature `qemu`): the QEMU rig's scenario table;
+//! - [`panel`] (feature `qemu`): the bytes of the QEMU link rig's operator panel (e-stop
+//!   press and release on USART1);
 //! - [`watchdog`]: the independent watchdog's timeout for the control rate;
 //! - [`encoder_filter`]: the encoder timers' input filter and the count rate it passes.
 #![cfg_attr(not(test), no_std)]
@@ -19,6 +21,8 @@ pub mod button;
 pub mod config;
 pub mod drive;
 pub mod encoder_filter;
+#[cfg(feature = "qemu")]
+pub mod panel;
 #[cfg(feature = "qemu")]
 pub mod scenarios;
 pub mod telemetry;

@@ -208,7 +208,7 @@ mod app {
             // The encoder timers and TIM1 are configured (and TIM1's outputs disabled)
             // but not used: the simulated world stands in for them.
             let _ = (board.encoders, board.servo, board.arm, board.clock);
-            let period = Period::boot(board.safety, machine, control);
+            let period = Period::boot(board.safety, machine, control, board.panel_usart);
             let link = period.link_machine();
             let host_uart = board
                 .host_uart

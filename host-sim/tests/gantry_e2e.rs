@@ -5,7 +5,18 @@
 //! with the outputs on); arm; a scope capture read out; a program to
 //! completion with telemetry; the same program with a feed hold and resume; abort of a
 //! running program; the host going silent: the machine stops with `LinkLost` within the
-//! watchdog's timeout, measured in control periods; a new session finds the fault.
+//! watchdog's timeout, measured in control periods; a new session finds the fault; the
+//! e-stop pressed while a program runs: the outputs go off (the applied efforts in the
+//! telemetry are 0 in every sample from the period the machine reads the press on, and
+//! the program ran with them on until then), `estop` is reported (first fault, and in the
+//! history with no axis), a reset is refused while it is pressed and accepted once it is
+//! released, and the machine arms again.
+//!
+//! The e-stop is pressed on each machine's own operator panel ([`EstopPanel`]): the
+//! firmware's QEMU link rig reads USART1 as the panel (`E` press, `e` release, each
+//! acknowledged with the control period it takes effect in: firmware/src/panel.rs), which
+//! `QemuMachine` puts on a second TCP socket; `SimMachine` sets the same input of the
+//! simulated world directly.
 //!
 //! The QEMU half needs `qemu-system-arm` and the firmware's QEMU build (`cargo
 //! fw-qemu-build`, or `GANTRY_QEMU_ELF`): it is `#[ignore]`d in a plain `cargo test` and
@@ -30,6 +41,31 @@ const WATCHDOG_PERIODS: u32 = 5_000;
 /// A 20 mm square at 50 mm/s around where the machine stands, sharp corners.
 const SMALL_SQUARE: &str = "G21 G90 G61\nG1 X10 F3000\nY10\nX-10\nY-10\nX10\nY0\nX0\nM2\n";
 
+/// The telemetry samples nearest the e-stop press on either side, periods from the press
+/// (the first period whose servo step reads it, as the machine acknowledges it), at most:
+/// one sample every [`DECIMATION`], two intervals if one is lost on the way. The last one
+/// before shows the outputs on, the first one after shows them off.
+const ESTOP_SAMPLE_MAX_PERIODS: u32 = 2 * DECIMATION;
+
+/// A machine's operator panel: its e-stop.
+trait EstopPanel {
+    /// Press (`true`) or release the e-stop; returns once the machine's input is set,
+    /// with the control period whose servo step reads it first.
+    fn press_estop(&mut self, pressed: bool) -> anyhow::Result<u32>;
+}
+
+impl EstopPanel for SimMachine {
+    fn press_estop(&mut self, pressed: bool) -> anyhow::Result<u32> {
+        Ok(SimMachine::press_estop(self, pressed))
+    }
+}
+
+impl EstopPanel for QemuMachine {
+    fn press_estop(&mut self, pressed: bool) -> anyhow::Result<u32> {
+        QemuMachine::press_estop(self, pressed)
+    }
+}
+
 /// What the scenario measured (printed: `-- --nocapture`).
 struct Figures {
     /// Control periods between consecutive status replies (request sent on the previous
@@ -40,14 +76,26 @@ struct Figures {
     link_loss_periods: u32,
     program_s: f64,
     held_s: f64,
+    /// Periods from the last telemetry sample before the e-stop press (outputs on) to the
+    /// press (the period the machine reads it first), and from the press to the first
+    /// sample after it (in `Fault`, the outputs off).
+    estop_on_before_periods: u32,
+    estop_off_after_periods: u32,
 }
 
 impl Figures {
     fn line(&self) -> String {
         format!(
             "status round trip {:.1} periods, link loss detected {} periods after the \
-             last one heard, program {:.3} s, with a 0.3 s hold {:.3} s",
-            self.status_round_trip_periods, self.link_loss_periods, self.program_s, self.held_s
+             last one heard, program {:.3} s, with a 0.3 s hold {:.3} s, e-stop: outputs on \
+             {} periods before the press, off {} periods after it (telemetry every {})",
+            self.status_round_trip_periods,
+            self.link_loss_periods,
+            self.program_s,
+            self.held_s,
+            self.estop_on_before_periods,
+            self.estop_off_after_periods,
+            DECIMATION
         )
     }
 }
@@ -58,7 +106,7 @@ fn program_file(name: &str) -> PathBuf {
     p
 }
 
-fn scenario<T: Transport>(mut c: Client<T>, tag: &str) -> Figures {
+fn scenario<T: Transport + EstopPanel>(mut c: Client<T>, tag: &str) -> Figures {
     // handshake done; the machine is up, outputs off
     assert_eq!(c.status().unwrap().state, MachineState::Disabled);
 
@@ -208,12 +256,96 @@ fn scenario<T: Transport>(mut c: Client<T>, tag: &str) -> Figures {
     expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
     assert_eq!(c.status().unwrap().state, MachineState::Idle);
 
+    let (estop_on_before_periods, estop_off_after_periods) = e_stop(&mut c);
+
     Figures {
         status_round_trip_periods,
         link_loss_periods,
         program_s: plain.duration_s,
         held_s: held.duration_s,
+        estop_on_before_periods,
+        estop_off_after_periods,
     }
+}
+
+/// The e-stop pressed while a program runs, reset refused while pressed, accepted once
+/// released, armed again (the machine armed and idle before); the periods from the last
+/// telemetry sample before the press (outputs on) to it and from it to the first sample
+/// after (outputs off).
+fn e_stop<T: Transport + EstopPanel>(c: &mut Client<T>) -> (u32, u32) {
+    // the applied efforts in the telemetry: 0 with the outputs off
+    let efforts =
+        heapless::Vec::from_slice(&[Signal::Effort(0), Signal::Effort(1), Signal::Effort(2)])
+            .unwrap();
+    expect_done(
+        "subscribe",
+        c.exec(Request::Subscribe {
+            every_periods: DECIMATION,
+            signals: efforts,
+        })
+        .unwrap(),
+    )
+    .unwrap();
+    let start = c.status().unwrap().pos_mm;
+    expect_done("run", c.exec(Request::Run).unwrap()).unwrap();
+    let target = [start[0] + 100.0, start[1], start[2]];
+    expect_done(
+        "segment",
+        c.exec(Request::Segment(Segment::line(target, 50.0, 1)))
+            .unwrap(),
+    )
+    .unwrap();
+    // (from here on every sample is of the running program)
+    let _ = c.take_telemetry();
+    cli::wait_while(c, |s| s.vel_mm_s[0] < 40.0).unwrap();
+    let pressed_at = c.transport.press_estop(true).unwrap();
+    let s = cli::wait_while(c, |s| s.state != MachineState::Fault).unwrap();
+    assert_eq!(s.first_fault.as_deref(), Some("estop"), "{s:?}");
+    // (the telemetry of the last status polls: it trails the status by the link's delay)
+    c.sleep_ms(20).unwrap();
+    let samples = c.take_telemetry();
+    let (before, after): (Vec<_>, Vec<_>) = samples
+        .iter()
+        .partition(|t| t.period.wrapping_sub(pressed_at) > u32::MAX / 2);
+    // running with the outputs on until the press, off from the period it is read
+    assert!(
+        before
+            .iter()
+            .all(|t| matches!(t.state, MachineState::Run { .. })
+                && t.signals.iter().any(|e| *e != 0.0)),
+        "{before:?}"
+    );
+    assert!(
+        after
+            .iter()
+            .all(|t| t.state == MachineState::Fault && t.signals.iter().all(|e| *e == 0.0)),
+        "{after:?}"
+    );
+    let last_on = before.last().expect("telemetry before the press");
+    let first_off = after.first().expect("telemetry after the press");
+    let on_before = pressed_at.wrapping_sub(last_on.period);
+    let off_after = first_off.period.wrapping_sub(pressed_at);
+    assert!(
+        on_before <= ESTOP_SAMPLE_MAX_PERIODS && off_after <= ESTOP_SAMPLE_MAX_PERIODS,
+        "samples {on_before} periods before and {off_after} after the press"
+    );
+    // the cause is still there: the reset is refused, the fault stays
+    let o = c.exec(Request::Reset).unwrap();
+    assert!(matches!(o, Outcome::Refused(_)), "{o:?}");
+    let s = c.status().unwrap();
+    assert_eq!(s.state, MachineState::Fault, "{s:?}");
+    // the history names it too (a system fault: no axis)
+    let last = s.fault_history.last().expect("a fault in the history");
+    assert_eq!(last.kind().map(|k| k.name()), Some("estop"), "{s:?}");
+    assert_eq!(last.axis(), None, "{s:?}");
+    // released: the reset is taken, and the machine arms again
+    c.transport.press_estop(false).unwrap();
+    expect_done("reset", c.exec(Request::Reset).unwrap()).unwrap();
+    let s = cli::wait_while(c, |s| s.state == MachineState::EncoderCheck).unwrap();
+    assert_eq!(s.state, MachineState::Disabled, "{s:?}");
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    assert_eq!(c.status().unwrap().state, MachineState::Idle);
+    (on_before, off_after)
 }
 
 #[test]

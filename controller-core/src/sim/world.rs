@@ -465,12 +465,19 @@ impl World {
         raw
     }
 
+    /// The operator's e-stop button, pressed or released: the servo reads it from its next
+    /// step on. [`Injection::Estop`] presses the same input; this is also how it is let go
+    /// (host-sim's `SimMachine` and the QEMU link rig's operator panel both come here).
+    pub fn set_estop(&mut self, pressed: bool) {
+        self.inputs.estop = pressed;
+    }
+
     /// Give the machine a fault (the servo-side ones, `CorruptState`, are the run's).
     pub fn inject(&mut self, inj: &Injection) {
         let reported = self.reported_counts();
         let counts = self.counts();
         match *inj {
-            Injection::Estop => self.inputs.estop = true,
+            Injection::Estop => self.set_estop(true),
             Injection::Limit { axis, high } => {
                 self.inputs.limits[axis.index()][usize::from(high)] = true
             }

@@ -17,6 +17,7 @@
 //! | LED enabled / fault | PD12 / PD14 | GPIO push-pull | the green / red LED of an STM32F4DISCOVERY |
 //! | control tick | (none) | TIM4 update interrupt | 84 MHz timer clock, 10 kHz default, 20 kHz fits |
 //! | defmt log, flashing | PA13 / PA14 | SWD + RTT | probe-rs |
+//! | QEMU build only: operator panel | (none) | USART1 | the link rig's simulated e-stop (`qemu::panel`); QEMU models no GPIO |
 //!
 //! TIM4 is used as the control timer (rather than a basic timer) because it is one of the
 //! timers QEMU's STM32F405 model emulates, so the QEMU build keeps the same interrupt.
@@ -84,6 +85,9 @@ pub struct Board {
     pub watchdog: watchdog::Watchdog,
     /// The host link's USART2 (PA2/PA3), configured with its receive interrupt.
     pub host_uart: Option<stm32f4xx_hal::serial::Serial<pac::USART2>>,
+    /// QEMU: USART1, clocked, for the link rig's operator panel (`qemu::panel`).
+    #[cfg(feature = "qemu")]
+    pub panel_usart: pac::USART1,
     /// The flash controller (the settings store).
     #[cfg(not(feature = "qemu"))]
     pub flash: pac::FLASH,
@@ -219,6 +223,15 @@ pub fn init(dp: pac::Peripherals) -> Board {
         }
     };
 
+    // QEMU: the link rig's operator panel (no pins: QEMU models no GPIO; the clock is
+    // enabled as a real F405 would need, QEMU itself has no RCC model).
+    #[cfg(feature = "qemu")]
+    let panel_usart = {
+        use stm32f4xx_hal::rcc::Enable;
+        pac::USART1::enable(&mut rcc);
+        dp.USART1
+    };
+
     Board {
         encoders,
         servo,
@@ -230,6 +243,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
         #[cfg(not(feature = "qemu"))]
         watchdog: watchdog::Watchdog::new(dp.IWDG),
         host_uart,
+        #[cfg(feature = "qemu")]
+        panel_usart,
         #[cfg(not(feature = "qemu"))]
         flash: dp.FLASH,
     }

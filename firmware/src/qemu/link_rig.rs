@@ -4,6 +4,11 @@
 //! `gantry --sim` (host-sim/scenarios/gcode.toml, with limit switches where homing
 //! expects them). The control interrupt runs [`Machine::linked_period`] and advances the
 //! world; the link task (`crate::link`) talks to the host. It runs until QEMU is stopped.
+//!
+//! The simulated machine's e-stop is pressed and released on its operator panel, USART1
+//! ([`super::panel`]): each period, before the servo step, what the panel received sets
+//! the world's e-stop input ([`World::set_estop`], as `gantry --sim`'s `SimMachine`
+//! does).
 
 use core::sync::atomic::Ordering;
 
@@ -14,6 +19,7 @@ use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::run::RunConfig;
 use controller_core::sim::world::{SwitchConfig, World};
 
+use super::panel::Panel;
 use super::{exit, EXIT_CONFIG};
 use crate::link::LINK_CLOCK_MS;
 use crate::machine_slot::{self, FwMachine};
@@ -54,6 +60,8 @@ impl RamSaver {
 pub struct LinkRig {
     machine: &'static mut FwMachine,
     world: World,
+    /// The operator panel: the world's e-stop.
+    panel: Panel,
     control: ControlSide<'static>,
     rate_hz: u32,
     periods: u64,
@@ -61,8 +69,13 @@ pub struct LinkRig {
 
 impl LinkRig {
     /// The machine built in `slot` (in place: it is too large to pass around on the
-    /// stack); exits QEMU with [`EXIT_CONFIG`] if the machine description is rejected.
-    pub fn boot(slot: &'static mut Option<FwMachine>, control: ControlSide<'static>) -> Self {
+    /// stack), its operator panel on `panel_usart`; exits QEMU with [`EXIT_CONFIG`] if
+    /// the machine description is rejected.
+    pub fn boot(
+        slot: &'static mut Option<FwMachine>,
+        control: ControlSide<'static>,
+        panel_usart: stm32f4xx_hal::pac::USART1,
+    ) -> Self {
         let run: RunConfig = match postcard::from_bytes(firmware::scenarios::LINK_RUN) {
             Ok(r) => r,
             Err(_) => {
@@ -99,21 +112,28 @@ impl LinkRig {
             exit(EXIT_CONFIG)
         };
         defmt::info!(
-            "link rig: the simulated gantry at {=u32} Hz, host link on USART2",
+            "link rig: the simulated gantry at {=u32} Hz, host link on USART2, operator panel on USART1",
             rate_hz
         );
         Self {
             machine,
             world,
+            panel: Panel::new(panel_usart),
             control,
             rate_hz,
             periods: 0,
         }
     }
 
-    /// The machine's period: the link's events, supervisor, planner, servo step.
+    /// The machine's period: the operator panel, then the link's events, supervisor,
+    /// planner, servo step.
     #[inline]
     pub fn control(&mut self) -> &Snapshot {
+        // (the servo counts the period at the start of its step: this one is the next)
+        let period = self.machine.servo().snapshot().period.wrapping_add(1);
+        if let Some(pressed) = self.panel.poll(period) {
+            self.world.set_estop(pressed);
+        }
         self.machine
             .linked_period(&mut self.world, &mut self.control);
         self.machine.servo().snapshot()

@@ -7,6 +7,7 @@
 //! - [`rig`]: the per-period work of the control interrupt for a scenario;
 //! - [`link_rig`]: the machine behind the host link on USART2 (name `link`: what
 //!   `gantry --qemu` boots);
+//! - [`panel`]: the link rig's operator panel on USART1 (the simulated e-stop);
 //! - [`report`]: the final lines (human-readable figures, interrupt statistics, and one
 //!   machine-readable `gantry-figures` line) and the exit.
 //!
@@ -23,6 +24,7 @@
 
 pub mod cmdline;
 pub mod link_rig;
+pub mod panel;
 pub mod report;
 pub mod rig;
 
@@ -47,14 +49,16 @@ pub enum Period {
 }
 
 impl Period {
-    /// The rig the command line names (`link`, or a scenario).
+    /// The rig the command line names (`link`, or a scenario; only the link rig has an
+    /// operator panel on `panel_usart`).
     pub fn boot(
         safety: SafetyPins,
         machine: &'static mut Option<FwMachine>,
         control: ControlSide<'static>,
+        panel_usart: stm32f4xx_hal::pac::USART1,
     ) -> Self {
         if cmdline::with_scenario_name(|n| n == LINK_RIG) {
-            Self::Link(LinkRig::boot(machine, control))
+            Self::Link(LinkRig::boot(machine, control, panel_usart))
         } else {
             Self::Scenario(Rig::boot(safety))
         }

@@ -4,6 +4,13 @@
 //! bytes are the firmware's own: its UART interrupt, link task and queues, its control
 //! interrupt.
 //!
+//! The simulated machine's operator panel is its USART1 (QEMU models no GPIO to press an
+//! e-stop with), on a second local TCP socket: [`QemuMachine::press_estop`] sends the
+//! panel's bytes (`firmware/src/panel.rs`) and waits for the rig's acknowledgement, which
+//! names the control period the press takes effect in. QEMU listens on it without
+//! waiting for a client (`wait=off`), so the boot never depends on it; the host connects
+//! right after the link.
+//!
 //! QEMU runs with `-icount shift=0,sleep=off` (1 ns of emulated time per instruction,
 //! idle time skipped) and the firmware's link clock is the machine's control clock, so
 //! the device's timeouts count control periods however fast the host emulates; the
@@ -25,10 +32,22 @@ pub const DEFAULT_ELF: &str = "target/qemu/thumbv7em-none-eabihf/release/firmwar
 /// Longest wait for QEMU to open its socket.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
 
+/// The operator panel's bytes (the firmware's `firmware::panel::ESTOP_PRESS` and
+/// `ESTOP_RELEASE`, firmware/src/panel.rs).
+const PANEL_ESTOP_PRESS: u8 = b'E';
+const PANEL_ESTOP_RELEASE: u8 = b'e';
+/// Bytes of the rig's acknowledgement (`firmware::panel::ACK_LEN`).
+const PANEL_ACK_LEN: usize = 5;
+/// Longest wait for the rig's acknowledgement of a panel byte (wall time; the rig reads
+/// the panel every control period, a fraction of a millisecond of wall time in QEMU).
+const PANEL_ACK_TIMEOUT: Duration = Duration::from_secs(10);
+
 /// The firmware in QEMU, connected.
 pub struct QemuMachine {
     child: Child,
     stream: TcpStream,
+    /// The operator panel (USART1).
+    panel: TcpStream,
     t0: Instant,
     log: PathBuf,
 }
@@ -42,11 +61,8 @@ impl QemuMachine {
                 elf.display()
             );
         }
-        // a free port (QEMU listens on it; the tiny window between is harmless locally)
-        let port = TcpListener::bind("127.0.0.1:0")
-            .and_then(|l| l.local_addr())
-            .context("no local TCP port for QEMU's serial line")?
-            .port();
+        // free ports (QEMU listens on them; the tiny window between is harmless locally)
+        let (port, panel_port) = free_ports()?;
         let log = elf.with_extension("link.defmt");
         let out = std::fs::File::create(&log)
             .with_context(|| format!("cannot write {}", log.display()))?;
@@ -58,8 +74,11 @@ impl QemuMachine {
                 "-monitor",
                 "none",
             ])
-            // USART1 unused, USART2 = the host link
-            .args(["-serial", "null", "-serial"])
+            // USART1 = the operator panel (QEMU does not wait for it), USART2 = the host
+            // link (QEMU starts the machine once the host is connected)
+            .arg("-serial")
+            .arg(format!("tcp:127.0.0.1:{panel_port},server=on,wait=off"))
+            .arg("-serial")
             .arg(format!("tcp:127.0.0.1:{port},server=on,wait=on"))
             .args([
                 "-semihosting-config",
@@ -76,17 +95,85 @@ impl QemuMachine {
             .map_err(|e| {
                 anyhow!("cannot start qemu-system-arm ({e}): apt-get install qemu-system-arm")
             })?;
+        // (QEMU needs a moment to listen: `connect` retries; it opens the panel's socket
+        // before the link's, so the panel connects at once once the link has)
+        let stream = connect(port, CONNECT_TIMEOUT).map_err(|e| anyhow!("QEMU: {e}"));
+        let panel = stream.and_then(|s| {
+            connect(panel_port, CONNECT_TIMEOUT)
+                .map(|p| (s, p))
+                .map_err(|e| anyhow!("QEMU's operator panel: {e}"))
+        });
+        let (stream, panel) = match panel {
+            Ok(sp) => sp,
+            Err(e) => {
+                // (no QEMU left behind, waiting for a client)
+                let mut child = child;
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(e);
+            }
+        };
         let mut m = Self {
             child,
-            // (QEMU needs a moment to listen: `connect` retries)
-            stream: connect(port, CONNECT_TIMEOUT).map_err(|e| anyhow!("QEMU: {e}"))?,
+            stream,
+            panel,
             t0: Instant::now(),
             log,
         };
         m.stream.set_nodelay(true)?;
         m.stream.set_nonblocking(true)?;
+        m.panel.set_nodelay(true)?;
+        // (blocking reads with a short timeout: `press_estop` waits for the acknowledgement)
+        m.panel.set_read_timeout(Some(Duration::from_millis(100)))?;
         m.alive()?;
         Ok(m)
+    }
+
+    /// Press (`true`) or release the simulated machine's e-stop on its operator panel
+    /// (USART1); returns once the rig has acknowledged it, with the control period whose
+    /// servo step reads the new state first (the period of the link's status and
+    /// telemetry).
+    pub fn press_estop(&mut self, pressed: bool) -> Result<u32> {
+        let byte = if pressed {
+            PANEL_ESTOP_PRESS
+        } else {
+            PANEL_ESTOP_RELEASE
+        };
+        self.panel
+            .write_all(&[byte])
+            .context("QEMU's operator panel line")?;
+        // the acknowledgement: the byte, then the period (u32, little-endian); one byte
+        // is sent at a time, so nothing else is on the line
+        let t0 = Instant::now();
+        let mut ack = [0u8; PANEL_ACK_LEN];
+        let mut got = 0;
+        loop {
+            match self.panel.read(&mut ack[got..]) {
+                Ok(0) => bail!("QEMU closed the operator panel's serial line"),
+                Ok(n) => {
+                    got += n;
+                    if got == PANEL_ACK_LEN {
+                        if ack[0] != byte {
+                            bail!(
+                                "the operator panel answered {ack:?} to `{}`",
+                                char::from(byte)
+                            );
+                        }
+                        return Ok(u32::from_le_bytes([ack[1], ack[2], ack[3], ack[4]]));
+                    }
+                }
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+                Err(e) => return Err(e.into()),
+            }
+            self.alive()?;
+            if t0.elapsed() > PANEL_ACK_TIMEOUT {
+                bail!(
+                    "the firmware did not take the operator panel's `{}` within {:?}",
+                    char::from(byte),
+                    PANEL_ACK_TIMEOUT
+                );
+            }
+        }
     }
 
     /// The firmware's raw defmt log (decode with `defmt-print -e ELF < LOG`).
@@ -116,6 +203,15 @@ impl QemuMachine {
         }
         Ok(())
     }
+}
+
+/// Two distinct free local TCP ports (both held until both are known, so that the system
+/// cannot hand out the same one twice).
+fn free_ports() -> Result<(u16, u16)> {
+    let bind =
+        || TcpListener::bind("127.0.0.1:0").context("no local TCP port for QEMU's serial lines");
+    let (a, b) = (bind()?, bind()?);
+    Ok((a.local_addr()?.port(), b.local_addr()?.port()))
 }
 
 fn connect(port: u16, timeout: Duration) -> Result<TcpStream> {

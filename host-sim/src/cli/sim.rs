@@ -106,6 +106,14 @@ impl SimMachine {
         self.world.inject(inj);
     }
 
+    /// Press (`true`) or release the e-stop: the same world input as the QEMU link rig's
+    /// operator panel sets (`QemuMachine::press_estop`). The control period whose servo
+    /// step reads it first (the next one; the period of the link's status and telemetry).
+    pub fn press_estop(&mut self, pressed: bool) -> u32 {
+        self.world.set_estop(pressed);
+        self.machine.servo().snapshot().period.wrapping_add(1)
+    }
+
     /// Control periods run so far.
     pub fn periods(&self) -> u64 {
         self.periods
