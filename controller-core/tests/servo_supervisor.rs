@@ -78,7 +78,7 @@ fn disarm_while_moving_is_a_controlled_stop_not_a_fault() {
 fn estop_reset_waits_for_release_and_never_re_enables() {
     let mut r = run(None);
     step(&mut r, &[Command::Arm], 100);
-    r.world_mut().inputs.estop = true;
+    r.world_mut().set_estop(true);
     step(&mut r, &[], 1);
     assert_eq!(r.servo().state(), ServoState::Fault);
     assert!(!r.world().outputs_on());
@@ -86,7 +86,7 @@ fn estop_reset_waits_for_release_and_never_re_enables() {
     step(&mut r, &[Command::Reset], 10);
     step(&mut r, &[Command::Arm], 10);
     assert_eq!(r.servo().state(), ServoState::Fault);
-    r.world_mut().inputs.estop = false;
+    r.world_mut().set_estop(false);
     // released: still latched until reset; arming a latched fault is refused
     step(&mut r, &[Command::Arm], 10);
     assert_eq!(r.servo().state(), ServoState::Fault);
@@ -148,7 +148,7 @@ fn fault_history_keeps_the_first_and_the_period() {
     step(&mut r, &[Command::Arm], 100);
     r.world_mut().inputs.amp_fault[1] = true;
     step(&mut r, &[], 1);
-    r.world_mut().inputs.estop = true;
+    r.world_mut().set_estop(true);
     step(&mut r, &[], 1);
     let log = r.servo().faults();
     let first = log.first().unwrap();
@@ -158,7 +158,7 @@ fn fault_history_keeps_the_first_and_the_period() {
     assert!(log.is_latched(FaultKind::EStop, None));
     assert_eq!(log.history().count(), 2);
     // the amplifier fault input still active: reset refused
-    r.world_mut().inputs.estop = false;
+    r.world_mut().set_estop(false);
     step(&mut r, &[Command::Reset], 10);
     assert_eq!(r.servo().state(), ServoState::Fault);
     r.world_mut().inputs.amp_fault[1] = false;
