@@ -690,6 +690,13 @@ static GLOBAL_KEYS: &[GlobalDef] = &[
         OutputsOff,
         "Share of each axis' acceleration and jerk kept along curves (the rest bounds the centripetal terms)"
     ),
+    global_key!(
+        planner.servo_reserve,
+        unit::NONE,
+        f32_range(0.0, 0.95),
+        OutputsOff,
+        "Share of each axis' jerk the planner leaves to the servo along the path (0: the full limits)"
+    ),
 ];
 
 /// How a key reaches its value.

@@ -26,7 +26,7 @@ use crate::servo::travel::AxisTravel;
 use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
 
 /// Version of the tree's layout, stored with every record (see the module docs).
-pub const SETTINGS_VERSION: u16 = 2;
+pub const SETTINGS_VERSION: u16 = 3;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -180,6 +180,9 @@ pub struct PlannerSettings {
     /// Share of each axis' acceleration and jerk kept for speeding up and slowing down
     /// along curves; the rest bounds the centripetal terms (0-1).
     pub tangential_share: f32,
+    /// Share of each axis' jerk kept for the servo along the path (see
+    /// `PlannerConfig::servo_reserve`).
+    pub servo_reserve: f32,
 }
 
 /// Jog settings shared by the axes.
@@ -312,6 +315,7 @@ pub const FACTORY: Settings = Settings {
     planner: PlannerSettings {
         tolerance_mm: GANTRY_PLANNER.tolerance_mm,
         tangential_share: GANTRY_PLANNER.tangential_share,
+        servo_reserve: GANTRY_PLANNER.servo_reserve,
     },
 };
 
@@ -326,6 +330,7 @@ impl Settings {
             jerk_max_mm_s3: self.axis.map(|a| a.planner.jerk_max_mm_s3),
             tolerance_mm: self.planner.tolerance_mm,
             tangential_share: self.planner.tangential_share,
+            servo_reserve: self.planner.servo_reserve,
             arc_radius_tolerance_mm: GANTRY_PLANNER.arc_radius_tolerance_mm,
             min_segment_mm: GANTRY_PLANNER.min_segment_mm,
         }

@@ -24,6 +24,12 @@ pub struct PlannerConfig {
     /// along curved spans; the rest bounds the centripetal terms and so the corner speed
     /// (0 < share < 1). LinuxCNC keeps half on arcs.
     pub tangential_share: f32,
+    /// Share of each axis' jerk limit the planner leaves to the servo along the path: the
+    /// path's own jerk on a span (σ⃛) is at most `1 − servo_reserve` of the axis limits
+    /// projected on it, never below the floor every span keeps (0 ≤ reserve < 1; 0 = the
+    /// full limits). The servo's tracking error grows with the reference's acceleration
+    /// steps: docs/planner.md gives the measured trade-off.
+    pub servo_reserve: f32,
     /// Largest allowed difference of an arc's start and end radius (mm); grbl rejects
     /// beyond 0.005 mm (error 33).
     pub arc_radius_tolerance_mm: f32,
@@ -34,7 +40,10 @@ pub struct PlannerConfig {
 /// Limits for the gantry: 10 kHz loop; 250 mm/s (3000 rpm on a 5 mm lead); 2000 mm/s²
 /// (a fifth of what the 1 N·m peak torque gives the X inertia, seed_params); 1e5 mm/s³
 /// (acceleration reached in 20 ms, a usual ball-screw value); ε = 0.01 mm (grbl's junction
-/// deviation default); half the limits for the path on curves (LinuxCNC's arc rule).
+/// deviation default); half the limits for the path on curves (LinuxCNC's arc rule); three
+/// quarters of the jerk kept for the servo along the path (the simulated gantry's contour
+/// error at exact stops and blends then stays where it was with a quarter of the jerk
+/// everywhere: docs/planner.md).
 pub const GANTRY_PLANNER: PlannerConfig = PlannerConfig {
     period_s: 1.0e-4,
     vel_max_mm_s: [250.0, 250.0, 250.0],
@@ -42,6 +51,7 @@ pub const GANTRY_PLANNER: PlannerConfig = PlannerConfig {
     jerk_max_mm_s3: [1.0e5, 1.0e5, 1.0e5],
     tolerance_mm: 0.01,
     tangential_share: 0.5,
+    servo_reserve: 0.75,
     arc_radius_tolerance_mm: 0.005,
     min_segment_mm: 1.0e-3,
 };
@@ -66,6 +76,8 @@ pub struct Settings {
     pub jerk_max: [f32; 3],
     pub tolerance_mm: f32,
     pub share: f32,
+    /// `1 − servo_reserve`: the share of the projected jerk the path may use.
+    pub path_jerk_share: f32,
     pub arc_tol_mm: f32,
     pub min_segment_mm: f32,
     /// Lower bound of every span's path acceleration limit (mm/s²): spans reserve
@@ -106,6 +118,7 @@ impl Settings {
         jerk_max: [0.0; 3],
         tolerance_mm: 0.0,
         share: 0.0,
+        path_jerk_share: 0.0,
         arc_tol_mm: 0.0,
         min_segment_mm: 0.0,
         acc_floor: 0.0,
@@ -135,6 +148,12 @@ impl Settings {
         if !(share < 1.0) {
             return Err(PlannerConfigError::OutOfRange("tangential_share"));
         }
+        if !c.servo_reserve.is_finite() {
+            return Err(PlannerConfigError::NotFinite("servo_reserve"));
+        }
+        if !(c.servo_reserve >= 0.0 && c.servo_reserve < 1.0) {
+            return Err(PlannerConfigError::OutOfRange("servo_reserve"));
+        }
         let arc_tol_mm = positive(c.arc_radius_tolerance_mm, "arc_radius_tolerance_mm")?;
         let min_segment_mm = positive(c.min_segment_mm, "min_segment_mm")?;
         if min_segment_mm > 1.0 {
@@ -149,6 +168,7 @@ impl Settings {
             jerk_max,
             tolerance_mm: c.tolerance_mm,
             share,
+            path_jerk_share: 1.0 - c.servo_reserve,
             arc_tol_mm,
             min_segment_mm,
             acc_floor: share * amin / MAX_TANGENT_GAIN,
@@ -181,6 +201,12 @@ mod tests {
         assert_eq!(
             Settings::new(&c),
             Err(PlannerConfigError::OutOfRange("tangential_share"))
+        );
+        let mut c = GANTRY_PLANNER;
+        c.servo_reserve = 1.0;
+        assert_eq!(
+            Settings::new(&c),
+            Err(PlannerConfigError::OutOfRange("servo_reserve"))
         );
         let mut c = GANTRY_PLANNER;
         c.tolerance_mm = -0.1;

@@ -25,7 +25,9 @@
 //! braking fails a check.
 
 use super::fmath::{self, F32Ext};
-use super::profile::{braking_distance, integrate, ramp_down_distance, track_jerk};
+use super::profile::{
+    braking_distance, integrate, ramp_down_distance, rest_to_rest_distance, track_jerk_landing,
+};
 
 /// Most constraints of each kind kept per period; further ones tighten the last one
 /// (conservative).
@@ -49,6 +51,9 @@ const SEARCH_STEPS: usize = 24;
 
 /// The search stops once the chosen state is this close (mm) to its binding constraint.
 pub(crate) const SLACK_TIGHT_MM: f32 = 2.0e-7;
+
+/// Bisection steps locating where a ramp-out reaches a jerk drop (2⁻¹⁶ of the ramp time).
+const RAMP_BISECTIONS: usize = 16;
 
 /// Slack of a failed check without a distance scale.
 const FAIL: f32 = -1.0e6;
@@ -93,6 +98,21 @@ impl AccConstraint {
     };
 }
 
+/// Where the jerk limit drops ahead: from `dist` on (mm from the current position) the
+/// spans allow at most `jerk` (each lower than everything before it).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct JerkDrop {
+    pub dist: f32,
+    pub jerk: f32,
+}
+
+impl JerkDrop {
+    pub const ZERO: Self = Self {
+        dist: 0.0,
+        jerk: 0.0,
+    };
+}
+
 /// What the scan found ahead.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Ahead {
@@ -102,9 +122,21 @@ pub(crate) struct Ahead {
     pub n_accel: usize,
     /// Cap (speed target) of the current span.
     pub cap: f32,
+    /// The cap is the programmed feed (× override), not the geometry: a speed above it
+    /// after the override was lowered is no slip.
+    pub cap_soft: bool,
     /// Limits of the spans the next period can touch.
     pub acc: f32,
     pub jerk: f32,
+    /// The current span's jerk limit and where it drops ahead (within the reach of any
+    /// ramp-out of the acceleration): a ramp-out is modelled span by span, so that a
+    /// lower limit ahead counts only where the ramp gets to it.
+    pub jerk0: f32,
+    pub drops: [JerkDrop; MAX_CONSTRAINTS],
+    pub n_drops: usize,
+    /// Distance to the nearest stop point (+∞ if none): the motion rests there, so no
+    /// ramp-out reaches beyond it.
+    pub stop_dist: f32,
 }
 
 impl Ahead {
@@ -115,9 +147,91 @@ impl Ahead {
             accel: [AccConstraint::ZERO; MAX_CONSTRAINTS],
             n_accel: 0,
             cap,
+            cap_soft: false,
             acc,
             jerk,
+            jerk0: jerk,
+            drops: [JerkDrop::ZERO; MAX_CONSTRAINTS],
+            n_drops: 0,
+            stop_dist: f32::INFINITY,
         }
+    }
+
+    /// Adds a jerk drop (in order of distance); when full, the last one takes the lower
+    /// limit (conservative: it lies nearer).
+    pub fn push_drop(&mut self, c: JerkDrop) {
+        if let Some(slot) = self.drops.get_mut(self.n_drops) {
+            *slot = c;
+            self.n_drops += 1;
+        } else if let Some(last) = self.drops.last_mut() {
+            last.jerk = last.jerk.mn(c.jerk);
+        }
+    }
+
+    /// One period's travel at most during a ramp-out from `(v, a)` (the highest speed it
+    /// reaches, at the lowest jerk ahead): how early a jerk drop counts.
+    pub(crate) fn ramp_lead(&self, v: f32, a: f32, t: f32) -> f32 {
+        let a = a.mx(0.0);
+        let j_min = self
+            .drops
+            .iter()
+            .take(self.n_drops)
+            .fold(self.jerk0, |j, d| j.mn(d.jerk))
+            .mx(1.0);
+        (v + 0.5 * a * a / j_min) * t + 1.0e-6
+    }
+
+    /// Ramps the acceleration `a` out to zero at full jerk from speed `v`, at the jerk of
+    /// the spans the ramp crosses (the current span's, then each drop's from where it
+    /// lies): the distance the ramp takes and the speed at its end (the peak for `a > 0`;
+    /// below zero for `a < 0` when the motion would reverse first). The ramp starts `s0`
+    /// ahead of the current position; a period runs at the lowest jerk of the spans it
+    /// touches, so each drop counts one period's travel (at most `lead` mm) early.
+    pub(crate) fn ramp_out(&self, v: f32, a: f32, s0: f32, lead: f32) -> (f32, f32) {
+        let mut j = self.jerk0.mx(1.0);
+        let (mut v, mut a, mut s) = (v, a, s0);
+        let sg = if a < 0.0 { -1.0 } else { 1.0 };
+        for d0 in self.drops.iter().take(self.n_drops) {
+            if d0.dist > self.stop_dist {
+                break;
+            }
+            let d = JerkDrop {
+                dist: d0.dist - lead,
+                jerk: d0.jerk,
+            };
+            let tr = a.abs() / j;
+            // distance of the whole ramp from here: v t + a t²/2 − sg j t³/6
+            let dist = |t: f32| v * t + 0.5 * a * t * t - sg * j * t * t * t * (1.0 / 6.0);
+            let dr = dist(tr);
+            let v_end = v + 0.5 * a * tr;
+            if !(d.dist > s) || d.jerk >= j {
+                j = j.mn(d.jerk.mx(1.0));
+                continue;
+            }
+            if s + dr <= d.dist || v_end < 0.0 {
+                return (s - s0 + dr.mx(0.0), v_end);
+            }
+            // The ramp reaches the drop: where (bisection; the distance is monotone while
+            // the speed stays positive, which `v_end ≥ 0` guarantees), then on at its jerk.
+            let rem = d.dist - s;
+            let (mut lo, mut hi) = (0.0f32, tr);
+            for _ in 0..RAMP_BISECTIONS {
+                let mid = 0.5 * (lo + hi);
+                if dist(mid) < rem {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let t1 = lo;
+            v += a * t1 - sg * 0.5 * j * t1 * t1;
+            a -= sg * j * t1;
+            s = d.dist;
+            j = d.jerk.mx(1.0);
+        }
+        let tr = a.abs() / j;
+        let dr = v * tr + 0.5 * a * tr * tr - sg * j * tr * tr * tr * (1.0 / 6.0);
+        (s - s0 + dr.mx(0.0), v + 0.5 * a * tr)
     }
 
     /// Adds a speed constraint (in order of distance). When full, the last one is
@@ -164,6 +278,34 @@ impl Ahead {
         }
         let mut slack = f32::INFINITY;
         let v1 = v1.mx(0.0);
+        // The acceleration's ramp-out from the new state, span by span.
+        let lead = self.ramp_lead(v1, a1, t);
+        let (d_ramp, v_ramp) = if a1 != 0.0 {
+            self.ramp_out(v1, a1, ds, lead)
+        } else {
+            (0.0, v1)
+        };
+        if a1 < 0.0 && v_ramp < -self.jerk * t * t && ds + 2.0 * (d_ramp + lead) < self.stop_dist {
+            // ramping the deceleration out where the jerk drops would reverse the motion
+            // (toward a stop point within the ramp that is the stop, braked for as such)
+            return FAIL;
+        }
+        // The current span's cap from below: the ramp-out must not carry the speed above
+        // it (up to the tracker's landing error, J·T²/8), whatever the spans after allow
+        // (a lower cap among those is a constraint of its own).
+        if a1 > 0.0 && (soft || !self.cap_soft) && v1 <= self.cap {
+            let tol = 0.125 * self.jerk * t * t
+                + 1.0e-6 * self.cap
+                + if margin < 0.0 {
+                    1.0e-5 * (1.0 + self.cap)
+                } else {
+                    0.0
+                };
+            let over = v_ramp - (self.cap + tol);
+            if over > 0.0 {
+                slack = slack.mn(-over * (a1 / self.jerk0.mx(1.0) + t));
+            }
+        }
         for c in self
             .speed
             .iter()
@@ -177,17 +319,19 @@ impl Ahead {
             } else {
                 0.0
             };
-            // Never above w again (the peak after ramping the acceleration out): nothing to
-            // brake for, wherever the point lies.
-            let peak = if a1 > 0.0 {
-                v1 + 0.5 * a1 * a1 / c.jerk
-            } else {
-                v1
-            };
+            // Never above w again (the peak after ramping the acceleration out, span by
+            // span): nothing to brake for, wherever the point lies.
+            let peak = if a1 > 0.0 { v_ramp } else { v1 };
             if peak <= w {
                 continue;
             }
-            let need = braking_distance(v1, a1, w, c.acc, c.jerk);
+            // A positive acceleration is ramped out first (as modelled above), then the
+            // braking crosses every span up to the point (its lowest limits).
+            let need = if a1 > 0.0 {
+                d_ramp + rest_to_rest_distance(peak, w, c.acc, c.jerk)
+            } else {
+                braking_distance(v1, a1, w, c.acc, c.jerk)
+            };
             let room = c.dist - ds;
             // A continuous braking profile reaches its constant deceleration inside a
             // period; the per-period jerk only at a period end, which costs up to J·T²/8 of
@@ -282,8 +426,11 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
     // then early: the period that crosses runs at the lower limits already). A braking
     // toward that span's own speed cap ends at zero acceleration there and never meets
     // this bound.
+    // (Not beyond a stop point: the motion never gets there, and braking for the stop may
+    // need more deceleration than such a span allows.)
+    let stop_at = ahead.stop_dist;
     for c in ahead.accel.iter().take(ahead.n_accel) {
-        if c.acc < amax && v > 0.0 {
+        if c.acc < amax && v > 0.0 && c.dist < stop_at {
             let a_lo = decel_floor(v, c.acc, c.jerk, c.dist - v * t, t);
             j_min = j_min.mx(((a_lo - a) / t).mn(j_max));
         }
@@ -297,8 +444,21 @@ pub(crate) fn choose_jerk(ahead: &Ahead, v: f32, a: f32, t: f32) -> Choice {
         let x_lo = 0.5 * jt - fmath::sqrt(disc);
         j_min = j_min.mx(((x_lo - a) / t).mn(j_max));
     }
+    // The landing on the cap is modelled at the jerk the current ramp-out would see on
+    // average (lower where the jerk drops ahead); `slack` checks the result span by span.
+    let j_land = if a > 0.0 {
+        let (_, peak) = ahead.ramp_out(v, a, 0.0, ahead.ramp_lead(v, a, t));
+        let rise = peak - v;
+        if rise > 0.0 {
+            (0.5 * a * a / rise).mn(jmax)
+        } else {
+            jmax
+        }
+    } else {
+        jmax
+    };
     // (max/min rather than clamp: no panic path even for a non-finite input.)
-    let j_hi = track_jerk(v, a, ahead.cap, amax, jmax, t)
+    let j_hi = track_jerk_landing(v, a, ahead.cap, amax, jmax, j_land, t)
         .mx(j_min)
         .mn(j_max);
     let mut f_hi = ahead.slack(v, a, j_hi, t, CHECK_MARGIN_MM, true);

@@ -839,28 +839,43 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let cap0 = cur.cap(ovr);
         let floor_a = self.set.acc_floor;
         let floor_j = self.set.jerk_floor;
-        // One path jerk for every span (see `span::path_limits`).
-        let jerk = lim0.jerk;
-        let v_next = v + a.mx(0.0) * t + 0.5 * jerk * t * t;
+        // No period's jerk exceeds the current span's: the speed bound of the next period.
+        let v_next = v + a.mx(0.0) * t + 0.5 * lim0.jerk * t * t;
+        // The spans the next period can touch bound its acceleration and jerk (not beyond
+        // an exact stop: the motion rests there before it enters the next span).
+        let pos_here = cum0.wrapping_add(to_cum(self.gen.sigma));
+        let touch = to_cum(v_next * t + 1.0e-6);
+        let (mut acc_touch, mut jerk) = (lim0.acc, lim0.jerk);
+        let mut stops_before = stop0;
+        for k in idx + 1..idx + 1 + SPANS_PER_PERIOD + 2 {
+            match self.spans.get(k) {
+                Some(s) if !stops_before && s.cum.wrapping_sub(pos_here) < touch => {
+                    acc_touch = acc_touch.mn(s.lim.acc);
+                    jerk = jerk.mn(s.lim.jerk);
+                    stops_before = s.stops();
+                }
+                _ => break,
+            }
+        }
         // Scan as far as any braking could need: to a stop at the floor limits, plus the
         // most that braking to a low speed w instead of zero can add (it ends with a
         // ramp-out at w: (v+w)τ/2 − w²/2A grows until w = Aτ/2, by A³/8J² at most).
-        let horizon = braking_distance(v_next, a.mx(0.0) + jerk * t, 0.0, floor_a, floor_j)
+        let horizon = braking_distance(v_next, a.mx(0.0) + lim0.jerk * t, 0.0, floor_a, floor_j)
             + floor_a * floor_a * floor_a / (8.0 * floor_j * floor_j)
             + 2.0 * v_next * t
             + 1.0e-3;
         // Acceleration limits matter up to the most the acceleration can reach next period
-        // and within the distance a ramp from there needs (plus two periods at the speed
-        // it ends with).
-        let a1max = a.abs() + jerk * t;
+        // and within the distance a ramp from there needs (at the floor jerk: the spans
+        // ahead may have less than this one; plus two periods at the speed it ends with).
+        let a1max = a.abs() + lim0.jerk * t;
         let reach = |a1: f32| {
-            let tau = a1 / jerk;
+            let tau = a1 / floor_j;
             v_next * tau + 0.5 * a1 * tau * tau + 3.0 * t * (v_next + 0.5 * a1 * tau) + 1.0e-3
         };
         // Position on the path (fixed point) plus the Kahan compensation of σ: on a long
         // span f32 σ alone is only good to its ulp (1.9e-6 mm at 20 mm), which would make
         // the constraints jitter.
-        let pos = cum0.wrapping_add(to_cum(self.gen.sigma));
+        let pos = pos_here;
         let comp = self.gen.comp;
         let steady = self.run == RunState::Run && self.hold_point.is_none();
         if !(steady
@@ -871,7 +886,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 horizon,
                 a1max,
                 reach(a1max),
-                (cap0, lim0.acc),
+                (cap0, lim0.acc, lim0.jerk),
                 self.next_seq,
             ))
         {
@@ -918,9 +933,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 next_seq: self.next_seq,
                 stop_from: (
                     if steady { v_next * SCAN_MARGIN } else { v_next },
-                    a.mx(0.0) + jerk * t,
+                    a.mx(0.0) + lim0.jerk * t,
                 ),
-                jerk,
                 period_s: t,
             };
             self.scan.scan(&self.spans, &input);
@@ -929,20 +943,17 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 self.scan.valid = false;
             }
         }
-        let (stop_dist, at_path_end) = self.scan.fill(&mut self.ahead, pos, cum0, comp, jerk);
-        // The spans the next period can touch bound its acceleration.
-        let touch = to_cum(v_next * t + 1.0e-6);
-        let mut acc_touch = lim0.acc;
-        for k in idx + 1..idx + 1 + SPANS_PER_PERIOD + 2 {
-            match self.spans.get(k) {
-                Some(s) if s.cum.wrapping_sub(pos) < touch => acc_touch = acc_touch.mn(s.lim.acc),
-                _ => break,
-            }
-        }
+        let (stop_dist, at_path_end) = self.scan.fill(&mut self.ahead, pos, cum0, comp);
         self.ahead.cap = cap0;
+        self.ahead.cap_soft = cap0 < lim0.vel;
         self.ahead.acc = acc_touch;
         self.ahead.jerk = jerk;
-        let (stop_acc, stop_jerk) = (self.scan.stop_acc.mx(floor_a), jerk.mx(floor_j));
+        self.ahead.jerk0 = lim0.jerk;
+        self.ahead.stop_dist = stop_dist;
+        let (stop_acc, stop_jerk) = (
+            self.scan.stop_acc.mx(floor_a),
+            self.scan.stop_jerk.mn(jerk).mx(floor_j),
+        );
 
         // At rest on a stop point with nothing to wait for: idle.
         if v == 0.0 && a == 0.0 && stop_dist <= SNAP_MM && at_path_end {
@@ -991,7 +1002,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         }
         // Move onto the following spans.
         while let Some(cur) = self.spans.get(idx) {
-            let len = cur.span.len_mm;
+            let (len, lim) = (cur.span.len_mm, cur.lim);
             // A dwell span is left by the dwell logic once its time is up.
             if self.gen.sigma < len || cur.dwell_periods > 0 {
                 break;
@@ -1003,6 +1014,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 self.gen.sigma = len;
                 break;
             }
+            self.scan.passed(lim.acc, lim.jerk);
             self.gen.sigma -= len;
             self.gen.seq = self.gen.seq.wrapping_add(1);
             self.gen.dwell_started = false;
@@ -1128,7 +1140,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let jerk = cur.lim.jerk;
         let a1max = a.abs() + jerk * t;
         let v_next = v + a.mx(0.0) * t + 0.5 * jerk * t * t;
-        let tau = a1max / jerk;
+        let tau = a1max / self.set.jerk_floor;
         let reach = v_next * tau
             + 0.5 * a1max * tau * tau
             + 3.0 * t * (v_next + 0.5 * a1max * tau)
@@ -1162,13 +1174,12 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             acc_end: pos.wrapping_add(to_cum(reach)),
             next_seq: self.next_seq,
             stop_from: (v_next, a.mx(0.0) + jerk * t),
-            jerk,
             period_s: t,
         };
         let mut fresh = ScanCache::new();
         fresh.scan(&self.spans, &input);
         let mut ahead = self.ahead;
-        fresh.fill(&mut ahead, pos, cur.cum, self.gen.comp, jerk);
+        fresh.fill(&mut ahead, pos, cur.cum, self.gen.comp);
         let jf = choose_jerk(&ahead, v, a, t).jerk;
         cache_check::CHECKS.fetch_add(1, Relaxed);
         // Safe for the fresh constraints, and as good as the fresh choice: the same jerk

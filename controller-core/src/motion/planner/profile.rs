@@ -105,15 +105,33 @@ pub fn ramp_down_distance(v: f32, a: f32, a_to: f32, jmax: f32) -> f32 {
 /// smallest whose trough stays ≥ target: both are roots of a quadratic, so the approach
 /// needs no iteration and ends exactly on the target (up to `J T²/8` of the last period).
 pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> f32 {
+    track_jerk_landing(v, a, target, amax, jmax, jmax, t)
+}
+
+/// As [`track_jerk`], with the landing (the acceleration ramped out after this period)
+/// modelled at jerk `j_land` ≤ `jmax`: the ramp-out may reach spans that allow less jerk
+/// than the one this period runs on.
+pub fn track_jerk_landing(
+    v: f32,
+    a: f32,
+    target: f32,
+    amax: f32,
+    jmax: f32,
+    j_land: f32,
+    t: f32,
+) -> f32 {
     if !(t > 0.0) {
         return 0.0;
     }
     let (amax, jmax) = (amax.mx(TINY), jmax.mx(TINY));
-    let jt = jmax * t;
-    let projected = v + 0.5 * a * a.abs() / jmax;
+    // (the quadratic below models the ramp-out at this jerk; the result is clamped to
+    // ±jmax)
+    let jm = j_land.mn(jmax).mx(TINY);
+    let jt = jm * t;
+    let projected = v + 0.5 * a * a.abs() / jm;
     let x = if projected <= target {
         let c = target - v - 0.5 * a * t;
-        let disc = 0.25 * jt * jt + 2.0 * jmax * c;
+        let disc = 0.25 * jt * jt + 2.0 * jm * c;
         // No real root: the speed is above the target while the acceleration is so
         // negative that the trough lies below it anyway; raise it as fast as allowed.
         let root = if disc >= 0.0 {
@@ -128,7 +146,7 @@ pub fn track_jerk(v: f32, a: f32, target: f32, amax: f32, jmax: f32, t: f32) -> 
         }
     } else {
         let c = v + 0.5 * a * t - target;
-        let disc = 0.25 * jt * jt + 2.0 * jmax * c;
+        let disc = 0.25 * jt * jt + 2.0 * jm * c;
         // No real root: below the target while accelerating so hard that the peak
         // overshoots anyway; lower the acceleration as fast as allowed.
         let root = if disc >= 0.0 {

@@ -15,8 +15,8 @@
 //!   what appending and truncating maintain (a monotone stack without the stack:
 //!   amortized O(1) per span).
 //!
-//! Two min segment trees ([`MinTree`]) over the caps and the acceleration limits answer
-//! "lowest value over these spans" and "first span below x" in O(log S).
+//! Min segment trees ([`MinTree`]) over the caps, the acceleration and the jerk limits
+//! answer "lowest value over these spans" and "first span below x" in O(log S).
 //!
 //! Caps depend on the feed override; changing it re-links the ring (O(S), once).
 //! Exact stops (and dwells) are kept in a sorted side list of sequence numbers.
@@ -103,9 +103,10 @@ pub(crate) struct SpanRing<const S: usize> {
     stops: Deque<u32, S>,
     /// Feed override the cap links were built for.
     ovr: f32,
-    /// Caps and acceleration limits by sequence number (mod S).
+    /// Caps, acceleration and jerk limits by sequence number (mod S).
     caps: MinTree<S>,
     accs: MinTree<S>,
+    jerks: MinTree<S>,
 }
 
 impl<const S: usize> SpanRing<S> {
@@ -116,6 +117,7 @@ impl<const S: usize> SpanRing<S> {
             ovr: 1.0,
             caps: MinTree::new(),
             accs: MinTree::new(),
+            jerks: MinTree::new(),
         }
     }
 
@@ -193,6 +195,7 @@ impl<const S: usize> SpanRing<S> {
         }
         self.caps.set(seq as usize, slot.cap(self.ovr));
         self.accs.set(seq as usize, slot.lim.acc);
+        self.jerks.set(seq as usize, slot.lim.jerk);
         self.link_cap(self.slots.len() - 1);
         true
     }
@@ -231,6 +234,7 @@ impl<const S: usize> SpanRing<S> {
         self.ovr = 1.0;
         self.caps = MinTree::new();
         self.accs = MinTree::new();
+        self.jerks = MinTree::new();
     }
 
     /// The first span at index ≥ `from` that stops at its end.
@@ -280,6 +284,15 @@ impl<const S: usize> SpanRing<S> {
         self.accs.min_run(self.slot_of(i), k - i + 1)
     }
 
+    /// Lowest jerk limit of the spans `i..=k` (+∞ if empty).
+    #[inline]
+    pub fn min_jerk(&self, i: usize, k: usize) -> f32 {
+        if k < i || k >= self.slots.len() {
+            return f32::INFINITY;
+        }
+        self.jerks.min_run(self.slot_of(i), k - i + 1)
+    }
+
     /// Lowest speed cap of the spans `i..=k` (+∞ if empty).
     #[inline]
     pub fn min_cap(&self, i: usize, k: usize) -> f32 {
@@ -296,6 +309,17 @@ impl<const S: usize> SpanRing<S> {
             return None;
         }
         self.accs
+            .first_below_run(self.slot_of(i), k - i + 1, x)
+            .map(|o| i + o)
+    }
+
+    /// First index in `i..=k` whose span's jerk limit is below `x`.
+    #[inline]
+    pub fn first_jerk_below(&self, i: usize, k: usize, x: f32) -> Option<usize> {
+        if k < i || k >= self.slots.len() {
+            return None;
+        }
+        self.jerks
             .first_below_run(self.slot_of(i), k - i + 1, x)
             .map(|o| i + o)
     }
@@ -379,7 +403,7 @@ impl<const S: usize> SpanRing<S> {
 mod tests {
     use super::*;
 
-    fn slot(seq: u32, len: f32, vel: f32, acc: f32) -> SpanSlot {
+    fn slot(seq: u32, len: f32, vel: f32, acc: f32, jerk: f32) -> SpanSlot {
         SpanSlot {
             span: Span {
                 seq,
@@ -393,11 +417,7 @@ mod tests {
             },
             piece_id: 0,
             sigma0: 0.0,
-            lim: PathLimits {
-                vel,
-                acc,
-                jerk: 1.0,
-            },
+            lim: PathLimits { vel, acc, jerk },
             feed: 1.0e9,
             rapid: false,
             stop_after: false,
@@ -421,8 +441,10 @@ mod tests {
             assert_eq!(s.next_cap, want_next, "next_cap of {i}");
             for k in i..n {
                 let accs = (i..=k).map(|q| r.get(q).unwrap().lim.acc);
+                let jerks = (i..=k).map(|q| r.get(q).unwrap().lim.jerk);
                 let caps = (i..=k).map(|q| r.get(q).unwrap().cap(r.ovr));
                 assert_eq!(r.min_acc(i, k), accs.fold(f32::INFINITY, f32::min));
+                assert_eq!(r.min_jerk(i, k), jerks.fold(f32::INFINITY, f32::min));
                 assert_eq!(r.min_cap(i, k), caps.fold(f32::INFINITY, f32::min));
                 let x = 260.0;
                 let want = (i..=k).find(|&q| r.get(q).unwrap().lim.acc < x);
@@ -452,8 +474,9 @@ mod tests {
             if op < 6 && !r.is_full() {
                 let v = (rnd() % 7) as f32 * 10.0 + 5.0;
                 let a = (rnd() % 5) as f32 * 100.0 + 50.0;
+                let j = (rnd() % 4) as f32 * 1.0e4 + 2.0e4;
                 let len = 0.01 + (rnd() % 100) as f32 * 0.013;
-                assert!(r.push_back(slot(seq, len, v, a)));
+                assert!(r.push_back(slot(seq, len, v, a, j)));
                 seq += 1;
             } else if op < 8 {
                 if r.pop_back().is_some() {
@@ -495,7 +518,7 @@ mod tests {
     fn cum_is_exact_and_search_finds_the_span() {
         let mut r: SpanRing<64> = SpanRing::new();
         for k in 0..10 {
-            r.push_back(slot(k + 1, 0.1, 1.0, 1.0));
+            r.push_back(slot(k + 1, 0.1, 1.0, 1.0, 1.0));
         }
         let d = r.get(7).unwrap().cum - r.get(2).unwrap().cum;
         assert_eq!(d, 5 * to_cum(0.1));

@@ -19,7 +19,7 @@
 //! margin further than needed so that a scan lasts many periods.
 
 use super::fmath::F32Ext;
-use super::lookahead::{AccConstraint, Ahead, SpeedConstraint, MAX_CONSTRAINTS};
+use super::lookahead::{AccConstraint, Ahead, JerkDrop, SpeedConstraint, MAX_CONSTRAINTS};
 use super::profile::braking_distance;
 use super::ring::{cum_mm, to_cum, SpanRing};
 
@@ -27,7 +27,9 @@ use super::ring::{cum_mm, to_cum, SpanRing};
 struct SpeedAt {
     pos: i64,
     w: f32,
+    /// Lowest acceleration and jerk limits of the spans a braking toward it crosses.
     acc: f32,
+    jerk: f32,
     soft: bool,
 }
 
@@ -36,6 +38,7 @@ impl SpeedAt {
         pos: 0,
         w: 0.0,
         acc: 0.0,
+        jerk: 0.0,
         soft: false,
     };
 }
@@ -44,10 +47,27 @@ impl SpeedAt {
 struct AccAt {
     pos: i64,
     acc: f32,
+    /// Lowest jerk limit of the spans before it (where the acceleration is ramped down).
+    jerk: f32,
 }
 
 impl AccAt {
-    const ZERO: Self = Self { pos: 0, acc: 0.0 };
+    const ZERO: Self = Self {
+        pos: 0,
+        acc: 0.0,
+        jerk: 0.0,
+    };
+}
+
+/// A span whose jerk limit lies below every one before it (from the scan's span on).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct JerkAt {
+    pos: i64,
+    jerk: f32,
+}
+
+impl JerkAt {
+    const ZERO: Self = Self { pos: 0, jerk: 0.0 };
 }
 
 /// What to scan.
@@ -74,9 +94,8 @@ pub(crate) struct ScanInput {
     /// Sequence number the next appended span will get (to notice new path).
     pub next_seq: u32,
     /// For the executor's own stop: the speed and acceleration it may start from (at
-    /// most), the path jerk and the period.
+    /// most), and the period.
     pub stop_from: (f32, f32),
-    pub jerk: f32,
     pub period_s: f32,
 }
 
@@ -88,6 +107,8 @@ pub(crate) struct ScanCache {
     n_speed: usize,
     accel: [AccAt; MAX_CONSTRAINTS],
     n_accel: usize,
+    drops: [JerkAt; MAX_CONSTRAINTS],
+    n_drops: usize,
     cap_thr: f32,
     /// None: the scan ended at a stop point (nothing beyond it matters).
     horizon_end: Option<i64>,
@@ -105,6 +126,13 @@ pub(crate) struct ScanCache {
     /// Lowest acceleration limit from the scan's span to the horizon (for the executor's
     /// own stop).
     pub stop_acc: f32,
+    /// Lowest jerk limit from the scan's span to the end of the scan (the same stop).
+    pub stop_jerk: f32,
+    /// Lowest acceleration and jerk limits of the spans passed since the scan: while they
+    /// are not below the current span's, every constraint's limits (the lowest over the
+    /// spans from the scan's span on) are what a fresh scan would find.
+    passed_acc: f32,
+    passed_jerk: f32,
     /// Sequence number of the span at whose end the scan's stop lies.
     pub stop_seq: Option<u32>,
 }
@@ -117,6 +145,8 @@ impl ScanCache {
             n_speed: 0,
             accel: [AccAt::ZERO; MAX_CONSTRAINTS],
             n_accel: 0,
+            drops: [JerkAt::ZERO; MAX_CONSTRAINTS],
+            n_drops: 0,
             cap_thr: 0.0,
             horizon_end: None,
             acc_start: 0.0,
@@ -127,15 +157,24 @@ impl ScanCache {
             next_seq: 0,
             stop_v_max: 0.0,
             stop_acc: 0.0,
+            stop_jerk: 0.0,
+            passed_acc: f32::INFINITY,
+            passed_jerk: f32::INFINITY,
             stop_seq: None,
         }
+    }
+
+    /// The look-ahead moved past a span with these limits.
+    pub fn passed(&mut self, acc: f32, jerk: f32) {
+        self.passed_acc = self.passed_acc.mn(acc);
+        self.passed_jerk = self.passed_jerk.mn(jerk);
     }
 
     /// Whether this scan still covers the state at `pos` (speed up to `v_next`) whose
     /// stopping distance is
     /// `horizon`, acceleration bound `a1max` with ramp reach `reach`, on a span with cap
-    /// `cap0` and acceleration limit `acc0`, with the next span sequence number
-    /// `next_seq`.
+    /// `cap0`, acceleration limit `acc0` and jerk limit `jerk0`, with the next span
+    /// sequence number `next_seq`.
     #[allow(clippy::too_many_arguments)]
     pub fn covers(
         &self,
@@ -145,10 +184,13 @@ impl ScanCache {
         horizon: f32,
         a1max: f32,
         reach: f32,
-        (cap0, acc0): (f32, f32),
+        (cap0, acc0, jerk0): (f32, f32, f32),
         next_seq: u32,
     ) -> bool {
         if !self.valid || v_next > self.stop_v_max {
+            return false;
+        }
+        if self.passed_acc < acc0 || self.passed_jerk < jerk0 {
             return false;
         }
         // Constraints of the current span and those before it (starting at or before
@@ -201,6 +243,7 @@ impl ScanCache {
             // Full: the last one takes the lower limit (conservative, it lies nearer).
             last.w = last.w.mn(c.w);
             last.acc = last.acc.mn(c.acc);
+            last.jerk = last.jerk.mn(c.jerk);
             last.soft = last.soft && c.soft;
         }
     }
@@ -211,14 +254,16 @@ impl ScanCache {
             self.n_accel += 1;
         } else if let Some(last) = self.accel.last_mut() {
             last.acc = last.acc.mn(c.acc);
+            last.jerk = last.jerk.mn(c.jerk);
         }
     }
 
-    fn stop_at(&mut self, pos: i64, acc: f32) {
+    fn stop_at(&mut self, pos: i64, acc: f32, jerk: f32) {
         self.push_speed(SpeedAt {
             pos,
             w: 0.0,
             acc,
+            jerk,
             soft: false,
         });
         let nearer = match self.stop_pos {
@@ -235,6 +280,7 @@ impl ScanCache {
         self.valid = true;
         self.n_speed = 0;
         self.n_accel = 0;
+        self.n_drops = 0;
         self.cap_thr = inp.cap0;
         self.horizon_end = Some(inp.horizon_end);
         self.acc_end = inp.acc_end;
@@ -243,10 +289,13 @@ impl ScanCache {
         self.soft_end = inp.end_stop;
         self.next_seq = inp.next_seq;
         self.stop_seq = None;
+        self.passed_acc = f32::INFINITY;
+        self.passed_jerk = f32::INFINITY;
         let Some(cur) = spans.get(inp.idx) else {
             self.valid = false;
             return;
         };
+        self.stop_jerk = spans.min_jerk(inp.idx, inp.scan_last);
         self.stop_acc = self.stop_limit(spans, inp, cur.cum, cur.lim.acc);
         let (cur_seq, cur_cum, cur_acc, cur_next_cap) =
             (cur.span.seq, cur.cum, cur.lim.acc, cur.next_cap);
@@ -257,7 +306,11 @@ impl ScanCache {
         // The hold's stop point on the current span.
         if let Some((hseq, hsigma)) = inp.hold {
             if hseq == cur_seq {
-                self.stop_at(cur_cum.wrapping_add(to_cum(hsigma)), cur_acc);
+                self.stop_at(
+                    cur_cum.wrapping_add(to_cum(hsigma)),
+                    cur_acc,
+                    spans.min_jerk(idx, idx),
+                );
             }
         }
         // Speed events in path order; at equal spans: cap, hold, then the stop at its end.
@@ -285,7 +338,11 @@ impl ScanCache {
                 (None, None) => break,
                 (_, st) => {
                     if let Some((st, sp)) = st.and_then(|st| spans.get(st).map(|sp| (st, sp))) {
-                        self.stop_at(sp.cum_end(), spans.min_acc(idx, st));
+                        self.stop_at(
+                            sp.cum_end(),
+                            spans.min_acc(idx, st),
+                            spans.min_jerk(idx, st),
+                        );
                         self.stop_seq = Some(sp.span.seq);
                         self.stop_at_path_end = st + 1 >= spans.len();
                         // Nothing beyond a stop matters.
@@ -302,12 +359,16 @@ impl ScanCache {
             }
             if c_ev == Some(k) {
                 let acc = spans.min_acc(idx, k - 1);
+                // (span k's own jerk too: a speed at the cap whose acceleration is ramped
+                // out after the point is ramped out in span k)
+                let jerk = spans.min_jerk(idx, k);
                 if caps + 1 < CAP_EVENTS {
                     let cap_k = sk.cap(inp.ovr);
                     self.push_speed(SpeedAt {
                         pos: sk.cum,
                         w: cap_k,
                         acc,
+                        jerk,
                         soft: cap_k < sk.lim.vel,
                     });
                     c_ev = spans.link(sk.next_cap).filter(|&i| within(i));
@@ -319,6 +380,7 @@ impl ScanCache {
                         pos: sk.cum,
                         w: spans.min_cap(k, upto),
                         acc,
+                        jerk: spans.min_jerk(idx, upto),
                         soft: false,
                     });
                     c_ev = None;
@@ -327,7 +389,11 @@ impl ScanCache {
             }
             if h_ev == Some(k) {
                 if let Some((_, hsigma)) = inp.hold {
-                    self.stop_at(sk.cum.wrapping_add(to_cum(hsigma)), spans.min_acc(idx, k));
+                    self.stop_at(
+                        sk.cum.wrapping_add(to_cum(hsigma)),
+                        spans.min_acc(idx, k),
+                        spans.min_jerk(idx, k),
+                    );
                 }
                 h_ev = None;
             }
@@ -354,19 +420,54 @@ impl ScanCache {
             self.push_accel(AccAt {
                 pos: sk.cum,
                 acc: sk.lim.acc,
+                jerk: spans.min_jerk(idx, k - 1),
             });
             below = sk.lim.acc;
             from = k + 1;
         }
+        // Where the jerk limit drops, over the same reach (any ramp-out of the
+        // acceleration ends within it): a ramp-out is modelled span by span.
+        let mut j_below = cur.lim.jerk;
+        let mut from_j = idx + 1;
+        for _ in 0..MAX_CONSTRAINTS {
+            let Some(k) = spans.first_jerk_below(from_j, acc_last, j_below) else {
+                break;
+            };
+            let Some(sk) = spans.get(k) else {
+                break;
+            };
+            if let Some(slot) = self.drops.get_mut(self.n_drops) {
+                *slot = JerkAt {
+                    pos: sk.cum,
+                    jerk: sk.lim.jerk,
+                };
+                self.n_drops += 1;
+            }
+            j_below = sk.lim.jerk;
+            from_j = k + 1;
+        }
+        let rest_j = spans.min_jerk(from_j, acc_last);
+        if rest_j < j_below {
+            if let Some(last) = self
+                .n_drops
+                .checked_sub(1)
+                .and_then(|i| self.drops.get_mut(i))
+            {
+                last.jerk = last.jerk.mn(rest_j);
+            }
+        }
+
         // More than that: the lowest of the rest joins the last one (conservative).
         let rest = spans.min_acc(from, acc_last);
         if rest < below {
+            let jerk = spans.min_jerk(idx, acc_last);
             if let Some(last) = self
                 .n_accel
                 .checked_sub(1)
                 .and_then(|i| self.accel.get_mut(i))
             {
                 last.acc = last.acc.mn(rest);
+                last.jerk = last.jerk.mn(jerk);
             }
         }
     }
@@ -396,7 +497,7 @@ impl ScanCache {
             let Some(sk) = spans.get(k) else {
                 return lim;
             };
-            let need = braking_distance(v, a, 0.0, lim, inp.jerk) + v * inp.period_s;
+            let need = braking_distance(v, a, 0.0, lim, self.stop_jerk) + v * inp.period_s;
             if to_cum(need) < sk.cum.wrapping_sub(cur_cum).wrapping_sub(inp.sigma_cum) {
                 return lim;
             }
@@ -409,14 +510,7 @@ impl ScanCache {
     /// The constraints ahead of the current span (which starts at `cur_cum`), as seen
     /// from `pos` (+ the Kahan compensation `comp` of the position), into `ahead`; returns the distance to the nearest stop point (+∞ if
     /// none) and whether it is the end of the known path.
-    pub fn fill(
-        &self,
-        ahead: &mut Ahead,
-        pos: i64,
-        cur_cum: i64,
-        comp: f32,
-        jerk: f32,
-    ) -> (f32, bool) {
+    pub fn fill(&self, ahead: &mut Ahead, pos: i64, cur_cum: i64, comp: f32) -> (f32, bool) {
         ahead.n_speed = 0;
         ahead.n_accel = 0;
         let ahead_of = |p: i64| p.wrapping_sub(cur_cum) > 0;
@@ -430,7 +524,7 @@ impl ScanCache {
                 dist: cum_mm(s.pos.wrapping_sub(pos)) + comp,
                 w: s.w,
                 acc: s.acc,
-                jerk,
+                jerk: s.jerk,
                 soft: s.soft,
             });
         }
@@ -443,7 +537,15 @@ impl ScanCache {
             ahead.push_accel(AccConstraint {
                 dist: cum_mm(c.pos.wrapping_sub(pos)) + comp,
                 acc: c.acc,
-                jerk,
+                jerk: c.jerk,
+            });
+        }
+        ahead.n_drops = 0;
+        for d in self.drops.iter().take(self.n_drops) {
+            // (drops behind the position count from here: their span is being crossed)
+            ahead.push_drop(JerkDrop {
+                dist: (cum_mm(d.pos.wrapping_sub(pos)) + comp).mx(0.0),
+                jerk: d.jerk,
             });
         }
         let stop = self

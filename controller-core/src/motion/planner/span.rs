@@ -24,10 +24,11 @@
 //! V is the largest speed that still leaves the floor `acc_floor`/`jerk_floor` (the
 //! configured tangential share of the weakest axis, over the largest tangent component)
 //! to A and J, capped at twice the programmed feed (the override's maximum) so that slow
-//! spans give the rest to A. A then takes everything V leaves; J is the floor on every
-//! span (one path jerk: see [`path_limits`]). On a straight span P2 = P3 = 0 and A is the
-//! full projected axis limit. The limits hold for the polynomial that is actually
-//! executed, whatever the fit error.
+//! spans give the rest to A. A then takes everything V leaves, and J what V and A leave
+//! (at least the floor). On a straight span P2 = P3 = 0 and A and J are the full axis
+//! limits projected on the direction (`min_i amax_i / |u_i|`: a 45° line in XY gets √2
+//! times an axis' limits). The limits hold for the polynomial that is actually executed,
+//! whatever the fit error.
 
 use super::blend::Jet;
 use super::config::Settings;
@@ -343,13 +344,28 @@ pub(crate) fn path_limits(b: &DerivBounds, h: f32, v_design: f32, s: &Settings) 
         acc = s.acc_max[0].mx(s.acc_max[1]).mx(s.acc_max[2]);
     }
     let acc = acc.mx(a_req);
-    // The path jerk is the same on every span (the floor, which V and A above leave free):
-    // braking models and the discrete follower then agree on how fast an acceleration can
-    // be ramped out wherever the ramp ends, which per-span jerk limits would break.
+    // The jerk takes what V and A leave: j_i = p_i''' σ̇³ + 3 p_i'' σ̇ σ̈ + p_i' σ⃛ ≤ jmax_i at
+    // σ̇ ≤ V, |σ̈| ≤ A. On a straight span that is the axis limit projected on the direction
+    // (jmax_i / |u_i|); V and A above leave at least the floor on every span, so the
+    // look-ahead may brake with the floor anywhere. The look-ahead takes the lowest jerk
+    // of the spans a profile crosses (see `lookahead`).
+    // The servo's reserve: at most `1 − servo_reserve` of the projected axis jerk.
+    let mut jerk = f32::INFINITY;
+    for i in 0..3 {
+        if b.p1[i] > 0.0 {
+            let room = s.jerk_max[i] - b.p3[i] * vel * vel * vel - 3.0 * b.p2[i] * vel * acc;
+            jerk = jerk
+                .mn(room / b.p1[i])
+                .mn(s.path_jerk_share * s.jerk_max[i] / b.p1[i]);
+        }
+    }
+    if !jerk.is_finite() {
+        jerk = s.jerk_max[0].mx(s.jerk_max[1]).mx(s.jerk_max[2]);
+    }
     PathLimits {
         vel,
         acc,
-        jerk: j_req,
+        jerk: jerk.mx(j_req),
     }
 }
 
@@ -399,7 +415,9 @@ mod tests {
 
     #[test]
     fn straight_span_gets_the_projected_axis_limits() {
-        let s = Settings::new(&super::super::config::GANTRY_PLANNER).unwrap();
+        let mut c = super::super::config::GANTRY_PLANNER;
+        c.servo_reserve = 0.0;
+        let s = Settings::new(&c).unwrap();
         let u = [0.6f32, 0.8, 0.0];
         let b = DerivBounds {
             p1: [0.6, 0.8, 0.0],
@@ -408,7 +426,8 @@ mod tests {
         let l = path_limits(&b, 10.0, f32::INFINITY, &s);
         assert!((l.vel - 250.0 / 0.8).abs() < 1e-2, "{l:?}");
         assert!((l.acc - 2000.0 / 0.8).abs() < 1e-2);
-        assert_eq!(l.jerk, s.jerk_floor);
+        // the jerk projected too (no fixed fraction on a straight span)
+        assert!((l.jerk - 1.0e5 / 0.8).abs() < 1.0, "{l:?}");
         let _ = u;
     }
 }

@@ -19,7 +19,7 @@ use crate::sysid::AxisModel;
 const RATE: u32 = BOARD_RATE_HZ;
 
 /// Number of keys: 34 per axis, 10 others.
-const KEY_COUNT: usize = 34 * 3 + 10;
+const KEY_COUNT: usize = 34 * 3 + 11;
 
 /// The factory tree with every axis' model known (so every key has a value).
 fn with_models() -> Settings {
@@ -70,8 +70,11 @@ fn keys_are_unique_named_by_their_axis_and_counted() {
         // a unit where the value has one
         if matches!(k.range, Range::F32 { .. }) && !k.name.contains("lambda") {
             assert!(
-                // (dimensionless: damping ratio, tangential share)
-                !k.unit.is_empty() || k.name.ends_with("damping") || k.name.ends_with("share"),
+                // (dimensionless: damping ratio, tangential share, servo reserve)
+                !k.unit.is_empty()
+                    || k.name.ends_with("damping")
+                    || k.name.ends_with("share")
+                    || k.name.ends_with("reserve"),
                 "{} has no unit",
                 k.name
             );
