@@ -3,7 +3,7 @@
 //! per-axis limits and runs at the programmed feed where the limits allow.
 
 mod planner_common;
-use controller_core::motion::planner::{Plane, Segment};
+use controller_core::motion::planner::{Blend, Plane, Segment};
 use planner_common::*;
 
 /// One arc (optionally helical) from `start`, checked end to end.
@@ -138,4 +138,57 @@ fn tangent_line_arc_line() {
         .map(|x| x.path_speed_mm_s)
         .fold(f32::INFINITY, f32::min);
     assert!(slow > 29.0, "slowest {slow}");
+}
+
+/// A 3-D curve (a helix-like space curve) cut into arcs through a point in planes of every
+/// orientation, tangent at some joins and not at others, and blended: the executed path
+/// stays within the tolerance of the arcs, keeps the per-axis limits, ends on the last
+/// point, never slips.
+#[test]
+fn arcs_through_a_point_in_tilted_planes() {
+    let cfg = config();
+    // points of a space curve: a helix of radius 15 whose axis wobbles
+    let curve = |t: f32| {
+        [
+            15.0 * t.cos() + 2.0 * (3.0 * t).sin(),
+            15.0 * t.sin(),
+            4.0 * t + 3.0 * (2.0 * t).cos(),
+        ]
+    };
+    let mut segs = Vec::new();
+    let mut prog = Vec::new();
+    let mut t = 0.0f32;
+    let mut start = curve(t);
+    let first = start;
+    for k in 0..24u32 {
+        let dt = 0.2 + 0.15 * ((k % 5) as f32);
+        let (via, end) = (curve(t + 0.5 * dt), curve(t + dt));
+        segs.push(
+            Segment::arc_through(via, end, 80.0 + 10.0 * (k % 3) as f32, k + 1)
+                .with_blend(Blend::Tolerance(0.01)),
+        );
+        prog.push(Prog::Through { start, via, end });
+        start = end;
+        t += dt;
+    }
+    let mut mp = Mp::new(&cfg, first).unwrap();
+    let s = run(&mut mp, &segs, 2_000_000);
+    let (rv, ra, rj) = limit_ratios(&s, &cfg);
+    assert!(
+        rv <= 1.0 + 1e-3 && ra <= 1.0 + 1e-3 && rj <= 1.0 + 1e-3,
+        "{rv} {ra} {rj}"
+    );
+    let dev = max_deviation(&s, &prog);
+    assert!(dev <= 0.01 + 1e-5, "deviation {dev}");
+    let last = s.last().unwrap().pos_mm.to_array();
+    for i in 0..3 {
+        assert!(
+            (last[i] - start[i]).abs() < 1e-4,
+            "end {last:?} vs {start:?}"
+        );
+    }
+    assert_eq!(mp.planner_status().slips, 0);
+    // the feed is kept between the joins (the curve's radius is about 15 mm)
+    let peak = s.iter().map(|x| x.path_speed_mm_s).fold(0.0f32, f32::max);
+    assert!(peak > 79.0, "peak {peak}");
 }

@@ -34,6 +34,14 @@ enum Gen {
         rise: f32,
         turns: u32,
     },
+    /// An arc through a point in a plane of any orientation (`Segment::arc_through`).
+    Through {
+        r: f32,
+        tilt: f32,
+        yaw: f32,
+        a0: f32,
+        sweep: f32,
+    },
 }
 
 fn gen_seg() -> impl Strategy<Value = (Gen, f32, u8, bool)> {
@@ -61,8 +69,22 @@ fn gen_seg() -> impl Strategy<Value = (Gen, f32, u8, bool)> {
             turns: extra as u32,
         });
     let turn = (any::<bool>(), 0.1f32..8.0).prop_map(|(back, len)| Gen::Turn { back, len });
+    let through = (
+        0.5f32..40.0,
+        -3.0f32..3.0,
+        -3.2f32..3.2,
+        0.0f32..std::f32::consts::TAU,
+        0.05f32..6.0,
+    )
+        .prop_map(|(r, tilt, yaw, a0, sweep)| Gen::Through {
+            r,
+            tilt,
+            yaw,
+            a0,
+            sweep,
+        });
     (
-        prop_oneof![3 => line, 2 => arc, 1 => turn],
+        prop_oneof![3 => line, 2 => arc, 1 => turn, 2 => through],
         5.0f32..400.0,
         0u8..7,
         prop::bool::weighted(0.1),
@@ -156,6 +178,44 @@ fn build(chain: &[(Gen, f32, u8, bool)]) -> (Vec<Segment>, Vec<Prog>, f32) {
                     plane,
                     cw,
                     turns,
+                });
+                pos = end;
+            }
+            Gen::Through {
+                r,
+                tilt,
+                yaw,
+                a0,
+                sweep,
+            } => {
+                let n = [tilt.sin() * yaw.cos(), tilt.sin() * yaw.sin(), tilt.cos()];
+                let h = if n[0].abs() < 0.9 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    [0.0, 1.0, 0.0]
+                };
+                let u = [
+                    h[1] * n[2] - h[2] * n[1],
+                    h[2] * n[0] - h[0] * n[2],
+                    h[0] * n[1] - h[1] * n[0],
+                ];
+                let lu = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+                let u = u.map(|x| x / lu);
+                let w = [
+                    n[1] * u[2] - n[2] * u[1],
+                    n[2] * u[0] - n[0] * u[2],
+                    n[0] * u[1] - n[1] * u[0],
+                ];
+                let at = |ang: f32| {
+                    let (c, s) = (ang.cos() - a0.cos(), ang.sin() - a0.sin());
+                    [0, 1, 2].map(|i| pos[i] + r * (c * u[i] + s * w[i]))
+                };
+                let (via, end) = (at(a0 + 0.5 * sweep), at(a0 + sweep));
+                segs.push(Segment::arc_through(via, end, *feed, tag).with_blend(blend));
+                prog.push(Prog::Through {
+                    start: pos,
+                    via,
+                    end,
                 });
                 pos = end;
             }

@@ -169,6 +169,10 @@ fn segment_refusal(e: &SegmentError) -> &'static str {
         SegmentError::ArcTooManyTurns => {
             "segment refused: arc has too many turns (program stopped)"
         }
+        SegmentError::ArcCollinear => "segment refused: arc points on a line (program stopped)",
+        SegmentError::ArcRadiusTooLarge => {
+            "segment refused: arc radius too large (program stopped)"
+        }
         SegmentError::QueueFull => "segment refused: planner queue full (program stopped)",
         SegmentError::Aborting => "segment refused: the program is aborting (program stopped)",
     }

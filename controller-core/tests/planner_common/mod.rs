@@ -28,6 +28,63 @@ pub enum Prog {
         cw: bool,
         turns: u32,
     },
+    /// The circular arc from `start` through `via` to `end` (`Segment::arc_through`).
+    Through {
+        start: [f32; 3],
+        via: [f32; 3],
+        end: [f32; 3],
+    },
+}
+
+fn d3(a: [f32; 3]) -> [f64; 3] {
+    a.map(f64::from)
+}
+fn sub64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot64(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Distance from `p` to the arc from `start` through `via` to `end` (f64, exact: the
+/// nearest point of the full circle, or an end point where that lies off the arc).
+pub fn through_distance(p: [f32; 3], start: [f32; 3], via: [f32; 3], end: [f32; 3]) -> f64 {
+    let s0 = d3(start);
+    let a = sub64(d3(via), s0);
+    let b = sub64(d3(end), s0);
+    let axb = cross64(a, b);
+    let n2 = dot64(axb, axb);
+    let m = sub64(b.map(|x| x * dot64(a, a)), a.map(|x| x * dot64(b, b)));
+    let c = cross64(m, axb).map(|x| x * 0.5 / n2);
+    let r = dot64(c, c).sqrt();
+    let n = axb.map(|x| x / n2.sqrt());
+    let e1 = c.map(|x| -x / r);
+    let e2 = cross64(n, e1);
+    let ang = |q: [f64; 3]| {
+        let v = sub64(q, c);
+        dot64(v, e2)
+            .atan2(dot64(v, e1))
+            .rem_euclid(std::f64::consts::TAU)
+    };
+    let sweep = ang(b);
+    let q = sub64(d3(p), s0);
+    let h = dot64(sub64(q, c), n);
+    let inplane = sub64(sub64(q, c), n.map(|x| x * h));
+    let rho = dot64(inplane, inplane).sqrt();
+    let on_arc = ang(q) <= sweep;
+    let to_end = |e: [f64; 3]| norm(sub64(q, e));
+    if on_arc && rho > 0.0 {
+        (h * h + (rho - r) * (rho - r)).sqrt()
+    } else {
+        to_end([0.0; 3]).min(to_end(b))
+    }
 }
 
 /// Runs `segs` from `start` (streaming them in as slots free up) until the machine is
@@ -106,6 +163,7 @@ fn plane_axes(p: Plane) -> (usize, usize, usize) {
 /// Distance from `p` to a programmed piece (f64).
 pub fn distance(p: [f32; 3], g: &Prog) -> f64 {
     match *g {
+        Prog::Through { start, via, end } => through_distance(p, start, via, end),
         Prog::Line { a, b } => {
             let ab = sub(b, a);
             let ap = sub(p, a);

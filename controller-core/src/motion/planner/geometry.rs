@@ -1,6 +1,7 @@
-//! Programmed path pieces: straight lines and helical arcs (circular arcs in the XY, ZX or
-//! YZ plane plus a linear travel along the plane normal), parametrised by path length σ
-//! (mm) from the piece start.
+//! Programmed path pieces: straight lines and helical arcs (circular arcs in any plane plus
+//! a linear travel along the plane normal: G2/G3 in the XY, ZX or YZ plane, and arcs in
+//! planes of any orientation from the path compressor), parametrised by path length σ (mm)
+//! from the piece start.
 //!
 //! A piece can be evaluated outside `[0, len]` (the analytic continuation of the line or
 //! helix): the junction blends of [`super::blend`] mix a piece with its neighbour's
@@ -39,6 +40,23 @@ pub(crate) fn dot(a: V3, b: V3) -> f32 {
 pub(crate) fn norm(a: V3) -> f32 {
     fmath::sqrt(dot(a, a))
 }
+#[inline]
+pub(crate) fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+/// Unit vector along axis `i` (0-2; any other index gives zero).
+#[inline]
+pub(crate) fn unit_axis(i: usize) -> V3 {
+    let mut v = [0.0; 3];
+    if let Some(x) = v.get_mut(i) {
+        *x = 1.0;
+    }
+    v
+}
 /// First, second and third derivative of a piece with respect to σ.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Derivs {
@@ -47,13 +65,14 @@ pub(crate) struct Derivs {
     pub d3: V3,
 }
 
-/// A helix about the normal axis `n` of the plane spanned by axes `i1`, `i2`:
-/// in-plane radius `r0 + rho σ` at angle `psi0 + omega σ`, normal travel `eta σ`.
+/// A helix about the normal `n` of the plane spanned by the orthonormal `e1`, `e2`
+/// (`e1 × e2 = n`): in-plane radius `r0 + rho σ` at angle `psi0 + omega σ` (from `e1`
+/// toward `e2`), normal travel `eta σ`. For G2/G3 the three are the plane's axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Helix {
-    pub i1: usize,
-    pub i2: usize,
-    pub n: usize,
+    pub e1: V3,
+    pub e2: V3,
+    pub n: V3,
     /// Start angle in the plane (rad, from axis i1 toward i2).
     pub psi0: f32,
     /// Angle per mm of path (rad/mm); negative for clockwise.
@@ -96,15 +115,12 @@ impl Helix {
         self.psi0 + self.omega * s
     }
     fn axes(&self, a: f32, b: f32, nrm: f32) -> V3 {
-        // (the plane's axis indices are 0-2 by construction; `get_mut` keeps a panic
-        // path out of the control interrupt all the same)
-        let mut v = [0.0; 3];
-        for (i, x) in [(self.i1, a), (self.i2, b), (self.n, nrm)] {
-            if let Some(slot) = v.get_mut(i) {
-                *slot = x;
-            }
-        }
-        v
+        let (e1, e2, n) = (self.e1, self.e2, self.n);
+        [
+            a * e1[0] + b * e2[0] + nrm * n[0],
+            a * e1[1] + b * e2[1] + nrm * n[1],
+            a * e1[2] + b * e2[2] + nrm * n[2],
+        ]
     }
 }
 
@@ -226,9 +242,9 @@ mod tests {
         let (r, sweep, h) = (10.0f32, core::f32::consts::FRAC_PI_2, 3.0f32);
         let len = fmath::sqrt((r * sweep) * (r * sweep) + h * h);
         let hx = Helix {
-            i1: 0,
-            i2: 1,
-            n: 2,
+            e1: unit_axis(0),
+            e2: unit_axis(1),
+            n: unit_axis(2),
             psi0: 0.3,
             omega: sweep / len,
             r0: r,

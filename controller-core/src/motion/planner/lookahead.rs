@@ -52,8 +52,9 @@ const SEARCH_STEPS: usize = 24;
 /// The search stops once the chosen state is this close (mm) to its binding constraint.
 pub(crate) const SLACK_TIGHT_MM: f32 = 2.0e-7;
 
-/// Bisection steps locating where a ramp-out reaches a jerk drop (2⁻¹⁶ of the ramp time).
-const RAMP_BISECTIONS: usize = 16;
+/// Bisection steps locating where a ramp-out reaches a jerk drop (2⁻²⁴ of the ramp time:
+/// f32 resolution).
+const RAMP_BISECTIONS: usize = 24;
 
 /// Slack of a failed check without a distance scale.
 const FAIL: f32 = -1.0e6;
@@ -204,6 +205,7 @@ impl Ahead {
             let dist = |t: f32| v * t + 0.5 * a * t * t - sg * j * t * t * t * (1.0 / 6.0);
             let dr = dist(tr);
             let v_end = v + 0.5 * a * tr;
+            // (a drop behind: taken from here on)
             if !(d.dist > s) || d.jerk >= j {
                 j = j.mn(d.jerk.mx(1.0));
                 continue;

@@ -4,7 +4,9 @@
 
 use super::config::Settings;
 use super::fmath::{self, F32Ext};
-use super::geometry::{norm, plane_axes, sub, Helix, Piece, Shape, V3};
+use super::geometry::{
+    cross, dot, norm, plane_axes, scale, sub, unit_axis, Helix, Piece, Shape, V3,
+};
 use core::f32::consts::TAU;
 
 /// Arc plane: G17 (XY, normal +Z), G18 (ZX, normal +Y), G19 (YZ, normal +X).
@@ -61,6 +63,15 @@ pub enum Motion {
     },
     /// G4: stop and wait.
     Dwell { duration_s: f32 },
+    /// A circular arc in any plane, from the start through `via_mm` to `end_mm` (less than
+    /// a full turn): what the host's path compressor fits to runs of short chords. The
+    /// three points give the plane, the centre and the sense; no far-away centre travels
+    /// (f32 keeps the arc as exact as its points, whatever its radius).
+    ArcThrough {
+        via_mm: [f32; 3],
+        end_mm: [f32; 3],
+        feed_mm_s: f32,
+    },
 }
 
 /// One queued segment.
@@ -119,6 +130,19 @@ impl Segment {
             tag,
         }
     }
+    /// A circular arc from the start through `via_mm` to `end_mm` (see
+    /// [`Motion::ArcThrough`]).
+    pub fn arc_through(via_mm: [f32; 3], end_mm: [f32; 3], feed_mm_s: f32, tag: u32) -> Self {
+        Self {
+            motion: Motion::ArcThrough {
+                via_mm,
+                end_mm,
+                feed_mm_s,
+            },
+            blend: Blend::Default,
+            tag,
+        }
+    }
     pub fn dwell(duration_s: f32, tag: u32) -> Self {
         Self {
             motion: Motion::Dwell { duration_s },
@@ -150,11 +174,21 @@ pub enum SegmentError {
     ArcRadiusMismatch { start_mm: f32, end_mm: f32 },
     /// More turns than one push can queue (at most [`MAX_ARC_PIECES`] full turns).
     ArcTooManyTurns,
+    /// The three points of an arc through a point lie on a line (or two coincide): no
+    /// arc; send a line.
+    ArcCollinear,
+    /// An arc through a point with a radius above [`MAX_ARC_THROUGH_RADIUS_MM`]: send a
+    /// line (within any tolerance the arc would be one).
+    ArcRadiusTooLarge,
     /// Not enough free queue slots (an arc of n turns needs n+1); retry later.
     QueueFull,
     /// An abort is stopping the machine; pushes resume once it has stopped.
     Aborting,
 }
+
+/// Largest radius of an arc through a point (mm): 10 m. Over a 100 mm chord such an arc
+/// departs 0.125 mm from its chord; the compressor sends lines for flatter runs.
+pub const MAX_ARC_THROUGH_RADIUS_MM: f32 = 1.0e4;
 
 /// An arc is queued as pieces of at most one full turn each (f32 angles stay below 2π
 /// and the look-ahead sees every turn); this bounds one push.
@@ -236,9 +270,9 @@ impl ArcSplit {
             end: self.point(k + 1),
             len: self.plen,
             shape: Shape::Helix(Helix {
-                i1,
-                i2,
-                n,
+                e1: unit_axis(i1),
+                e2: unit_axis(i2),
+                n: unit_axis(n),
                 psi0: libm::fmodf(self.psi0 + self.psweep * k as f32, TAU),
                 omega: self.psweep / self.plen,
                 r0: self.r0 + self.pdr * k as f32,
@@ -347,6 +381,17 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
             out.n = split.count;
             out.kind = PrepKind::Arc(split);
         }
+        Motion::ArcThrough {
+            via_mm,
+            end_mm,
+            feed_mm_s,
+        } => {
+            let via = finite3(via_mm, "via_mm")?;
+            let end = finite3(end_mm, "end_mm")?;
+            out.attr.feed = feed_ok(feed_mm_s)?;
+            out.kind = PrepKind::Single(arc_through(start, via, end, s)?);
+            out.n = 1;
+        }
         Motion::Dwell { duration_s } => {
             if !duration_s.is_finite() {
                 return Err(SegmentError::NotFinite("duration_s"));
@@ -368,6 +413,61 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
         }
     }
     Ok(out)
+}
+
+/// The circle through `start`, `via`, `end` as a helix piece (no rise), in the order the
+/// three points give. All in offsets from `start`, so f32 keeps the local precision.
+fn arc_through(start: V3, via: V3, end: V3, s: &Settings) -> Result<Piece, SegmentError> {
+    let a = sub(via, start);
+    let b = sub(end, start);
+    let (la, lb, lc) = (norm(a), norm(b), norm(sub(end, via)));
+    if !(la >= s.min_segment_mm && lb >= s.min_segment_mm && lc >= s.min_segment_mm) {
+        return Err(SegmentError::ArcCollinear);
+    }
+    let axb = cross(a, b);
+    let n2 = dot(axb, axb);
+    // |a × b| = |a||b| sin(angle at the start): below 1e-6 relative, no usable plane.
+    if !(n2 > (1.0e-6 * la * lb) * (1.0e-6 * la * lb)) {
+        return Err(SegmentError::ArcCollinear);
+    }
+    // Circumcentre relative to the start: (|a|² b − |b|² a) × (a × b) / (2 |a × b|²).
+    let m = sub(scale(b, dot(a, a)), scale(a, dot(b, b)));
+    let c = scale(cross(m, axb), 0.5 / n2);
+    let r = norm(c);
+    if !(r >= s.min_segment_mm) {
+        return Err(SegmentError::ArcZeroRadius);
+    }
+    if !(r <= MAX_ARC_THROUGH_RADIUS_MM) {
+        return Err(SegmentError::ArcRadiusTooLarge);
+    }
+    let n = scale(axb, 1.0 / fmath::sqrt(n2));
+    let e1 = scale(c, -1.0 / r);
+    let e2 = cross(n, e1);
+    // End angle from e1 toward e2 in (0, 2π): the points run counter-clockwise about n.
+    let pe = sub(b, c);
+    let mut sweep = libm::atan2f(dot(pe, e2), dot(pe, e1));
+    if sweep <= 0.0 {
+        sweep += TAU;
+    }
+    let len = r * sweep;
+    if !(len >= s.min_segment_mm) || !len.is_finite() {
+        return Err(SegmentError::ArcCollinear);
+    }
+    Ok(Piece {
+        start,
+        end,
+        len,
+        shape: Shape::Helix(Helix {
+            e1,
+            e2,
+            n,
+            psi0: 0.0,
+            omega: 1.0 / r,
+            r0: r,
+            rho: 0.0,
+            eta: 0.0,
+        }),
+    })
 }
 
 fn arc_split(
@@ -490,6 +590,105 @@ mod tests {
             assert!((pc.len - TAU * 10.0).abs() < 1e-3);
             assert!(norm(sub(pc.end, start)) < 1e-4);
         }
+    }
+
+    #[test]
+    fn arcs_through_a_point_in_tilted_planes_pass_through_it() {
+        let s = settings();
+        // circles of several radii in planes of several orientations, sweeps to 300°
+        let mut k = 0u32;
+        for r in [0.5f32, 3.0, 40.0, 900.0] {
+            for (tilt, yaw) in [(0.0f32, 0.0f32), (0.4, 1.1), (1.2, -2.0), (-0.9, 2.9)] {
+                for sweep in [0.05f32, 1.0, 3.0, 5.2] {
+                    k += 1;
+                    let n = [tilt.sin() * yaw.cos(), tilt.sin() * yaw.sin(), tilt.cos()];
+                    // an orthonormal frame about n
+                    let helper = if n[0].abs() < 0.9 {
+                        [1.0, 0.0, 0.0]
+                    } else {
+                        [0.0, 1.0, 0.0]
+                    };
+                    let u = cross(helper, n);
+                    let u = scale(u, 1.0 / norm(u));
+                    let w = cross(n, u);
+                    let center = [10.0f32, -20.0, 5.0];
+                    let at = |ang: f32| {
+                        let (sn, cs) = (libm::sinf(ang), libm::cosf(ang));
+                        [
+                            center[0] + r * (cs * u[0] + sn * w[0]),
+                            center[1] + r * (cs * u[1] + sn * w[1]),
+                            center[2] + r * (cs * u[2] + sn * w[2]),
+                        ]
+                    };
+                    let (start, via, end) = (at(0.3), at(0.3 + 0.37 * sweep), at(0.3 + sweep));
+                    let seg = Segment::arc_through(via, end, 10.0, k);
+                    let p = prepare(&seg, start, &s).unwrap();
+                    assert_eq!(p.n, 1);
+                    let pc = p.piece(0);
+                    let tol = 2e-5 * (1.0 + r);
+                    assert!(
+                        (pc.len - r * sweep).abs() < 1e-4 * r * sweep.max(1.0),
+                        "{r} {sweep}: {}",
+                        pc.len
+                    );
+                    let e = add(pc.start, pc.delta(0.0, pc.len));
+                    assert!(norm(sub(e, end)) < tol, "{r} {sweep}: end {e:?} vs {end:?}");
+                    let mid = add(pc.start, pc.delta(0.0, 0.37 * pc.len));
+                    assert!(
+                        norm(sub(mid, via)) < tol,
+                        "{r} {sweep}: via {mid:?} vs {via:?}"
+                    );
+                    // curvature 1/r, in the plane
+                    let d = pc.derivs(0.5 * pc.len);
+                    // (a flat arc's curvature is only as good as its points over its
+                    // sagitta: f32 positions near 20 mm are good to 1e-6 mm)
+                    let sagitta = r * (1.0 - libm::cosf(0.5 * sweep));
+                    let kt = 1e-3 + 4e-6 / sagitta;
+                    assert!(
+                        (norm(d.d2) * r - 1.0).abs() < kt,
+                        "{r} {sweep}: {}",
+                        norm(d.d2)
+                    );
+                    assert!(dot(d.d2, n).abs() < kt * norm(d.d2), "{r} {sweep}: plane");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn arcs_through_degenerate_points_are_refused() {
+        let s = settings();
+        let o = [1.0f32, 2.0, 3.0];
+        let e = |via: [f32; 3], end: [f32; 3]| {
+            prepare(&Segment::arc_through(via, end, 5.0, 0), o, &s).err()
+        };
+        assert_eq!(
+            e([2.0, 2.0, 3.0], [3.0, 2.0, 3.0]),
+            Some(SegmentError::ArcCollinear)
+        );
+        assert_eq!(e(o, [3.0, 2.0, 3.0]), Some(SegmentError::ArcCollinear));
+        assert_eq!(
+            e([2.0, 3.0, 3.0], [2.0, 3.0, 3.0]),
+            Some(SegmentError::ArcCollinear)
+        );
+        // a 20 km circle through three points 10 mm apart
+        assert_eq!(
+            e([6.0, 2.000_625, 3.0], [11.0, 2.0, 3.0]),
+            Some(SegmentError::ArcRadiusTooLarge)
+        );
+        assert_eq!(
+            e([f32::NAN, 0.0, 0.0], [3.0, 2.0, 3.0]),
+            Some(SegmentError::NotFinite("via_mm"))
+        );
+        assert_eq!(
+            prepare(
+                &Segment::arc_through([2.0, 3.0, 3.0], [3.0, 2.0, 3.0], -1.0, 0),
+                o,
+                &s
+            )
+            .err(),
+            Some(SegmentError::FeedNotPositive)
+        );
     }
 
     #[test]
