@@ -25,8 +25,11 @@ use crate::servo::jog::{AxisJogConfig, JogConfig};
 use crate::servo::travel::AxisTravel;
 use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
 
-/// Version of the tree's layout, stored with every record (see the module docs).
-pub const SETTINGS_VERSION: u16 = 2;
+use super::offsets::{ToolTable, WorkOffsets};
+
+/// Version of the tree's layout, stored with every record (see the module docs). 3: the
+/// work offsets and the tool table.
+pub const SETTINGS_VERSION: u16 = 3;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -248,6 +251,10 @@ pub struct Settings {
     pub link: LinkSettings,
     pub identify: IdentifySettings,
     pub planner: PlannerSettings,
+    /// The work coordinate systems G54..G59.3 (`work.g54` .. `work.g59_3`).
+    pub work: WorkOffsets,
+    /// The tool table (`tool.1` .. `tool.8`).
+    pub tool: ToolTable,
 }
 
 /// One axis' factory settings: the designed gantry ([`crate::presets::gantry`]), no
@@ -313,6 +320,8 @@ pub const FACTORY: Settings = Settings {
         tolerance_mm: GANTRY_PLANNER.tolerance_mm,
         tangential_share: GANTRY_PLANNER.tangential_share,
     },
+    work: WorkOffsets::ZERO,
+    tool: ToolTable::EMPTY,
 };
 
 impl Settings {
