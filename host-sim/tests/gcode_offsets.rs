@@ -616,3 +616,38 @@ fn options_with_bad_offsets_or_tools_are_refused_without_a_line() {
         ErrorKind::Options
     );
 }
+
+#[test]
+fn the_g10_limits_are_the_machines_settings_ranges_and_the_settings_reach_the_options() {
+    use controller_core::settings::{keys::find, Range, FACTORY, TOOL_COUNT};
+    use host_sim::gcode::{MAX_TOOL_DIAMETER_MM, MAX_TOOL_LENGTH_MM, MAX_WORK_OFFSET_MM};
+    let range = |key: &str| match find(key).unwrap().range {
+        Range::F32 { min, max } => (f64::from(min), f64::from(max)),
+        r => panic!("{key}: {r:?}"),
+    };
+    assert_eq!(
+        range("work.g59_3.z_mm"),
+        (-MAX_WORK_OFFSET_MM, MAX_WORK_OFFSET_MM)
+    );
+    assert_eq!(
+        range("tool.8.length_mm"),
+        (-MAX_TOOL_LENGTH_MM, MAX_TOOL_LENGTH_MM)
+    );
+    assert_eq!(range("tool.1.diameter_mm"), (0.0, MAX_TOOL_DIAMETER_MM));
+    assert_eq!(WORK_SYSTEMS, controller_core::settings::WORK_SYSTEMS);
+
+    // a machine's settings as the interpreter's options: each value the decimal it was
+    // written as (0.1, not 0.10000000149)
+    let mut s = FACTORY;
+    s.set_text("work.g55.x_mm", "0.1", 10_000).unwrap();
+    s.set_text("work.g59_2.z_mm", "-12.345", 10_000).unwrap();
+    s.set_text("tool.8.length_mm", "33.3", 10_000).unwrap();
+    let o = host_sim::studies::gcode::parse_options(&s, [1.0, 2.0, 3.0]);
+    assert_eq!(o.start_mm, [1.0, 2.0, 3.0]);
+    assert_eq!(o.work_offsets_mm[1], [0.1, 0.0, 0.0]);
+    assert_eq!(o.work_offsets_mm[7], [0.0, 0.0, -12.345]);
+    assert_eq!(o.tools.len(), TOOL_COUNT);
+    assert_eq!(o.tools[7].length_mm, 33.3);
+    let p = parse_str_with("prog.nc", "G55 G0 X1\nG43 H8 Z0\n", &o).unwrap();
+    assert_eq!(ends(&p), [[1.1, 2.0, 3.0], [1.1, 2.0, 33.3]]);
+}
