@@ -84,6 +84,7 @@
 //! [`Travel`]; [`Travel::check_point`] does the same for a jog target.
 
 mod arc;
+mod codes;
 mod interp;
 mod lexer;
 pub mod offsets;

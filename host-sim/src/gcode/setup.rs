@@ -3,7 +3,8 @@
 //! [`super::offsets::Frames`] with LinuxCNC's rules. Values are absolute whatever the
 //! distance mode (G91 has no effect on G10, as in LinuxCNC) and in program units.
 
-use super::interp::{system_code, Interp, POwner, ToolLength, Values};
+use super::codes::ToolLength;
+use super::interp::{system_code, Interp, POwner, Values};
 use super::{
     Error, ErrorKind, AXIS_NAMES, MAX_TOOL_DIAMETER_MM, MAX_TOOL_LENGTH_MM, MAX_WORK_OFFSET_MM,
     WORK_SYSTEMS,
