@@ -202,6 +202,57 @@ fn settings_change_only_with_the_outputs_off_and_a_refusal_says_why() {
 }
 
 #[test]
+fn work_offsets_and_tools_change_while_a_program_runs() {
+    let (mut m, mut w) = machine();
+    let mut ch = Channels::new();
+    let mut st = LinkState::new(m.settings(), RATE_HZ);
+    let set = |k: &str, v: &str| Request::SettingSet {
+        key: k.try_into().unwrap(),
+        value: v.try_into().unwrap(),
+    };
+    // a 40 mm move at 20 mm/s: 2 s, still moving when the settings arrive
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![
+            Request::Arm,
+            Request::Run,
+            Request::Segment(Segment::line([40.0, 0.0, 0.0], 20.0, 1)),
+        ],
+    );
+    assert_eq!(o, Outcome::Done);
+    periods(&mut m, &mut w, 2_000);
+    assert_eq!(m.servo().state(), ServoState::Run);
+    let moving_at = m.status().pos_mm[0];
+    assert!(moving_at > 1.0 && moving_at < 39.0, "{moving_at}");
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![set("work.g55.x_mm", "125.5"), set("tool.2.length_mm", "42")],
+    );
+    assert_eq!(o, Outcome::Done);
+    assert_eq!(m.settings().work.g55.x_mm, 125.5);
+    assert_eq!(m.settings().tool.t2.length_mm, 42.0);
+    assert_eq!(st.settings().work.g55.x_mm, 125.5);
+    // the program goes on
+    assert_eq!(m.servo().state(), ServoState::Run);
+    assert!(!m.servo().faults().any());
+    // a servo parameter in the same state is still refused
+    let o = through_link(
+        &mut m,
+        &mut w,
+        &mut ch,
+        &mut st,
+        vec![set("axis.x.law.bandwidth_rad_s", "300")],
+    );
+    assert!(matches!(o, Outcome::Refused(_)), "{o:?}");
+}
+
+#[test]
 fn link_loss_stops_a_running_program_with_a_link_lost_fault() {
     let (mut m, mut w) = machine();
     m.submit(Request::Arm);

@@ -1,6 +1,7 @@
 //! Corners between lines: the samples stay within the blend tolerance ε of the programmed
 //! polyline for every turn angle (near-tangent to reversal), keep the per-axis limits, and
-//! stop exactly on the corner with G61 or ε = 0.
+//! stop exactly on the corner with G61.1 (exact stop) or ε = 0 (G61); an exact stop also
+//! stops where the next line goes on straight.
 
 mod planner_common;
 use controller_core::motion::planner::{Blend, Segment};
@@ -131,4 +132,21 @@ fn reversal_turns_back_within_tolerance() {
     // Off-axis motion: none.
     let ymax = s.iter().map(|x| x.pos_mm.y.abs()).fold(0.0f32, f32::max);
     assert!(ymax < 1e-5, "|y| {ymax}");
+}
+
+#[test]
+fn exact_stop_also_stops_where_the_path_goes_on_straight_and_exact_path_does_not() {
+    // (corner() with no turn: two collinear 10 mm lines, the junction at X10)
+    let (s, _) = corner(0.0, Blend::ExactStop, 50.0);
+    let v = speed_at_corner(&s);
+    // G61.1: at rest at the end of the first segment
+    assert!(v < 0.5, "exact stop: speed {v} at the collinear junction");
+    let stopped = s
+        .iter()
+        .any(|x| x.path_speed_mm_s == 0.0 && (x.pos_mm.x - 10.0).abs() < 1e-5);
+    assert!(stopped, "exact stop: no stop at X10");
+    // G61 (tolerance 0): the same junction at full feed
+    let (s, _) = corner(0.0, Blend::Tolerance(0.0), 50.0);
+    let v = speed_at_corner(&s);
+    assert!(v > 49.9, "exact path: speed {v} at the collinear junction");
 }

@@ -1,6 +1,6 @@
 %
 (square.nc: a 40 mm square with sharp corners, centred on the work origin)
-(G61: exact stop at every corner, so the planner must come to rest at each one)
+(G61: exact path, no corner is blended, so the planner must come to rest at each one)
 G21 G90 G17 G94 G54
 G61
 G0 Z5

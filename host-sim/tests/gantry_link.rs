@@ -223,7 +223,8 @@ fn a_program_completes_with_one_percent_byte_errors_on_the_link() {
 fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
     let mut c = connect(SimModels::Designed);
     let all = cli::read_settings(&mut c).unwrap();
-    assert_eq!(all.len(), 112);
+    // 112 + the work offsets (27) and the tool table (16)
+    assert_eq!(all.len(), 155);
     let text = cli::export_toml(&all);
     let back = cli::parse_settings_toml("export.toml", &text).unwrap();
     assert_eq!(
@@ -248,6 +249,74 @@ fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
         c.transport.machine().settings().axis[0].following_error_mm,
         0.8
     );
+}
+
+/// `gantry run` interprets a program in the machine's work offsets and tool table, and
+/// writes back what its G10 changed once it completed; a rejected program changes nothing.
+#[test]
+fn a_program_uses_the_machines_offsets_and_its_g10_changes_are_written_back() {
+    let dir = std::env::temp_dir().join(format!("gantry_link_g10_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut c = connect(SimModels::Designed);
+    cli::set(&mut c, "work.g54.x_mm", "10").unwrap();
+    cli::set(&mut c, "work.g54.y_mm", "-5").unwrap();
+    cli::set(&mut c, "tool.1.length_mm", "5").unwrap();
+
+    // rejected (line 4) after a G10: nothing runs, nothing is written
+    let bad = dir.join("bad.nc");
+    std::fs::write(&bad, "G21 G90\nG10 L2 P2 X-20\nG0 X1\nG81 X1 Y1 Z-1 R1\n").unwrap();
+    let r = cli::run_program(&mut c, &bad, TELEMETRY_PERIOD_S, false, None).unwrap();
+    assert_eq!(r.status, "rejected");
+    assert_eq!(r.error.as_ref().and_then(|e| e.line), Some(4));
+    assert!(r.settings_written.is_empty());
+    assert_eq!(cli::get(&mut c, "work.g55.x_mm").unwrap(), "0");
+
+    let good = dir.join("g10.nc");
+    std::fs::write(
+        &good,
+        "G21 G90 G17\n\
+         G43 H1\n\
+         G0 X0 Y0 Z0\n\
+         (G54 + tool 1: machine 10, -5, 5)\n\
+         G10 L2 P2 X-20 Y5\n\
+         G10 L1 P2 Z2.5 R3\n\
+         G55 G0 X0 Y0\n\
+         (G55: machine -20, 5, 5)\n\
+         G10 L20 P0 X1\n\
+         M2\n",
+    )
+    .unwrap();
+    let r = cli::run_program(&mut c, &good, TELEMETRY_PERIOD_S, false, None).unwrap();
+    assert_eq!(r.status, "completed");
+    let end = c.status().unwrap().pos_mm;
+    for (got, want) in end.iter().zip([-20.0f32, 5.0, 5.0]) {
+        assert!((got - want).abs() < 0.01, "{end:?}");
+    }
+    // G55 from L2 then L20 (X1 at machine -20: origin -21), tool 2 from L1 (R3: 6 mm)
+    let written: Vec<(&str, &str)> = r
+        .settings_written
+        .iter()
+        .map(|(k, v)| (k.as_str(), v.as_str()))
+        .collect();
+    assert_eq!(
+        written,
+        [
+            ("work.g55.x_mm", "-21"),
+            ("work.g55.y_mm", "5"),
+            ("tool.2.length_mm", "2.5"),
+            ("tool.2.diameter_mm", "6")
+        ]
+    );
+    let s = *c.transport.machine().settings();
+    assert_eq!(s.work.g55.to_array(), [-21.0, 5.0, 0.0]);
+    assert_eq!(s.work.g54.to_array(), [10.0, -5.0, 0.0]);
+    assert_eq!((s.tool.t2.length_mm, s.tool.t2.diameter_mm), (2.5, 6.0));
+    assert_eq!(s.tool.t1.length_mm, 5.0);
+    // set, not saved: the flash still holds nothing
+    let (_, how) = block_on(c.transport.store().load(10_000));
+    assert_eq!(how, LoadOutcome::Empty);
+    assert!(host_sim::studies::gcode::table(&r).contains("work.g55.x_mm = -21"));
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A feed hold while the host is still streaming (the planner full, the host waiting for

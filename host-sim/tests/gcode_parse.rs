@@ -5,8 +5,15 @@ use std::f64::consts::{PI, TAU};
 
 use host_sim::gcode::{
     parse_file, parse_str, parse_str_with, Blend, ErrorKind, Ignored, Move, MoveKind, ParseOptions,
-    Plane, Program, MAX_FILE_BYTES,
+    Plane, Program, WorkOffsets, MAX_FILE_BYTES, WORK_SYSTEMS,
 };
+
+/// Work offsets with G54 at `g54` (machine mm), every other system at machine zero.
+fn g54(g54: [f64; 3]) -> WorkOffsets {
+    let mut w = [[0.0; 3]; WORK_SYSTEMS];
+    w[0] = g54;
+    w
+}
 
 fn ok(text: &str) -> Program {
     parse_str("prog.nc", text).unwrap_or_else(|e| panic!("{e}"))
@@ -144,7 +151,7 @@ fn incremental_moves_and_arcs() {
 fn work_offset_g54_and_start_point() {
     let opts = ParseOptions {
         start_mm: [1.0, 2.0, 3.0],
-        g54_offset_mm: [100.0, 50.0, -10.0],
+        work_offsets_mm: g54([100.0, 50.0, -10.0]),
         ..ParseOptions::default()
     };
     let p = parse_str_with("prog.nc", "G54 G0 X10\nG91 Y1\n", &opts).unwrap();
@@ -165,7 +172,7 @@ fn work_offset_g54_and_start_point() {
 #[test]
 fn g92_makes_the_current_point_the_given_coordinates() {
     let opts = ParseOptions {
-        g54_offset_mm: [5.0, 0.0, 0.0],
+        work_offsets_mm: g54([5.0, 0.0, 0.0]),
         ..ParseOptions::default()
     };
     let text = "G0 X10 Y10\nG92 X0 Y0\nG0 X5\nG91 G92 X100\nG90 G0 X101\nG92.1\nG0 X0\n";
@@ -190,7 +197,7 @@ fn g92_makes_the_current_point_the_given_coordinates() {
 #[test]
 fn g53_is_machine_coordinates_for_one_line() {
     let opts = ParseOptions {
-        g54_offset_mm: [100.0, 100.0, 0.0],
+        work_offsets_mm: g54([100.0, 100.0, 0.0]),
         ..ParseOptions::default()
     };
     let p = parse_str_with(
@@ -435,7 +442,7 @@ fn modal_group_conflicts_and_repeated_words() {
     );
     assert_eq!(
         err("G4 P1 G92 X0"),
-        "prog.nc:1: G4 and G92 on one line: both are in the non-modal (G4, G28, G53, G92) group"
+        "prog.nc:1: G4 and G92 on one line: both are in the non-modal (G4, G10, G28, G52, G53, G92) group"
     );
     assert_eq!(
         err("M3 M5"),
@@ -497,19 +504,19 @@ fn unsupported_constructs() {
         ("G98", "G98 (canned cycle return mode)"),
         ("G33 Z-10 K1", "G33 (spindle-synchronised motion)"),
         ("G38.2 Z-10 F10", "G38.2 (probing)"),
-        ("G93", "G93 (inverse-time feed)"),
         ("G95", "G95 (feed per revolution)"),
-        ("G10 L2 P1 X0", "L word (used by G10 and canned cycles)"),
-        ("G10 P1 X0", "G10 (setting offsets and tables)"),
+        ("G10 L2 R30 P1", "G10 L2 R30 (coordinate system rotation)"),
+        (
+            "G10 L10 P1 Z0",
+            "G10 L10 (setting a tool from the current position)",
+        ),
+        ("G10 L0", "G10 L0 (reloading the tool table)"),
         ("G28.1", "G28.1 (storing a home position)"),
         ("G30", "G30 (second home position)"),
         ("G41", "G41 (cutter radius compensation)"),
         ("G42.1", "G42.1 (cutter radius compensation)"),
-        ("G43.1 Z1", "G43.1 (tool length offset)"),
-        ("G55", "G55 (work offsets other than G54)"),
-        ("G59.3", "G59.3 (work offsets other than G54)"),
-        ("G61.1", "G61.1 (exact path mode)"),
-        ("G90.1", "G90.1 (absolute arc centres)"),
+        ("G43.2 H1", "G43.2 (adding tool length offsets)"),
+        ("G43.1 X1", "G43.1 X1 (a tool offset across the spindle)"),
         ("G92.2", "G92.2 (suspending G92 offsets)"),
         ("G5 X1", "G5 (spline)"),
         ("G12", "G12"),
@@ -526,8 +533,8 @@ fn unsupported_constructs() {
         ("/G0 X1", "block delete (/)"),
         ("G1 A10 F10", "A word (rotary axis)"),
         ("G1 X1 E0.5 F10", "E word (extruder axis of 3D printers)"),
-        ("G81 Q1", "Q word (peck increment of canned cycles)"),
-        ("G43 H1", "H word (tool length offset register)"),
+        ("G81 Q1", "G81 (canned cycle)"),
+        ("G92.3", "G92.3 (suspending G92 offsets)"),
         ("G41 D1", "D word (cutter compensation register)"),
     ];
     for (line, what) in cases {
@@ -551,6 +558,7 @@ fn unsupported_constructs() {
 
 #[test]
 fn ignored_words_are_reported_once() {
+    // (G49 and G94 are real now: the modes a program starts in, not reported)
     let p = ok("G21 G40 G49 G80 G94\nT1\nM3 S12000\nG0 X1\nM8\nS10000 M4\nM7\nM9\nM5\nT2\n");
     let word = |w: &str, first_line: u32, count: u32| Ignored {
         word: w.into(),
@@ -561,9 +569,7 @@ fn ignored_words_are_reported_once() {
         p.ignored,
         [
             word("G40", 1, 1),
-            word("G49", 1, 1),
             word("G80", 1, 1),
-            word("G94", 1, 1),
             word("T", 2, 2),
             word("M3", 3, 1),
             word("S", 3, 2),
@@ -633,14 +639,26 @@ fn path_control_emits_blend_changes() {
         })
         .collect();
     assert_eq!(blends.len(), 5);
-    assert_eq!(blends[0], (1, Blend::ExactStop));
-    assert_eq!(blends[1], (3, Blend::Tolerance { mm: 0.02 }));
+    assert_eq!(blends[0], (1, Blend::ExactPath));
+    // without Q, the naive-CAM tolerance is P (LinuxCNC)
+    assert_eq!(
+        blends[1],
+        (
+            3,
+            Blend::Tolerance {
+                mm: 0.02,
+                naive_cam_mm: 0.02
+            }
+        )
+    );
     match blends[2] {
-        (5, Blend::Tolerance { mm }) => assert!((mm - 0.0254).abs() < 1e-15),
+        (5, Blend::Tolerance { mm, naive_cam_mm }) => {
+            assert!((mm - 0.0254).abs() < 1e-15 && mm == naive_cam_mm)
+        }
         b => panic!("{b:?}"),
     }
     assert_eq!(blends[3], (6, Blend::MachineDefault));
-    assert_eq!(blends[4], (7, Blend::ExactStop));
+    assert_eq!(blends[4], (7, Blend::ExactPath));
     // G61 on line 7 with the move: the blend change comes before the move.
     assert_eq!(
         p.moves.last().unwrap().kind,

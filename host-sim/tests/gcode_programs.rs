@@ -44,14 +44,15 @@ fn every_shipped_program_parses_and_respects_the_travel() {
 }
 
 #[test]
-fn square_is_a_40_mm_square_with_exact_stops() {
+fn square_is_a_40_mm_square_in_exact_path_mode() {
     let p = load("square.nc");
+    // G61: exact path (tolerance 0; its corners are all 90°, so the machine stops at each)
     assert_eq!(
         p.moves.iter().find_map(|m| match m.kind {
             MoveKind::SetBlend(b) => Some(b),
             _ => None,
         }),
-        Some(Blend::ExactStop)
+        Some(Blend::ExactPath)
     );
     let cut: Vec<[f64; 3]> = p
         .moves

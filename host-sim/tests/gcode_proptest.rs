@@ -43,13 +43,14 @@ fn assert_sane(p: &Program) -> Result<(), TestCaseError> {
 fn word() -> impl Strategy<Value = String> {
     let letter = prop::sample::select(vec![
         "G", "M", "X", "Y", "Z", "I", "J", "K", "R", "F", "P", "N", "S", "T", "O", "A", "#", "[",
-        "(", ";", "/", "%",
+        "(", ";", "/", "%", "H", "L", "Q",
     ]);
     let number = prop_oneof![
         (0u32..100).prop_map(|n| n.to_string()),
         prop::sample::select(vec![
             "0", "1", "2", "3", "4", "17", "18", "19", "20", "21", "28", "53", "54", "61", "64",
-            "80", "90", "91", "92", "92.1", "30"
+            "80", "90", "91", "92", "92.1", "30", "10", "43", "43.1", "49", "52", "55", "59.3",
+            "61.1", "90.1", "93", "94"
         ])
         .prop_map(str::to_string),
         (-1000.0f64..1000.0).prop_map(|v| format!("{v:.4}")),
@@ -69,7 +70,8 @@ fn program() -> impl Strategy<Value = String> {
 }
 
 /// A well-formed program of moves (rapids, feeds, incremental arcs by I/J/K and by R in
-/// all three planes, helices, unit/distance/offset switches) that mostly parses, so the
+/// all three planes, helices, unit/distance/offset switches, coordinate systems, G10,
+/// G52, tool length offsets, inverse time, path control) that mostly parses, so the
 /// geometry paths are exercised: arc ends are put on the circle (6 decimals), so every
 /// such program must be accepted.
 fn valid_program() -> impl Strategy<Value = String> {
@@ -129,7 +131,20 @@ fn valid_program() -> impl Strategy<Value = String> {
             "G64 P0.01",
             "M0",
             "G4 P0.5",
-            "G90 G53 G0 Z0"
+            "G90 G53 G0 Z0",
+            "G55",
+            "G59.3",
+            "G54",
+            "G10 L2 P3 X1 Y-2",
+            "G10 L20 P0 Z0",
+            "G52 X1",
+            "G52 X0 Y0 Z0",
+            "G43.1 Z1.5",
+            "G49",
+            "G61.1",
+            "G64 P0.01 Q0.02",
+            "G93",
+            "G94",
         ])
         .prop_map(str::to_string),
     ];

@@ -1,7 +1,9 @@
 //! `host-sim gcode` end to end on the shipped programs: the planner and the servo step on
 //! the simulated gantry, measured against the programmed path.
 
-use host_sim::studies::gcode::{run, GcodeReport};
+use controller_core::motion::planner::Blend;
+use host_sim::gcode::parse_str;
+use host_sim::studies::gcode::{run, segments, GcodeReport};
 use std::path::{Path, PathBuf};
 
 fn program(name: &str) -> PathBuf {
@@ -88,4 +90,59 @@ fn rejected_programs_run_nothing_and_name_the_line() {
         e.message
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn path_control_reaches_the_planner_as_linuxcnc_defines_it() {
+    let p = parse_str(
+        "p.nc",
+        "G61\nG1 X10 F600\nG61.1\nX20\nG64 P0.05 Q0.1\nX30\nG64\nX40\n",
+    )
+    .unwrap();
+    let blends: Vec<Blend> = segments(&p).iter().map(|s| s.blend).collect();
+    // G61: tolerance 0 (corners stop, smooth junctions pass); G61.1: a stop after every
+    // move; G64 P: the planner blends within P (Q is the path compressor's)
+    assert_eq!(
+        blends,
+        [
+            Blend::Tolerance(0.0),
+            Blend::ExactStop,
+            Blend::Tolerance(0.05),
+            Blend::Default
+        ]
+    );
+}
+
+#[test]
+fn exact_path_passes_collinear_junctions_and_exact_stop_stops_at_each() {
+    let dir = std::env::temp_dir().join(format!("gcode_sim_paths_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run_mode = |mode: &str| {
+        // three collinear 10 mm moves, then a corner
+        let text = format!("G21 G90 {mode}\nG1 X10 F1200\nX20\nX30\nY10\nM2\n");
+        let file = dir.join(format!("{}.nc", mode.replace('.', "_")));
+        std::fs::write(&file, text).unwrap();
+        run(&file, None, false).unwrap()
+    };
+    let path = run_mode("G61");
+    let stop = run_mode("G61.1");
+    std::fs::remove_dir_all(&dir).ok();
+    for r in [&path, &stop] {
+        assert_eq!(r.status, "completed");
+        // both reach every programmed point: no corner is cut
+        assert!(
+            r.corner_deviation_max_mm < 1e-4,
+            "{}",
+            r.corner_deviation_max_mm
+        );
+        within_limits(r);
+    }
+    // G61.1 comes to rest at X10 and X20 too: two more stops and starts than G61
+    assert!(
+        stop.duration_s > path.duration_s + 0.1,
+        "G61.1 {} s, G61 {} s",
+        stop.duration_s,
+        path.duration_s
+    );
+    assert!(path.feed_ratio_mean > stop.feed_ratio_mean);
 }

@@ -43,8 +43,8 @@ use crate::settings::{Apply, Settings};
 
 /// What the link hands the machine.
 #[derive(Clone, Debug, PartialEq)]
-// (a queue slot holds any of them: a settings tree is 412 bytes, so the queues are
-// 25 and 16 of those — 17 KiB of RAM, within the board's budget)
+// (a queue slot holds any of them: a settings tree is 584 bytes, so the queues are
+// 25 and 16 of those — 24 KiB of RAM, within the board's budget: firmware/README-firmware.md)
 #[allow(clippy::large_enum_variant)]
 pub enum Down {
     /// A request of the reliable channel, for the machine's queue.

@@ -139,8 +139,8 @@ fn refused(s: &str) -> Outcome {
 
 /// A request in the machine's queue: as it came, or as the link side resolved it.
 #[derive(Clone, Debug, PartialEq)]
-// (a queue slot holds any of them: a settings tree is 412 bytes, so the queues are
-// 25 and 16 of those — 17 KiB of RAM, within the board's budget)
+// (a queue slot holds any of them: a settings tree is 584 bytes, so the queues are
+// 25 and 16 of those — 24 KiB of RAM, within the board's budget: firmware/README-firmware.md)
 #[allow(clippy::large_enum_variant)]
 enum Queued {
     Request(Request),

@@ -20,6 +20,7 @@ use crate::axes::{Axis, AXES};
 use crate::link::watchdog::{MAX_WATCHDOG_TIMEOUT_MS, MIN_WATCHDOG_TIMEOUT_MS};
 use crate::servo::homing::HomeDirection;
 
+use super::offsets::{TOOL_COUNT, WORK_SYSTEMS};
 use super::servo_config::{SettingsError, PLACEHOLDER_MODELS};
 use super::tree::{AxisSettings, CouplingKind, LawKind, Settings};
 
@@ -128,6 +129,10 @@ impl fmt::Display for Range {
 /// When a change may take effect.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Apply {
+    /// Not a servo parameter (work offsets, tool table: the host's G-code interpreter
+    /// reads them when it parses a program): taken at once, also while the machine moves.
+    /// A program already parsed keeps the values it was parsed with.
+    Anytime,
     /// May change while the outputs are on, at a period boundary: it cannot make the
     /// output jump (a limit, a jog speed, the link's timeout, identification's next run).
     Live,
@@ -139,6 +144,7 @@ pub enum Apply {
 impl Apply {
     pub const fn name(self) -> &'static str {
         match self {
+            Self::Anytime => "anytime",
             Self::Live => "live",
             Self::OutputsOff => "outputs_off",
         }
@@ -272,6 +278,20 @@ struct GlobalDef {
     put: fn(&mut Settings, Value) -> Result<(), Put>,
 }
 
+/// A registry entry for one field of every row of a table: `work.<cs>.x_mm` for the nine
+/// coordinate systems, `tool.<n>.length_mm` for the tools. Row `i` is key `names[i]`.
+struct RowDef {
+    names: &'static [&'static str],
+    /// The key with the row written as a placeholder, for the doc table.
+    pattern: &'static str,
+    unit: &'static str,
+    range: Range,
+    apply: Apply,
+    doc: &'static str,
+    get: fn(&Settings, usize) -> Option<Value>,
+    put: fn(&mut Settings, usize, Value) -> Result<(), Put>,
+}
+
 const fn f32_range(min: f32, max: f32) -> Range {
     Range::F32 { min, max }
 }
@@ -346,6 +366,86 @@ macro_rules! global_key {
     };
 }
 
+/// The nine keys `work.<cs>.<field>` of one coordinate field, in G-code order (the
+/// segments of [`super::offsets::WorkOffsets::NAMES`]).
+macro_rules! work_names {
+    ($field:ident) => {
+        [
+            concat!("work.g54.", stringify!($field)),
+            concat!("work.g55.", stringify!($field)),
+            concat!("work.g56.", stringify!($field)),
+            concat!("work.g57.", stringify!($field)),
+            concat!("work.g58.", stringify!($field)),
+            concat!("work.g59.", stringify!($field)),
+            concat!("work.g59_1.", stringify!($field)),
+            concat!("work.g59_2.", stringify!($field)),
+            concat!("work.g59_3.", stringify!($field)),
+        ]
+    };
+}
+
+/// The keys `tool.<n>.<field>` of one tool field, tools 1..=[`TOOL_COUNT`].
+macro_rules! tool_names {
+    ($field:ident) => {
+        [
+            concat!("tool.1.", stringify!($field)),
+            concat!("tool.2.", stringify!($field)),
+            concat!("tool.3.", stringify!($field)),
+            concat!("tool.4.", stringify!($field)),
+            concat!("tool.5.", stringify!($field)),
+            concat!("tool.6.", stringify!($field)),
+            concat!("tool.7.", stringify!($field)),
+            concat!("tool.8.", stringify!($field)),
+        ]
+    };
+}
+
+// one key per coordinate system and per tool (fails to compile when a count changes
+// without its list)
+const _: [&str; WORK_SYSTEMS] = work_names!(x_mm);
+const _: [&str; TOOL_COUNT] = tool_names!(length_mm);
+
+/// An entry for the coordinate `$field` (`x_mm`, ...) of every work coordinate system.
+macro_rules! work_key {
+    ($field:ident, $doc:expr) => {
+        RowDef {
+            names: &work_names!($field),
+            pattern: concat!("work.<cs>.", stringify!($field)),
+            unit: unit::MM,
+            range: WORK_OFFSET,
+            apply: Apply::Anytime,
+            doc: $doc,
+            get: |s, i| s.work.get(i).map(|w| Value::F32(w.$field)),
+            put: |s, i, v| {
+                let w = s.work.get_mut(i).ok_or(Put::WrongType)?;
+                w.$field = f32::from_value(v).ok_or(Put::WrongType)?;
+                Ok(())
+            },
+        }
+    };
+}
+
+/// An entry for the field `$field` of every tool.
+macro_rules! tool_key {
+    ($field:ident, $range:expr, $doc:expr) => {
+        RowDef {
+            names: &tool_names!($field),
+            pattern: concat!("tool.<n>.", stringify!($field)),
+            unit: unit::MM,
+            range: $range,
+            apply: Apply::Anytime,
+            doc: $doc,
+            // row i is tool i + 1
+            get: |s, i| s.tool.get(i + 1).map(|t| Value::F32(t.$field)),
+            put: |s, i, v| {
+                let t = s.tool.get_mut(i + 1).ok_or(Put::WrongType)?;
+                t.$field = f32::from_value(v).ok_or(Put::WrongType)?;
+                Ok(())
+            },
+        }
+    };
+}
+
 /// Units, written as the rest of the docs write them (UTF-8).
 mod unit {
     pub const MM: &str = "mm";
@@ -366,6 +466,14 @@ mod unit {
 const LEN: Range = f32_range(-10_000.0, 10_000.0);
 const EFFORT: Range = f32_range(1.0, 100_000.0);
 const FERROR: Range = f32_range(0.001, 100.0);
+/// A work origin anywhere a length may be (±10 m): G10 may put one beyond the travel (a
+/// fixture on an extension table), the program's moves are what the travel check sees.
+const WORK_OFFSET: Range = LEN;
+/// Tool length offsets within ±1 m: a router's tools are well under 300 mm; negative for a
+/// tool shorter than the reference one (LinuxCNC measures lengths from a master tool).
+const TOOL_LENGTH: Range = f32_range(-1_000.0, 1_000.0);
+/// Cutter diameters 0..1 m (0: not measured).
+const TOOL_DIAMETER: Range = f32_range(0.0, 1_000.0);
 
 /// The per-axis keys, in the tree's field order.
 static AXIS_KEYS: &[AxisDef] = &[
@@ -699,11 +807,32 @@ static GLOBAL_KEYS: &[GlobalDef] = &[
     ),
 ];
 
+/// The table keys: the work coordinate systems, then the tool table, each row by row.
+static ROW_KEYS: &[RowDef] = &[
+    work_key!(
+        x_mm,
+        "X of the coordinate system's origin in machine coordinates (G10 L2; G54 is the one a program starts in)"
+    ),
+    work_key!(y_mm, "Y of the coordinate system's origin in machine coordinates"),
+    work_key!(z_mm, "Z of the coordinate system's origin in machine coordinates"),
+    tool_key!(
+        length_mm,
+        TOOL_LENGTH,
+        "Tool length offset (G43 H<n>): machine Z = programmed Z + length (LinuxCNC's sign)"
+    ),
+    tool_key!(
+        diameter_mm,
+        TOOL_DIAMETER,
+        "Cutter diameter (G10 L1 R sets it as 2 R; kept for the table, no cutter compensation)"
+    ),
+];
+
 /// How a key reaches its value.
 #[derive(Clone, Copy)]
 enum Access {
     Axis { axis: usize, def: &'static AxisDef },
     Global(&'static GlobalDef),
+    Row { row: usize, def: &'static RowDef },
 }
 
 /// One key of the registry.
@@ -742,7 +871,7 @@ impl Key {
     pub fn axis(&self) -> Option<Axis> {
         match self.access {
             Access::Axis { axis, .. } => Axis::from_index(axis),
-            Access::Global(_) => None,
+            Access::Global(_) | Access::Row { .. } => None,
         }
     }
 
@@ -751,6 +880,7 @@ impl Key {
         match self.access {
             Access::Axis { axis, def } => s.axis.get(axis).and_then(def.get),
             Access::Global(def) => (def.get)(s),
+            Access::Row { row, def } => (def.get)(s, row),
         }
     }
 
@@ -761,6 +891,7 @@ impl Key {
                 None => Err(Put::WrongType),
             },
             Access::Global(def) => (def.put)(s, v),
+            Access::Row { row, def } => (def.put)(s, row, v),
         }
     }
 
@@ -774,7 +905,8 @@ impl Key {
 }
 
 /// Every key: `axis.x.*`, `axis.y.*`, `axis.z.*` (each in the tree's field order), then the
-/// others. Static: the values come from [`Settings::list`] or [`Key::get`].
+/// others, then the tables (`work.g54.*` .. `work.g59_3.*`, `tool.1.*` .. `tool.8.*`, row
+/// by row). Static: the values come from [`Settings::list`] or [`Key::get`].
 pub fn keys() -> impl Iterator<Item = Key> + Clone {
     let axis_keys = (0..AXES).flat_map(|axis| {
         AXIS_KEYS.iter().filter_map(move |def| {
@@ -796,7 +928,30 @@ pub fn keys() -> impl Iterator<Item = Key> + Clone {
         doc: def.doc,
         access: Access::Global(def),
     });
-    axis_keys.chain(global_keys)
+    // the tables row by row, so that one system's (or tool's) keys stay together
+    let work_rows = (0..WORK_SYSTEMS).flat_map(|row| {
+        ROW_KEYS
+            .iter()
+            .filter(|d| d.pattern.starts_with("work."))
+            .map(move |def| (row, def))
+    });
+    let tool_rows = (0..TOOL_COUNT).flat_map(|row| {
+        ROW_KEYS
+            .iter()
+            .filter(|d| d.pattern.starts_with("tool."))
+            .map(move |def| (row, def))
+    });
+    let row_keys = work_rows.chain(tool_rows).filter_map(|(row, def)| {
+        Some(Key {
+            name: def.names.get(row).copied()?,
+            unit: def.unit,
+            range: def.range,
+            apply: def.apply,
+            doc: def.doc,
+            access: Access::Row { row, def },
+        })
+    });
+    axis_keys.chain(global_keys).chain(row_keys)
 }
 
 /// The key named `name`.
@@ -1013,10 +1168,12 @@ impl Settings {
             .map_err(SettingError::Tree)
     }
 
-    /// What changing from `self` to `next` needs: `None` if no value differs, `Live` if
-    /// only live keys differ, else `OutputsOff`.
+    /// What changing from `self` to `next` needs from the servo: `None` if no servo
+    /// parameter differs (identical, or only [`Apply::Anytime`] keys: taken at once, also
+    /// while moving), `Live` if only live keys differ, else `OutputsOff`.
     pub fn change_class(&self, next: &Settings) -> Option<Apply> {
         keys()
+            .filter(|k| k.apply != Apply::Anytime)
             .filter(|k| match (k.get(self), k.get(next)) {
                 (Some(a), Some(b)) => !a.same(&b),
                 (a, b) => a.is_some() != b.is_some(),
@@ -1027,7 +1184,9 @@ impl Settings {
 }
 
 /// The key table of docs/settings.md (Markdown), from the registry and the factory values
-/// of `s`: per-axis keys once as `axis.<a>.…` with the x / y / z values, then the others.
+/// of `s`: per-axis keys once as `axis.<a>.…` with the x / y / z values, then the others,
+/// then the tables once per field (`work.<cs>.x_mm`, `tool.<n>.length_mm`) with the value
+/// of every row when they agree.
 pub fn write_markdown_table(w: &mut impl fmt::Write, s: &Settings) -> fmt::Result {
     writeln!(
         w,
@@ -1064,6 +1223,24 @@ pub fn write_markdown_table(w: &mut impl fmt::Write, s: &Settings) -> fmt::Resul
             def.doc
         )?;
     }
+    for def in ROW_KEYS {
+        let row = |i| cell((def.get)(s, i));
+        let first = row(0);
+        let factory = if (0..def.names.len()).all(|i| row(i) == first) {
+            Factory::One(first)
+        } else {
+            Factory::Rows
+        };
+        writeln!(
+            w,
+            "| `{}` | {} | {} | {factory} | {} | {} |",
+            def.pattern,
+            def.unit,
+            def.range,
+            def.apply.name(),
+            def.doc
+        )?;
+    }
     Ok(())
 }
 
@@ -1085,6 +1262,8 @@ impl fmt::Display for Cell {
 enum Factory {
     One(Cell),
     Three([Cell; AXES]),
+    /// A table whose rows differ (see the keys themselves).
+    Rows,
 }
 
 impl fmt::Display for Factory {
@@ -1092,6 +1271,7 @@ impl fmt::Display for Factory {
         match self {
             Self::One(c) => write!(f, "{c}"),
             Self::Three([x, y, z]) => write!(f, "{x} / {y} / {z}"),
+            Self::Rows => f.write_str("(per row)"),
         }
     }
 }

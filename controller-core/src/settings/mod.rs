@@ -6,10 +6,11 @@
 //! The tree holds what a user of a machine sets, identifies or tunes: per axis the law and
 //! its bandwidth, the identified (or entered) model, encoder and amplifier scale, limits
 //! and fault thresholds, travel, homing and jog; the coupling, the velocity estimator, the
-//! link watchdog and identification's torque cap and margin. Everything else a
-//! [`ServoConfig`](crate::servo::ServoConfig) holds is a property of the board or of the
-//! firmware (counter widths, amplifier resolution, timings of the fault checks, the demo
-//! path) and comes from [`crate::presets::board::factory_config`].
+//! link watchdog and identification's torque cap and margin; and, for the host's G-code
+//! interpreter, the work coordinate systems and the tool table ([`offsets`]). Everything
+//! else a [`ServoConfig`](crate::servo::ServoConfig) holds is a property of the board or of
+//! the firmware (counter widths, amplifier resolution, timings of the fault checks, the
+//! demo path) and comes from [`crate::presets::board::factory_config`].
 //!
 //! The flow: the firmware loads the tree at boot ([`store::SettingsStore::load`]; a
 //! corrupt or foreign record gives [`FACTORY`] and the caller latches
@@ -19,12 +20,14 @@
 //! outputs are off, and saves it on request. docs/settings.md lists every key.
 
 pub mod keys;
+pub mod offsets;
 pub mod servo_config;
 #[cfg(feature = "store")]
 pub mod store;
 pub mod tree;
 
 pub use keys::{Apply, Key, KeyError, Range, SettingError, Value};
+pub use offsets::{ToolSettings, ToolTable, WorkOffset, WorkOffsets, TOOL_COUNT, WORK_SYSTEMS};
 pub use servo_config::{SettingsError, PLACEHOLDER_MODELS};
 pub use tree::{
     AmplifierSettings, AxisSettings, CouplingKind, CouplingSettings, EncoderSettings,

@@ -41,8 +41,9 @@ use super::tree::{Settings, FACTORY, SETTINGS_VERSION};
 /// machine name or calibration, under other keys).
 pub const RECORD_KEY: u8 = 0;
 
-/// Bytes of the record buffer: the key (1), the version (2) and the postcard tree (about
-/// 420 bytes today, see the `record_size` test), with room for the planner's settings.
+/// Bytes of the record buffer: the key (1), the version (2) and the postcard tree (513
+/// bytes, 561 with three axis models, see the `record_size` test), with a quarter of the
+/// buffer kept free for settings to come.
 pub const RECORD_BUFFER: usize = 1024;
 
 /// The record buffer, aligned for flashes that need word-aligned source buffers (up to

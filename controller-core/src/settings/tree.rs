@@ -25,7 +25,10 @@ use crate::servo::jog::{AxisJogConfig, JogConfig};
 use crate::servo::travel::AxisTravel;
 use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
 
-/// Version of the tree's layout, stored with every record (see the module docs).
+use super::offsets::{ToolTable, WorkOffsets};
+
+/// Version of the tree's layout, stored with every record (see the module docs). 3: the
+/// work offsets, the tool table and the planner's servo reserve.
 pub const SETTINGS_VERSION: u16 = 3;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
@@ -251,6 +254,10 @@ pub struct Settings {
     pub link: LinkSettings,
     pub identify: IdentifySettings,
     pub planner: PlannerSettings,
+    /// The work coordinate systems G54..G59.3 (`work.g54` .. `work.g59_3`).
+    pub work: WorkOffsets,
+    /// The tool table (`tool.1` .. `tool.8`).
+    pub tool: ToolTable,
 }
 
 /// One axis' factory settings: the designed gantry ([`crate::presets::gantry`]), no
@@ -317,6 +324,8 @@ pub const FACTORY: Settings = Settings {
         tangential_share: GANTRY_PLANNER.tangential_share,
         servo_reserve: GANTRY_PLANNER.servo_reserve,
     },
+    work: WorkOffsets::ZERO,
+    tool: ToolTable::EMPTY,
 };
 
 impl Settings {

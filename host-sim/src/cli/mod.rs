@@ -13,9 +13,10 @@ pub mod qemu;
 pub mod scope;
 pub mod sim;
 
-use crate::gcode::Travel;
+use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
 use crate::studies::gcode::{
-    load_program, machine_and_planner, segments, GcodeReport, LimitsJson, MetricSample, PathMetrics,
+    load_program_with, machine_and_planner, segments, GcodeReport, LimitsJson, MetricSample,
+    PathMetrics,
 };
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
@@ -137,6 +138,59 @@ pub fn set<T: Transport>(c: &mut Client<T>, key: &str, value: &str) -> Result<()
     Ok(())
 }
 
+/// The settings key of coordinate `axis` (0 = X) of work coordinate system `system` (0 =
+/// G54): `work.g55.x_mm`.
+pub fn work_key(system: usize, axis: usize) -> Option<String> {
+    let cs = controller_core::settings::WorkOffsets::NAMES.get(system)?;
+    Some(format!("work.{cs}.{}_mm", AXES.get(axis)?))
+}
+
+/// The machine's work coordinate systems and tool table, read from its settings: what a
+/// program is interpreted with.
+pub fn read_work_and_tools<T: Transport>(c: &mut Client<T>) -> Result<(WorkOffsets, Vec<Tool>)> {
+    let mut work = [[0.0; 3]; crate::gcode::WORK_SYSTEMS];
+    for (s, origin) in work.iter_mut().enumerate() {
+        for (a, v) in origin.iter_mut().enumerate() {
+            let key = work_key(s, a).context("work offset key")?;
+            *v = get_f64(c, &key)
+                .with_context(|| format!("reading the machine's work offsets ({key})"))?;
+        }
+    }
+    let mut tools = Vec::new();
+    for n in 1..=controller_core::settings::TOOL_COUNT {
+        let key = |field: &str| format!("tool.{n}.{field}");
+        tools.push(Tool {
+            length_mm: get_f64(c, &key("length_mm")).with_context(|| {
+                format!("reading the machine's tool table ({})", key("length_mm"))
+            })?,
+            diameter_mm: get_f64(c, &key("diameter_mm"))?,
+        });
+    }
+    Ok((work, tools))
+}
+
+/// The settings a program changed with G10 (work offsets, tools) relative to what it was
+/// parsed with, as `(key, value)` texts for `settings set` (the value is the `f32` the
+/// machine keeps, as its shortest text).
+pub fn g10_changes(program: &Program, options: &ParseOptions) -> Vec<(String, String)> {
+    let text = |v: f64| (v as f32).to_string();
+    let mut out: Vec<(String, String)> = program
+        .work_offset_changes(options)
+        .into_iter()
+        .filter_map(|(s, a, v)| Some((work_key(s, a)?, text(v))))
+        .collect();
+    for (n, tool) in program.tool_changes(options) {
+        let old = options.tools.get(n - 1).copied().unwrap_or_default();
+        if tool.length_mm.to_bits() != old.length_mm.to_bits() {
+            out.push((format!("tool.{n}.length_mm"), text(tool.length_mm)));
+        }
+        if tool.diameter_mm.to_bits() != old.diameter_mm.to_bits() {
+            out.push((format!("tool.{n}.diameter_mm"), text(tool.diameter_mm)));
+        }
+    }
+    out
+}
+
 /// A feed hold issued by the operator while a program runs: at `at_s` of machine time
 /// after the start, resumed `for_s` later.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -245,14 +299,24 @@ pub fn run_program<T: Transport>(
     let period_s = 1.0 / f64::from(run.servo.rate_hz);
     let name = path.display().to_string();
     let travel = travel(c)?;
+    // the machine's work offsets and tool table: the program's coordinates are relative
+    // to them, its G10 changes them
+    let (work_offsets_mm, tools) = read_work_and_tools(c)?;
+    let options = |start_mm: [f64; 3]| ParseOptions {
+        start_mm,
+        work_offsets_mm,
+        tools: tools.clone(),
+        ..ParseOptions::default()
+    };
     let s = c.status()?;
     // rejected before any motion (also when the machine is not ready)
     let here = s.pos_mm.map(f64::from);
-    if let Err(e) = load_program(path, here, &travel) {
+    if let Err(e) = load_program_with(path, &options(here), &travel) {
         return Ok(GcodeReport::rejected(&name, &e, limits, tol));
     }
     let s = ready(c, true)?;
-    let program = match load_program(path, s.pos_mm.map(f64::from), &travel) {
+    let opts = options(s.pos_mm.map(f64::from));
+    let program = match load_program_with(path, &opts, &travel) {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
@@ -361,6 +425,22 @@ pub fn run_program<T: Transport>(
     );
     if aborted && report.status == "completed" {
         report.status = "aborted".into();
+    }
+    // LinuxCNC keeps a program's G10 changes: written back (set, not saved) once it
+    // completed; a program that stopped early leaves the machine's offsets as they were
+    let changes = g10_changes(&program, &opts);
+    if report.status == "completed" {
+        for (key, value) in &changes {
+            set(c, key, value).with_context(|| {
+                format!("{name} completed, but writing its G10 change {key} = {value} failed")
+            })?;
+        }
+        report.settings_written = changes;
+    } else if !changes.is_empty() {
+        eprintln!(
+            "{name}: {}: its G10 changes were not written to the machine",
+            report.status
+        );
     }
     Ok(report)
 }

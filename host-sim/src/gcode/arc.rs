@@ -132,6 +132,24 @@ pub(crate) fn resolve(
     Ok(Resolved { center, sweep_rad })
 }
 
+/// Length (mm) of the path of an arc from `from` to `to` about `center` sweeping
+/// `sweep_rad` in `plane`, helix included: the mean of the start and end radii times the
+/// swept angle, combined with the normal-axis travel (the planner interpolates the radius
+/// and the normal coordinate linearly with the angle; the radii differ by at most the arc
+/// tolerance).
+pub fn arc_length_mm(
+    from: [f64; 3],
+    to: [f64; 3],
+    center: [f64; 3],
+    plane: Plane,
+    sweep_rad: f64,
+) -> f64 {
+    let [a0, a1, n] = plane.axes();
+    let r0 = (from[a0] - center[a0]).hypot(from[a1] - center[a1]);
+    let r1 = (to[a0] - center[a0]).hypot(to[a1] - center[a1]);
+    (0.5 * (r0 + r1) * sweep_rad).hypot(to[n] - from[n])
+}
+
 /// Exact axis-aligned extent `[[min, max]; 3]` of an arc (helical or not) from `from` to
 /// `to` about `center`, sweeping `sweep_rad` (> 0) clockwise or not in `plane`.
 ///
@@ -220,6 +238,36 @@ mod tests {
         // Half circle.
         let r = res(a, b, true, CentreForm::Radius(5.0));
         assert!(r.center[1].abs() < 1e-12 && (r.sweep_rad - PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn arc_length_with_helix_and_turns() {
+        // quarter circle of radius 10: 5π; a full helical turn of radius 10 down 3 mm
+        let q = arc_length_mm(
+            [10.0, 0.0, 0.0],
+            [0.0, 10.0, 0.0],
+            [0.0; 3],
+            Plane::XY,
+            PI / 2.0,
+        );
+        assert!((q - 5.0 * PI).abs() < 1e-12);
+        let h = arc_length_mm(
+            [10.0, 0.0, 0.0],
+            [10.0, 0.0, -3.0],
+            [0.0; 3],
+            Plane::XY,
+            TAU,
+        );
+        assert!((h - (20.0 * PI).hypot(3.0)).abs() < 1e-12);
+        // two turns in G19 (Y, Z), X the helix axis
+        let t = arc_length_mm(
+            [0.0, 5.0, 0.0],
+            [4.0, 5.0, 0.0],
+            [0.0; 3],
+            Plane::YZ,
+            2.0 * TAU,
+        );
+        assert!((t - (20.0 * PI).hypot(4.0)).abs() < 1e-12);
     }
 
     #[test]

@@ -1,200 +1,18 @@
-//! Modal interpreter: executes one tokenized block at a time in RS274NGC order (feed,
-//! dwell, plane, units, distance mode, path control, G28/G53/G92, motion, stop) and
-//! appends [`Move`]s in machine coordinates.
+//! Modal interpreter: executes one tokenized block at a time in RS274NGC order (feed mode,
+//! feed, dwell, plane, units, tool length offset, coordinate system, path control,
+//! distance modes, G10/G28/G52/G53/G92, motion, stop) and appends [`Move`]s in machine
+//! coordinates. The codes and their groups are [`super::codes`]; the coordinate frames
+//! (work offsets, G92/G52, tool length) are [`super::offsets::Frames`]; G10 and G43 are
+//! read in [`super::setup`].
 
 use super::arc::{self, CentreForm};
+use super::codes::{classify_g, classify_m, code10, code_name, Cmd, Group, Motion, ToolLength};
 use super::lexer::Word;
+use super::offsets::{Frames, WORK_SYSTEM_CODES};
 use super::{
     Blend, Error, ErrorKind, Ignored, Move, MoveKind, ParseOptions, Plane, Program, MM_PER_INCH,
     ZERO_LENGTH_MM,
 };
-
-/// Modal motion mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Motion {
-    Rapid,
-    Linear,
-    Cw,
-    Ccw,
-}
-
-impl Motion {
-    fn code(self) -> &'static str {
-        match self {
-            Motion::Rapid => "G0",
-            Motion::Linear => "G1",
-            Motion::Cw => "G2",
-            Motion::Ccw => "G3",
-        }
-    }
-}
-
-/// A supported G or M command.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Cmd {
-    /// G0–G3; `None` is G80 (motion cancel).
-    Motion(Option<Motion>),
-    Plane(Plane),
-    Distance {
-        incremental: bool,
-    },
-    /// G91.1: the mode we are always in.
-    ArcCentreIncremental,
-    Units {
-        inches: bool,
-    },
-    /// G40, G49, G94: accepted, ignored.
-    NoEffect,
-    WorkOffset54,
-    ExactStop,
-    Blending,
-    Dwell,
-    Home,
-    MachineCoords,
-    SetOffset,
-    ClearOffset,
-    Pause,
-    End,
-    /// M3/M4/M5, M7/M8/M9: accepted, ignored.
-    Auxiliary,
-}
-
-/// Modal groups (RS274NGC numbering in the comments). Two commands of one group on a line
-/// are a conflict.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Group {
-    NonModal,    // 0
-    Motion,      // 1
-    Plane,       // 2
-    Distance,    // 3
-    ArcDistance, // 4
-    FeedMode,    // 5
-    Units,       // 6
-    CutterComp,  // 7
-    ToolLength,  // 8
-    WorkOffset,  // 12
-    PathControl, // 13
-    Stopping,    // M 4
-    Spindle,     // M 7
-    Coolant,     // M 8
-}
-
-impl Group {
-    fn name(self) -> &'static str {
-        match self {
-            Group::NonModal => "non-modal (G4, G28, G53, G92)",
-            Group::Motion => "motion (G0, G1, G2, G3, G80)",
-            Group::Plane => "plane (G17, G18, G19)",
-            Group::Distance => "distance mode (G90, G91)",
-            Group::ArcDistance => "arc distance mode (G91.1)",
-            Group::FeedMode => "feed rate mode (G94)",
-            Group::Units => "units (G20, G21)",
-            Group::CutterComp => "cutter compensation (G40)",
-            Group::ToolLength => "tool length offset (G49)",
-            Group::WorkOffset => "work offset (G54)",
-            Group::PathControl => "path control (G61, G64)",
-            Group::Stopping => "stopping (M0, M2, M30)",
-            Group::Spindle => "spindle (M3, M4, M5)",
-            Group::Coolant => "coolant (M7, M8, M9)",
-        }
-    }
-}
-
-/// A G/M number ×10 (`G91.1` → 911), if it has at most one decimal.
-fn code10(value: f64) -> Option<u32> {
-    let x = value * 10.0;
-    let r = x.round();
-    ((0.0..=1e9).contains(&r) && (x - r).abs() <= 1e-6).then_some(r as u32)
-}
-
-/// `G91.1`, `M3`: the code as RS274NGC names it.
-fn code_name(letter: char, c10: u32) -> String {
-    if c10.is_multiple_of(10) {
-        format!("{letter}{}", c10 / 10)
-    } else {
-        format!("{letter}{}.{}", c10 / 10, c10 % 10)
-    }
-}
-
-fn classify_g(c10: u32) -> Result<(Cmd, Group), Option<&'static str>> {
-    use Group as Gr;
-    Ok(match c10 {
-        0 => (Cmd::Motion(Some(Motion::Rapid)), Gr::Motion),
-        10 => (Cmd::Motion(Some(Motion::Linear)), Gr::Motion),
-        20 => (Cmd::Motion(Some(Motion::Cw)), Gr::Motion),
-        30 => (Cmd::Motion(Some(Motion::Ccw)), Gr::Motion),
-        800 => (Cmd::Motion(None), Gr::Motion),
-        40 => (Cmd::Dwell, Gr::NonModal),
-        280 => (Cmd::Home, Gr::NonModal),
-        530 => (Cmd::MachineCoords, Gr::NonModal),
-        920 => (Cmd::SetOffset, Gr::NonModal),
-        921 => (Cmd::ClearOffset, Gr::NonModal),
-        170 => (Cmd::Plane(Plane::XY), Gr::Plane),
-        180 => (Cmd::Plane(Plane::ZX), Gr::Plane),
-        190 => (Cmd::Plane(Plane::YZ), Gr::Plane),
-        200 => (Cmd::Units { inches: true }, Gr::Units),
-        210 => (Cmd::Units { inches: false }, Gr::Units),
-        900 => (Cmd::Distance { incremental: false }, Gr::Distance),
-        910 => (Cmd::Distance { incremental: true }, Gr::Distance),
-        911 => (Cmd::ArcCentreIncremental, Gr::ArcDistance),
-        940 => (Cmd::NoEffect, Gr::FeedMode),
-        400 => (Cmd::NoEffect, Gr::CutterComp),
-        490 => (Cmd::NoEffect, Gr::ToolLength),
-        540 => (Cmd::WorkOffset54, Gr::WorkOffset),
-        610 => (Cmd::ExactStop, Gr::PathControl),
-        640 => (Cmd::Blending, Gr::PathControl),
-        _ => return Err(describe_unsupported_g(c10)),
-    })
-}
-
-fn describe_unsupported_g(c10: u32) -> Option<&'static str> {
-    Some(match c10 {
-        50..=53 => "spline",
-        70 | 80 => "lathe diameter/radius mode",
-        100 => "setting offsets and tables",
-        150 | 160 => "polar coordinates",
-        281 | 301 => "storing a home position",
-        300 => "second home position",
-        330 | 331 => "spindle-synchronised motion",
-        382..=385 => "probing",
-        410 | 411 | 420 | 421 => "cutter radius compensation",
-        430..=432 => "tool length offset",
-        500 | 510 => "scaling",
-        550 | 560 | 570 | 580 | 590..=593 => "work offsets other than G54",
-        611 => "exact path mode",
-        680 | 690 => "coordinate rotation",
-        730 | 760 => "canned cycle",
-        c if (810..=890).contains(&c) && c.is_multiple_of(10) => "canned cycle",
-        901 => "absolute arc centres",
-        922 | 923 => "suspending G92 offsets",
-        930 => "inverse-time feed",
-        950 => "feed per revolution",
-        960 | 970 => "spindle speed mode",
-        980 | 990 => "canned cycle return mode",
-        _ => return None,
-    })
-}
-
-fn classify_m(c10: u32) -> Result<(Cmd, Group), Option<&'static str>> {
-    Ok(match c10 {
-        0 => (Cmd::Pause, Group::Stopping),
-        20 | 300 => (Cmd::End, Group::Stopping),
-        30 | 40 | 50 => (Cmd::Auxiliary, Group::Spindle),
-        70 | 80 | 90 => (Cmd::Auxiliary, Group::Coolant),
-        _ => {
-            return Err(Some(match c10 {
-                10 => "optional stop",
-                60 => "tool change",
-                600 => "pallet change pause",
-                480..=530 => "override control",
-                620..=680 => "digital/analog output",
-                700..=730 => "modal state save/restore",
-                1000..=1990 => "user-defined M-code",
-                _ => return Err(None),
-            }))
-        }
-    })
-}
 
 /// Index of a value-word letter in the per-line table.
 fn slot(letter: char) -> usize {
@@ -202,44 +20,88 @@ fn slot(letter: char) -> usize {
 }
 
 /// The value words of one line, with use tracking.
-struct Values<'w> {
+pub(super) struct Values<'w> {
     words: [Option<&'w Word>; 26],
     used: [bool; 26],
 }
 
 impl<'w> Values<'w> {
-    fn get(&mut self, letter: char) -> Option<f64> {
+    /// The value of `letter`'s word, marking it used.
+    pub(super) fn get(&mut self, letter: char) -> Option<f64> {
         let i = slot(letter);
         let w = self.words[i]?;
         self.used[i] = true;
         Some(w.value)
     }
 
-    fn word(&self, letter: char) -> Option<&'w Word> {
+    /// The word as written (for messages), without marking it used.
+    pub(super) fn word(&self, letter: char) -> Option<&'w Word> {
         self.words[slot(letter)]
     }
 
-    fn has(&self, letter: char) -> bool {
+    pub(super) fn has(&self, letter: char) -> bool {
         self.words[slot(letter)].is_some()
+    }
+
+    /// The text of the first of `letters` on the line (`"X5"`), or empty.
+    pub(super) fn first_text(&self, letters: &[char]) -> String {
+        letters
+            .iter()
+            .find_map(|&l| self.word(l))
+            .map(|w| w.text.clone())
+            .unwrap_or_default()
+    }
+}
+
+/// Which command on the line owns the P word (G4, G10, G64, or an arc's turns).
+pub(super) struct POwner {
+    owner: Option<&'static str>,
+}
+
+impl POwner {
+    /// `owner` takes P; an error if another command on the line already did.
+    pub(super) fn claim(
+        &mut self,
+        owner: &'static str,
+        interp: &Interp<'_>,
+        line: u32,
+    ) -> Result<(), Error> {
+        match self.owner.replace(owner) {
+            Some(prev) => Err(interp.error(
+                line,
+                ErrorKind::Invalid,
+                format!("P is used by both {prev} and {owner} on one line"),
+            )),
+            None => Ok(()),
+        }
     }
 }
 
 pub(crate) struct Interp<'a> {
-    name: &'a str,
-    opts: &'a ParseOptions,
+    pub(super) name: &'a str,
+    pub(super) opts: &'a ParseOptions,
     /// Current machine position (mm).
-    pos: [f64; 3],
-    motion: Option<Motion>,
-    plane: Plane,
-    inches: bool,
-    incremental: bool,
-    feed_mm_min: Option<f64>,
-    g92_mm: [f64; 3],
-    blend: Option<Blend>,
-    end_line: Option<u32>,
-    moves: Vec<Move>,
-    ignored: Vec<Ignored>,
-    bounds: [[f64; 2]; 3],
+    pub(super) pos: [f64; 3],
+    pub(super) motion: Option<Motion>,
+    pub(super) plane: Plane,
+    pub(super) inches: bool,
+    pub(super) incremental: bool,
+    /// G90.1: I/J/K are absolute coordinates.
+    pub(super) arc_absolute: bool,
+    /// G93 inverse-time feed mode.
+    pub(super) inverse_time: bool,
+    /// The modal feed in units per minute mode (mm/min); `None` until an F, and again
+    /// after G93 → G94 (LinuxCNC wants a new F then).
+    pub(super) feed_mm_min: Option<f64>,
+    /// A G93 → G94 switch cleared the feed (for the message of the move without F).
+    pub(super) feed_cleared_by_g94: bool,
+    /// Work offsets, G92/G52, tool length.
+    pub(super) frames: Frames,
+    pub(super) blend: Option<Blend>,
+    pub(super) end_line: Option<u32>,
+    pub(super) moves: Vec<Move>,
+    pub(super) ignored: Vec<Ignored>,
+    pub(super) bounds: [[f64; 2]; 3],
 }
 
 impl<'a> Interp<'a> {
@@ -252,8 +114,11 @@ impl<'a> Interp<'a> {
             plane: Plane::XY,
             inches: false,
             incremental: false,
+            arc_absolute: false,
+            inverse_time: false,
             feed_mm_min: None,
-            g92_mm: [0.0; 3],
+            feed_cleared_by_g94: false,
+            frames: Frames::new(opts.work_offsets_mm, opts.tools.clone()),
             blend: None,
             end_line: None,
             moves: Vec::new(),
@@ -270,10 +135,12 @@ impl<'a> Interp<'a> {
             ignored: self.ignored,
             bounds_mm: self.bounds,
             end_line: self.end_line,
+            work_offsets_mm: self.frames.work_mm,
+            tools: self.frames.tools,
         }
     }
 
-    fn error(&self, line: u32, kind: ErrorKind, message: String) -> Error {
+    pub(super) fn error(&self, line: u32, kind: ErrorKind, message: String) -> Error {
         Error {
             file: self.name.to_string(),
             line: Some(line),
@@ -293,7 +160,7 @@ impl<'a> Interp<'a> {
         }
     }
 
-    fn unit_mm(&self) -> f64 {
+    pub(super) fn unit_mm(&self) -> f64 {
         if self.inches {
             MM_PER_INCH
         } else {
@@ -393,11 +260,54 @@ impl<'a> Interp<'a> {
             }
         }
 
-        // 5. Execute in RS274NGC order. Units first: every length on the line is in them.
+        // 5. Who uses the axis words: at most one of G43.1, G10/G28/G52/G92 and an
+        //    explicit motion command (a modal motion yields to the others).
+        let explicit_motion = in_group(Group::Motion);
+        let nonmodal = in_group(Group::NonModal);
+        let axis_users: Vec<String> = [
+            in_group(Group::ToolLength)
+                .filter(|(c, _)| *c == Cmd::ToolLength(ToolLength::Dynamic))
+                .map(|(_, n)| n),
+            nonmodal
+                .as_ref()
+                .filter(|(c, _)| {
+                    matches!(
+                        c,
+                        Cmd::Home | Cmd::SetOffset | Cmd::LocalOffset | Cmd::SetTable
+                    )
+                })
+                .map(|(_, n)| n.clone()),
+            explicit_motion
+                .as_ref()
+                .filter(|(c, _)| matches!(c, Cmd::Motion(Some(_))))
+                .map(|(_, n)| n.clone()),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        if let [first, second, ..] = axis_users.as_slice() {
+            return Err(self.error(
+                line,
+                ErrorKind::ModalConflict,
+                format!("{first} and {second} on one line: both would use the axis words"),
+            ));
+        }
+
+        // 6. Execute in RS274NGC order. Units first: every length on the line is in them.
         if let Some((Cmd::Units { inches }, _)) = in_group(Group::Units) {
             self.inches = inches;
         }
         let k = self.unit_mm();
+        if let Some((Cmd::FeedMode { inverse_time }, _)) = in_group(Group::FeedMode) {
+            if self.inverse_time && !inverse_time {
+                // G93 → G94: the F in force was a time, not a speed (LinuxCNC)
+                self.feed_mm_min = None;
+                self.feed_cleared_by_g94 = true;
+            }
+            self.inverse_time = inverse_time;
+        }
+        // In G93 an F belongs to its line only: the moves on it take 1/F minutes.
+        let mut inverse_f: Option<f64> = None;
         if let Some(f) = values.get('F') {
             if !(f > 0.0) {
                 return Err(self.error(
@@ -406,22 +316,16 @@ impl<'a> Interp<'a> {
                     format!("F{f} is not a usable feed rate: it must be greater than zero"),
                 ));
             }
-            self.feed_mm_min = Some(f * k);
-        }
-        // Which command on the line owns the P word (G4, G64, or an arc's turns).
-        let mut p_owner: Option<&'static str> = None;
-        let mut claim_p = |owner: &'static str, this: &Self| -> Result<(), Error> {
-            match p_owner.replace(owner) {
-                Some(prev) => Err(this.error(
-                    line,
-                    ErrorKind::Invalid,
-                    format!("P is used by both {prev} and {owner} on one line"),
-                )),
-                None => Ok(()),
+            if self.inverse_time {
+                inverse_f = Some(f);
+            } else {
+                self.feed_mm_min = Some(f * k);
+                self.feed_cleared_by_g94 = false;
             }
-        };
+        }
+        let mut p = POwner { owner: None };
         if has(Cmd::Dwell) {
-            claim_p("G4", self)?;
+            p.claim("G4", self, line)?;
             let Some(s) = values.get('P') else {
                 return Err(self.error(
                     line,
@@ -438,53 +342,42 @@ impl<'a> Interp<'a> {
             }
             self.push(line, MoveKind::Dwell { s });
         }
-        if let Some((Cmd::Plane(p), _)) = in_group(Group::Plane) {
-            self.plane = p;
+        if let Some((Cmd::Plane(pl), _)) = in_group(Group::Plane) {
+            self.plane = pl;
         }
-        if let Some((Cmd::Distance { incremental }, _)) = in_group(Group::Distance) {
-            self.incremental = incremental;
+        if let Some((Cmd::ToolLength(t), name)) = in_group(Group::ToolLength) {
+            self.tool_length(line, t, &name, &mut values)?;
+        }
+        if let Some((Cmd::WorkSystem(i), _)) = in_group(Group::WorkOffset) {
+            self.frames.active = i;
         }
         match in_group(Group::PathControl) {
+            Some((Cmd::ExactPath, _)) => self.set_blend(line, Blend::ExactPath),
             Some((Cmd::ExactStop, _)) => self.set_blend(line, Blend::ExactStop),
             Some((Cmd::Blending, _)) => {
-                let blend = if values.has('P') {
-                    claim_p("G64", self)?;
-                    let p = values.get('P').unwrap_or_default();
-                    if !(p >= 0.0) {
-                        return Err(self.error(
-                            line,
-                            ErrorKind::Invalid,
-                            format!("G64 P{p}: the path tolerance must not be negative"),
-                        ));
-                    }
-                    Blend::Tolerance { mm: p * k }
-                } else {
-                    Blend::MachineDefault
-                };
+                let blend = self.g64(line, &mut values, &mut p)?;
                 self.set_blend(line, blend);
             }
             _ => {}
         }
+        if let Some((Cmd::Distance { incremental }, _)) = in_group(Group::Distance) {
+            self.incremental = incremental;
+        }
+        if let Some((Cmd::ArcCentre { absolute }, _)) = in_group(Group::ArcDistance) {
+            self.arc_absolute = absolute;
+        }
 
-        // Non-modal commands and motion share the axis words.
+        // Non-modal commands and motion share the axis words (a G43.1 took them above).
         let axes = [values.get('X'), values.get('Y'), values.get('Z')];
         let has_axes = axes.iter().any(Option::is_some);
-        let explicit_motion = in_group(Group::Motion);
         if let Some((Cmd::Motion(m), _)) = explicit_motion {
             self.motion = m;
         }
-        let nonmodal = in_group(Group::NonModal);
-        if let (Some((Cmd::Home | Cmd::SetOffset, name)), Some((_, motion_name))) =
-            (&nonmodal, &explicit_motion)
-        {
-            return Err(self.error(
-                line,
-                ErrorKind::ModalConflict,
-                format!("{name} and {motion_name} on one line: both would use the axis words"),
-            ));
-        }
+        let dynamic_tool = has(Cmd::ToolLength(ToolLength::Dynamic));
         match nonmodal.map(|(c, _)| c) {
             Some(Cmd::Home) => self.home(line, axes),
+            Some(Cmd::SetTable) => self.g10(line, axes, &mut values, &mut p)?,
+            Some(Cmd::LocalOffset) => self.frames.set_g52(axes.map(|v| v.map(|v| v * k))),
             Some(Cmd::SetOffset) => {
                 if !has_axes {
                     return Err(self.error(
@@ -493,20 +386,17 @@ impl<'a> Interp<'a> {
                         "G92 without axis words: name the axes to set".into(),
                     ));
                 }
-                for (a, v) in axes.iter().enumerate() {
-                    if let Some(v) = v {
-                        self.g92_mm[a] = self.pos[a] - self.opts.g54_offset_mm[a] - v * k;
-                    }
-                }
+                self.frames
+                    .set_g92(self.pos, axes.map(|v| v.map(|v| v * k)));
             }
             Some(Cmd::ClearOffset) => {
-                self.g92_mm = [0.0; 3];
-                if has_axes {
+                self.frames.clear_g92();
+                if has_axes && !dynamic_tool {
                     return Err(self.unused_axes(line, &values));
                 }
             }
             Some(Cmd::MachineCoords) => {
-                if has_axes {
+                if has_axes && !dynamic_tool {
                     if self.incremental {
                         return Err(self.error(
                             line,
@@ -524,24 +414,24 @@ impl<'a> Interp<'a> {
                             ),
                         ));
                     }
-                    self.motion_block(line, axes, true, &mut values, &mut claim_p)?;
+                    self.motion_block(line, axes, true, inverse_f, &mut values, &mut p)?;
                 }
             }
             _ => {
-                if has_axes {
-                    self.motion_block(line, axes, false, &mut values, &mut claim_p)?;
+                if has_axes && !dynamic_tool {
+                    self.motion_block(line, axes, false, inverse_f, &mut values, &mut p)?;
                 }
             }
         }
 
-        // 6. Stop commands last.
+        // 7. Stop commands last.
         match in_group(Group::Stopping) {
             Some((Cmd::Pause, _)) => self.push(line, MoveKind::Pause),
             Some((Cmd::End, _)) => self.end_line = Some(line),
             _ => {}
         }
 
-        // 7. Every value word must have been used by something on the line.
+        // 8. Every value word must have been used by something on the line.
         for (i, w) in values.words.iter().enumerate() {
             if let (Some(w), false) = (w, values.used[i]) {
                 return Err(self.error(
@@ -555,16 +445,53 @@ impl<'a> Interp<'a> {
     }
 
     fn unused_axes(&self, line: u32, values: &Values<'_>) -> Error {
-        let text = ['X', 'Y', 'Z']
-            .iter()
-            .find_map(|&l| values.word(l))
-            .map(|w| w.text.clone())
-            .unwrap_or_default();
+        let text = values.first_text(&['X', 'Y', 'Z']);
         self.error(
             line,
             ErrorKind::UnusedWord,
             format!("{text} is not used by any command on this line"),
         )
+    }
+
+    /// G64 [P [Q]]: LinuxCNC's blending tolerance P and naive-CAM tolerance Q (Q defaults
+    /// to P; Q without P is an error).
+    fn g64(&self, line: u32, values: &mut Values<'_>, p: &mut POwner) -> Result<Blend, Error> {
+        let k = self.unit_mm();
+        if !values.has('P') {
+            if let Some(q) = values.word('Q') {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Invalid,
+                    format!(
+                        "G64 {} without P: the naive-CAM tolerance Q needs a path tolerance P \
+                         (G64 P- Q-)",
+                        q.text
+                    ),
+                ));
+            }
+            return Ok(Blend::MachineDefault);
+        }
+        p.claim("G64", self, line)?;
+        let tol = values.get('P').unwrap_or_default();
+        if !(tol >= 0.0) {
+            return Err(self.error(
+                line,
+                ErrorKind::Invalid,
+                format!("G64 P{tol}: the path tolerance must not be negative"),
+            ));
+        }
+        let q = values.get('Q').unwrap_or(tol);
+        if !(q >= 0.0) {
+            return Err(self.error(
+                line,
+                ErrorKind::Invalid,
+                format!("G64 Q{q}: the naive-CAM tolerance must not be negative"),
+            ));
+        }
+        Ok(Blend::Tolerance {
+            mm: tol * k,
+            naive_cam_mm: q * k,
+        })
     }
 
     fn set_blend(&mut self, line: u32, blend: Blend) {
@@ -581,12 +508,10 @@ impl<'a> Interp<'a> {
             from: self.pos,
             kind,
         };
-        if matches!(kind, MoveKind::Rapid { .. } | MoveKind::Line { .. }) {
-            let to = m.to();
-            let d2: f64 = (0..3).map(|a| (to[a] - self.pos[a]).powi(2)).sum();
-            if d2.sqrt() <= ZERO_LENGTH_MM {
-                return;
-            }
+        if matches!(kind, MoveKind::Rapid { .. } | MoveKind::Line { .. })
+            && m.length_mm() <= ZERO_LENGTH_MM
+        {
+            return;
         }
         let ext = m.extent_mm();
         for (b, e) in self.bounds.iter_mut().zip(ext) {
@@ -598,7 +523,7 @@ impl<'a> Interp<'a> {
     }
 
     /// End point of a move from axis words (program units), in machine coordinates.
-    fn target(&self, axes: [Option<f64>; 3], machine: bool) -> [f64; 3] {
+    pub(super) fn target(&self, axes: [Option<f64>; 3], machine: bool) -> [f64; 3] {
         let k = self.unit_mm();
         let mut t = self.pos;
         for (a, v) in axes.iter().enumerate() {
@@ -608,7 +533,7 @@ impl<'a> Interp<'a> {
                 } else if self.incremental {
                     self.pos[a] + v * k
                 } else {
-                    v * k + self.opts.g54_offset_mm[a] + self.g92_mm[a]
+                    v * k + self.frames.origin_mm(a)
                 };
             }
         }
@@ -634,12 +559,38 @@ impl<'a> Interp<'a> {
         }
     }
 
-    fn feed_mm_s(&self, line: u32, motion: Motion) -> Result<f64, Error> {
+    /// Path speed (mm/s) of a feed move of `length_mm`: the modal F (G94), or, in G93, the
+    /// line's own F as an inverse time (the move takes 1/F minutes).
+    fn feed_mm_s(
+        &self,
+        line: u32,
+        motion: Motion,
+        inverse_f: Option<f64>,
+        length_mm: f64,
+    ) -> Result<f64, Error> {
+        let code = motion.code();
+        if self.inverse_time {
+            return inverse_f.map(|f| length_mm * f / 60.0).ok_or_else(|| {
+                self.error(
+                    line,
+                    ErrorKind::NoFeed,
+                    format!(
+                        "{code} in inverse-time feed mode (G93) without F: every G1, G2 and G3 \
+                         needs its own F"
+                    ),
+                )
+            });
+        }
         self.feed_mm_min.map(|f| f / 60.0).ok_or_else(|| {
+            let why = if self.feed_cleared_by_g94 {
+                ": after G93, G94 needs a new F"
+            } else {
+                ""
+            };
             self.error(
                 line,
                 ErrorKind::NoFeed,
-                format!("{} without a feed rate (F)", motion.code()),
+                format!("{code} without a feed rate (F){why}"),
             )
         })
     }
@@ -650,15 +601,12 @@ impl<'a> Interp<'a> {
         line: u32,
         axes: [Option<f64>; 3],
         machine: bool,
+        inverse_f: Option<f64>,
         values: &mut Values<'_>,
-        claim_p: &mut impl FnMut(&'static str, &Self) -> Result<(), Error>,
+        p: &mut POwner,
     ) -> Result<(), Error> {
         let Some(motion) = self.motion else {
-            let text = ['X', 'Y', 'Z']
-                .iter()
-                .find_map(|&l| values.word(l))
-                .map(|w| w.text.clone())
-                .unwrap_or_default();
+            let text = values.first_text(&['X', 'Y', 'Z']);
             return Err(self.error(
                 line,
                 ErrorKind::Invalid,
@@ -669,91 +617,132 @@ impl<'a> Interp<'a> {
         match motion {
             Motion::Rapid => self.push(line, MoveKind::Rapid { to }),
             Motion::Linear => {
-                let feed_mm_s = self.feed_mm_s(line, motion)?;
+                let length: f64 = (0..3)
+                    .map(|a| (to[a] - self.pos[a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let feed_mm_s = self.feed_mm_s(line, motion, inverse_f, length)?;
                 self.push(line, MoveKind::Line { to, feed_mm_s });
             }
-            Motion::Cw | Motion::Ccw => {
-                let feed_mm_s = self.feed_mm_s(line, motion)?;
-                let code = motion.code();
-                let plane = self.plane;
-                let [a0, a1, n] = plane.axes();
-                let offset_letter = |a: usize| ['I', 'J', 'K'].get(a).copied().unwrap_or('I');
-                if let Some(w) = values.word(offset_letter(n)) {
-                    return Err(self.error(
-                        line,
-                        ErrorKind::UnusedWord,
-                        format!(
-                            "{} is not used by an arc in the {} plane",
-                            w.text,
-                            plane.name()
-                        ),
-                    ));
-                }
-                let k = self.unit_mm();
-                let o0 = values.get(offset_letter(a0));
-                let o1 = values.get(offset_letter(a1));
-                let r = values.get('R');
-                let form = match (r, o0.is_some() || o1.is_some()) {
-                    (Some(_), true) => {
-                        return Err(self.error(
-                            line,
-                            ErrorKind::Arc,
-                            format!("{code} with both R and I/J/K: give one of them"),
-                        ))
-                    }
-                    (Some(r), false) => CentreForm::Radius(r * k),
-                    (None, true) => CentreForm::Offsets([
-                        o0.unwrap_or_default() * k,
-                        o1.unwrap_or_default() * k,
-                    ]),
-                    (None, false) => {
-                        return Err(self.error(
-                            line,
-                            ErrorKind::Arc,
-                            format!("{code} without I/J/K or R: the arc centre is not defined"),
-                        ))
-                    }
-                };
-                let turns = if values.has('P') {
-                    claim_p(code, self)?;
-                    let p = values.get('P').unwrap_or_default();
-                    if !(p >= 1.0 && p.fract() == 0.0) {
-                        return Err(self.error(
-                            line,
-                            ErrorKind::Invalid,
-                            format!("{code} P{p}: the number of turns must be a whole number ≥ 1"),
-                        ));
-                    }
-                    p as u32
-                } else {
-                    1
-                };
-                let clockwise = motion == Motion::Cw;
-                let resolved = arc::resolve(
-                    self.pos,
-                    to,
-                    plane,
-                    clockwise,
-                    form,
-                    turns,
-                    self.opts.arc_tolerance_mm,
-                    self.opts.arc_tolerance_rel,
-                )
-                .map_err(|m| self.error(line, ErrorKind::Arc, m))?;
-                self.push(
-                    line,
-                    MoveKind::Arc {
-                        to,
-                        center: resolved.center,
-                        plane,
-                        clockwise,
-                        turns,
-                        sweep_rad: resolved.sweep_rad,
-                        feed_mm_s,
-                    },
-                );
-            }
+            Motion::Cw | Motion::Ccw => self.arc(line, motion, to, inverse_f, values, p)?,
         }
         Ok(())
     }
+
+    /// G2/G3 to `to` (machine mm): centre by I/J/K (incremental from the start, or
+    /// absolute in the current coordinate system under G90.1) or by R.
+    fn arc(
+        &mut self,
+        line: u32,
+        motion: Motion,
+        to: [f64; 3],
+        inverse_f: Option<f64>,
+        values: &mut Values<'_>,
+        p: &mut POwner,
+    ) -> Result<(), Error> {
+        let code = motion.code();
+        let plane = self.plane;
+        let [a0, a1, n] = plane.axes();
+        let offset_letter = |a: usize| ['I', 'J', 'K'].get(a).copied().unwrap_or('I');
+        if let Some(w) = values.word(offset_letter(n)) {
+            return Err(self.error(
+                line,
+                ErrorKind::UnusedWord,
+                format!(
+                    "{} is not used by an arc in the {} plane",
+                    w.text,
+                    plane.name()
+                ),
+            ));
+        }
+        let k = self.unit_mm();
+        let o0 = values.get(offset_letter(a0));
+        let o1 = values.get(offset_letter(a1));
+        let r = values.get('R');
+        let form = match (r, o0.is_some() || o1.is_some()) {
+            (Some(_), true) => {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Arc,
+                    format!("{code} with both R and I/J/K: give one of them"),
+                ))
+            }
+            (Some(r), false) => CentreForm::Radius(r * k),
+            (None, true) if self.arc_absolute => {
+                let (Some(c0), Some(c1)) = (o0, o1) else {
+                    return Err(self.error(
+                        line,
+                        ErrorKind::Arc,
+                        format!(
+                            "{code} with absolute arc centres (G90.1) needs both {} and {}",
+                            offset_letter(a0),
+                            offset_letter(a1)
+                        ),
+                    ));
+                };
+                // the centre in the current coordinate system (offsets and, on Z, the tool
+                // length applied), as offsets from the start
+                CentreForm::Offsets([
+                    c0 * k + self.frames.origin_mm(a0) - self.pos[a0],
+                    c1 * k + self.frames.origin_mm(a1) - self.pos[a1],
+                ])
+            }
+            (None, true) => {
+                CentreForm::Offsets([o0.unwrap_or_default() * k, o1.unwrap_or_default() * k])
+            }
+            (None, false) => {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Arc,
+                    format!("{code} without I/J/K or R: the arc centre is not defined"),
+                ))
+            }
+        };
+        let turns = if values.has('P') {
+            p.claim(code, self, line)?;
+            let t = values.get('P').unwrap_or_default();
+            if !(t >= 1.0 && t.fract() == 0.0) {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Invalid,
+                    format!("{code} P{t}: the number of turns must be a whole number ≥ 1"),
+                ));
+            }
+            t as u32
+        } else {
+            1
+        };
+        let clockwise = motion == Motion::Cw;
+        let resolved = arc::resolve(
+            self.pos,
+            to,
+            plane,
+            clockwise,
+            form,
+            turns,
+            self.opts.arc_tolerance_mm,
+            self.opts.arc_tolerance_rel,
+        )
+        .map_err(|m| self.error(line, ErrorKind::Arc, m))?;
+        let length = arc::arc_length_mm(self.pos, to, resolved.center, plane, resolved.sweep_rad);
+        let feed_mm_s = self.feed_mm_s(line, motion, inverse_f, length)?;
+        self.push(
+            line,
+            MoveKind::Arc {
+                to,
+                center: resolved.center,
+                plane,
+                clockwise,
+                turns,
+                sweep_rad: resolved.sweep_rad,
+                feed_mm_s,
+            },
+        );
+        Ok(())
+    }
+}
+
+/// The G-code of coordinate system `i` (`G59.1`), for messages.
+pub(super) fn system_code(i: usize) -> &'static str {
+    WORK_SYSTEM_CODES.get(i).copied().unwrap_or("G54")
 }

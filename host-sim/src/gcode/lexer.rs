@@ -30,7 +30,7 @@ pub(crate) enum LexError {
 }
 
 /// Letters the interpreter understands (G, M, value words). Anything else is unsupported.
-const SUPPORTED_LETTERS: &str = "FGIJKMNPRSTXYZ";
+const SUPPORTED_LETTERS: &str = "FGHIJKLMNPQRSTXYZ";
 
 /// Longest expression text quoted in a message.
 const MAX_QUOTED_CHARS: usize = 40;
@@ -174,9 +174,6 @@ fn unsupported_letter(letter: char) -> String {
         'A' | 'B' | 'C' => "rotary axis",
         'U' | 'V' | 'W' => "secondary linear axis",
         'D' => "cutter compensation register",
-        'H' => "tool length offset register",
-        'L' => "used by G10 and canned cycles",
-        'Q' => "peck increment of canned cycles",
         'E' => "extruder axis of 3D printers",
         _ => return format!("{letter} word"),
     };

@@ -3,37 +3,74 @@
 //! with `FILE:LINE: <message>` if anything in it is unsupported or invalid; a later step
 //! streams the [`Move`]s to the motion planner in controller-core.
 //!
-//! # Accepted subset (what a CAM post for a 3-axis router/mill emits)
-//! - Motion: G0, G1, G2, G3 (I/J/K centre offsets, always incremental from the start as in
-//!   grbl's G91.1; R form with negative R for arcs over 180°; full circles when the end
-//!   equals the start in the plane, I/J/K form only; helical arcs via the normal axis;
-//!   optional `P` = number of turns ≥ 1 as in LinuxCNC). An arc with axis words outside
-//!   its plane only (e.g. `G2 Z-1 I5` in G17) keeps the in-plane end at the start: a full
-//!   helical turn.
+//! # Accepted subset (what a CAM post for a 3-axis router/mill emits, and what LinuxCNC
+//! users send; LinuxCNC's RS274NGC semantics)
+//! - Motion: G0, G1, G2, G3 (I/J/K centre offsets, incremental from the start by default
+//!   (G91.1), absolute coordinates in the current coordinate system under G90.1, which
+//!   then needs both in-plane words; R form with negative R for arcs over 180°; full
+//!   circles when the end equals the start in the plane, I/J/K form only; helical arcs
+//!   via the normal axis; optional `P` = number of turns ≥ 1 as in LinuxCNC). An arc with
+//!   axis words outside its plane only (e.g. `G2 Z-1 I5` in G17) keeps the in-plane end
+//!   at the start: a full helical turn.
+//! - Coordinates ([`offsets`]): machine = programmed + the active work coordinate
+//!   system's origin + the G92/G52 offset + (on Z) the tool length offset.
+//!   - G54, G55, G56, G57, G58, G59, G59.1, G59.2, G59.3 select one of the nine systems
+//!     ([`ParseOptions::work_offsets_mm`], the machine's `work.<cs>.*_mm` settings); a
+//!     program starts in G54.
+//!   - G10 L2 P0–P9 sets a system's origin (machine coordinates; P0 = the active one,
+//!     P1 = G54 .. P9 = G59.3; axis words not given keep their value); G10 L20 P0–P9
+//!     sets it so that the current point gets the given coordinates (with the G92/G52
+//!     offset and the tool length in effect). A change to the active system applies to
+//!     the next move. The origins as the program leaves them are
+//!     [`Program::work_offsets_mm`], for the caller to write back (LinuxCNC keeps them).
+//!   - `G10 L1 P<tool> Z<length> R<radius>` sets a tool of the table
+//!     ([`ParseOptions::tools`], the machine's `tool.<n>.*`); [`Program::tools`]. The
+//!     offset in effect changes only with the next G43, as in LinuxCNC.
+//!   - `G43 H<n>` applies tool n's length (H0: none), `G43.1 Z<length>` a given one, G49
+//!     cancels: machine Z = programmed Z + length (LinuxCNC's sign). Nothing moves; the
+//!     next Z end point is compensated. G43 without H is an error: no tool is ever
+//!     loaded (M6 is not supported).
+//!   - G92 (offset so that the current point gets the given coordinates; values always
+//!     absolute; axes not given keep theirs), G52 (the same register set directly,
+//!     relative to the work coordinate system: `G52 X0 Y0 Z0` cancels), G92.1 (clears
+//!     both). They last for the program (LinuxCNC's `DISABLE_G92_PERSISTENCE`).
+//!   - G53: machine coordinates for that line (no offset, no tool length), needs G0/G1;
+//!     rejected under G91. G28: rapid to [`ParseOptions::g28_position_mm`], via the
+//!     intermediate point (in the current coordinates) if axis words are given, then only
+//!     the named axes move home, as grbl 1.1 and LinuxCNC.
+//!   - G10 (L0, L10, L11, R rotation), G43.2, G92.2, G92.3 stay rejected.
+//! - Feed: F in units per minute (G94, the default); G93 inverse time: every G1, G2 and
+//!   G3 needs its own F on its line and takes 1/F minutes (feed = length · F / 60 mm/s,
+//!   arcs with their full helical length); after G93, G94 needs a new F. Rapids are not
+//!   affected.
+//! - Path control ([`Blend`]): G61 exact path (tolerance 0: corners stop, junctions that
+//!   go on in the same direction do not), G61.1 exact stop (at rest after every move),
+//!   `G64 P<tol> [Q<naive-CAM tol>]` (Q defaults to P, Q0: no merging; Q without P is an
+//!   error), G64 alone (the planner's default tolerance).
 //! - G4 P (dwell, seconds), G17/G18/G19, G20/G21 (inch input converted to mm), G90/G91,
-//!   G91.1 (the only arc-centre mode, accepted as a no-op), G92 (offset so that the current
-//!   point gets the given coordinates; values always absolute), G92.1 (clear it), G28
-//!   (rapid to [`ParseOptions::g28_position_mm`], via the intermediate point if axis words
-//!   are given, then only the named axes move home, as grbl 1.1 and LinuxCNC), G53 (machine
-//!   coordinates for that line, needs G0/G1; rejected under G91), G54 (the only work offset,
-//!   [`ParseOptions::g54_offset_mm`]), G61 (exact stop), G64 with optional P (path tolerance
-//!   in program units; without P the planner's default), F (units/min), N (ignored: messages
-//!   name the file line), M0 (pause), M2/M30 (end), `( … )` and `; …` comments, `%` lines.
+//!   N (ignored: messages name the file line), M0 (pause), M2/M30 (end), `( … )` and
+//!   `; …` comments, `%` lines.
 //! - Accepted and reported once in [`Program::ignored`] (they do not move the machine): S,
-//!   T, M3/M4/M5, M7/M8/M9, G40, G49, G80, G94. G80 also cancels the modal motion (it is in
-//!   the motion group), so bare axis words after it are rejected, not guessed.
+//!   T, M3/M4/M5, M7/M8/M9, G40, G80. G80 also cancels the modal motion (it is in the
+//!   motion group), so bare axis words after it are rejected, not guessed.
 //! - Everything else is `FILE:LINE: <what> is not supported`: O-words, parameters `#…`,
 //!   expressions `[…]`, block delete `/` (running or skipping the line would depend on an
 //!   operator switch the gantry does not have), canned cycles (G73, G76, G81–G89, G98/G99),
-//!   G33, G38.x, G10, G28.1, G30, G41/G42, G43, G55–G59, G61.1, G90.1, G93, G95, M1, M6, …,
-//!   and the letters A B C D E H L Q U V W.
+//!   G33, G38.x, G28.1, G30, G41/G42, G43.2, G92.2/G92.3, G95, M1, M6, …, and the letters A
+//!   B C D E U V W.
 //!
 //! # Errors (grbl's set, with the file line)
 //! Line longer than [`MAX_LINE_CHARS`], bad numbers, two words of one modal group on a line
-//! (`G0 G1`), a word repeated on a line, words no command on the line uses (`G0 I5`), feed
-//! moves without a feed rate, arc end points off the circle (tolerance: larger of 0.005 mm
-//! and 0.1 % of the radius, at most 0.5 mm: grbl's rule), zero-radius arcs, R arcs whose
-//! chord exceeds 2|R|. Zero-length moves (≤ [`ZERO_LENGTH_MM`]) are skipped silently.
+//! (`G0 G1`), a word repeated on a line, words no command on the line uses (`G0 I5`, `H1`
+//! without G43), two commands that would use the axis words (`G10 L2 P1 X0 G0 Y1`, `G43.1
+//! Z1 G1 X5`), feed moves without a feed rate, arc end points off the circle (tolerance:
+//! larger of 0.005 mm and 0.1 % of the radius, at most 0.5 mm: grbl's rule), zero-radius
+//! arcs, R arcs whose chord exceeds 2|R|; G10 without L or P, P outside 0–9 (L2/L20) or
+//! the tool table (L1), origins beyond ±[`MAX_WORK_OFFSET_MM`] and tools beyond
+//! [`MAX_TOOL_LENGTH_MM`] / [`MAX_TOOL_DIAMETER_MM`] (the machine's settings ranges, so a
+//! G10 can always be written back), negative radii; G43 without H or with an H not in
+//! the table, G43.1 without Z. Zero-length moves (≤ [`ZERO_LENGTH_MM`]) are skipped
+//! silently.
 //!
 //! # After M2/M30
 //! Lines after the end are still tokenized and their G/M codes classified, so a syntax
@@ -42,18 +79,26 @@
 //! report, no modal checks.
 //!
 //! # Soft limits
-//! [`check_travel`] rejects a program whose path (end points and exact arc extremes)
-//! leaves the machine's [`Travel`]; [`Travel::check_point`] does the same for a jog target.
+//! [`check_travel`] rejects a program whose path (end points and exact arc extremes, in
+//! machine coordinates: work offsets and tool length applied) leaves the machine's
+//! [`Travel`]; [`Travel::check_point`] does the same for a jog target.
 
 mod arc;
+mod codes;
 mod interp;
 mod lexer;
+pub mod offsets;
 pub mod samples;
+mod setup;
 mod travel;
 
 use std::{fmt, io::Read, path::Path};
 
-pub use arc::{arc_extent, arc_tolerance_mm, ARC_TOLERANCE_CAP_MM};
+pub use arc::{arc_extent, arc_length_mm, arc_tolerance_mm, ARC_TOLERANCE_CAP_MM};
+pub use offsets::{
+    Tool, WorkOffsets, MAX_TOOL_DIAMETER_MM, MAX_TOOL_LENGTH_MM, MAX_WORK_OFFSET_MM, WORK_SYSTEMS,
+    WORK_SYSTEM_CODES,
+};
 pub use travel::{check_travel, Travel, TravelError, TravelViolation, TRAVEL_SLACK_MM};
 
 /// Longest accepted line, in characters without the line end (grblHAL's buffer is 256).
@@ -109,15 +154,24 @@ impl Plane {
     }
 }
 
-/// Path control mode (G61/G64) in force for the moves that follow.
+/// Path control mode (G61/G61.1/G64) in force for the moves that follow (LinuxCNC's
+/// trajectory control).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Blend {
-    /// G61: stop exactly at every programmed point.
+    /// G61.1: exact stop, the machine comes to rest at the end of every move.
     ExactStop,
-    /// G64 P: corners may be blended within this distance of the programmed path (mm).
+    /// G61: exact path, every programmed point is reached exactly (path tolerance 0); a
+    /// junction between moves that continue in the same direction (collinear lines, a
+    /// line tangent to an arc) is passed without stopping.
+    ExactPath,
+    /// G64 P Q: corners may be blended within `mm` of the programmed path.
     Tolerance {
-        /// Path tolerance (mm), ≥ 0.
+        /// Path tolerance P (mm), ≥ 0.
         mm: f64,
+        /// Naive-CAM tolerance Q (mm), ≥ 0: runs of short feed moves at one feed that are
+        /// within it of collinear may be merged into one (0: no merging). Without Q,
+        /// LinuxCNC takes P.
+        naive_cam_mm: f64,
     },
     /// G64 without P: the planner's configured default tolerance.
     MachineDefault,
@@ -167,7 +221,7 @@ pub enum MoveKind {
     },
     /// M0: stop and wait for the operator to resume.
     Pause,
-    /// G61/G64: path control for the moves that follow (emitted when it changes).
+    /// G61/G61.1/G64: path control for the moves that follow (emitted when it changes).
     SetBlend(Blend),
 }
 
@@ -188,6 +242,26 @@ impl Move {
         match self.kind {
             MoveKind::Rapid { to } | MoveKind::Line { to, .. } | MoveKind::Arc { to, .. } => to,
             _ => self.from,
+        }
+    }
+
+    /// Length of the path of this move (mm; 0 for dwell, pause, blend changes): the chord
+    /// of a straight move, the full (helical, multi-turn) length of an arc
+    /// ([`arc_length_mm`]).
+    pub fn length_mm(&self) -> f64 {
+        match self.kind {
+            MoveKind::Rapid { to } | MoveKind::Line { to, .. } => (0..3)
+                .map(|a| (to[a] - self.from[a]).powi(2))
+                .sum::<f64>()
+                .sqrt(),
+            MoveKind::Arc {
+                to,
+                center,
+                plane,
+                sweep_rad,
+                ..
+            } => arc_length_mm(self.from, to, center, plane, sweep_rad),
+            _ => 0.0,
         }
     }
 
@@ -236,6 +310,46 @@ pub struct Program {
     pub bounds_mm: [[f64; 2]; 3],
     /// Line of the M2/M30 that ended the program, if any.
     pub end_line: Option<u32>,
+    /// The work coordinate systems' origins as the program leaves them: the
+    /// [`ParseOptions::work_offsets_mm`] it was given with its G10 L2 / L20 applied. The
+    /// caller writes back what differs (LinuxCNC keeps G10 changes for the next program).
+    pub work_offsets_mm: WorkOffsets,
+    /// The tool table as the program leaves it: [`ParseOptions::tools`] with its G10 L1
+    /// applied.
+    pub tools: Vec<Tool>,
+}
+
+impl Program {
+    /// The work offsets this program changed with G10 relative to `options` (what it was
+    /// parsed with): `(system, axis, mm)`, system 0 = G54, axis 0 = X.
+    pub fn work_offset_changes(&self, options: &ParseOptions) -> Vec<(usize, usize, f64)> {
+        let mut out = Vec::new();
+        for (s, (new, old)) in self
+            .work_offsets_mm
+            .iter()
+            .zip(&options.work_offsets_mm)
+            .enumerate()
+        {
+            for a in 0..3 {
+                if new[a].to_bits() != old[a].to_bits() {
+                    out.push((s, a, new[a]));
+                }
+            }
+        }
+        out
+    }
+
+    /// The tools this program changed with G10 L1 relative to `options`: `(tool number,
+    /// entry)`, numbered from 1.
+    pub fn tool_changes(&self, options: &ParseOptions) -> Vec<(usize, Tool)> {
+        self.tools
+            .iter()
+            .zip(&options.tools)
+            .enumerate()
+            .filter(|(_, (new, old))| new != old)
+            .map(|(i, (new, _))| (i + 1, *new))
+            .collect()
+    }
 }
 
 /// Machine context for interpreting a program.
@@ -243,8 +357,13 @@ pub struct Program {
 pub struct ParseOptions {
     /// Machine position when the program starts (mm): origin of G91 moves and G92.
     pub start_mm: [f64; 3],
-    /// G54 work offset: machine position of the work origin (mm). Default 0.
-    pub g54_offset_mm: [f64; 3],
+    /// Origins of the work coordinate systems G54 .. G59.3 in machine coordinates (mm),
+    /// `[system][axis]` (the machine's `work.<cs>.*_mm` settings). A program starts in
+    /// G54. Default: all at machine zero (so G54 is machine coordinates, as before).
+    pub work_offsets_mm: WorkOffsets,
+    /// The tool table, tool `n` at index `n − 1` (the machine's `tool.<n>.*` settings):
+    /// `G43 H<n>` takes its length. Default: empty (`G43 H<n>` with n ≥ 1 is an error).
+    pub tools: Vec<Tool>,
     /// Where G28 goes, in machine coordinates (mm). Default 0: machine zero (home).
     pub g28_position_mm: [f64; 3],
     /// Absolute part of the arc end-point tolerance (mm); grbl: 0.005 mm.
@@ -257,7 +376,8 @@ impl Default for ParseOptions {
     fn default() -> Self {
         Self {
             start_mm: [0.0; 3],
-            g54_offset_mm: [0.0; 3],
+            work_offsets_mm: [[0.0; 3]; WORK_SYSTEMS],
+            tools: Vec::new(),
             g28_position_mm: [0.0; 3],
             arc_tolerance_mm: 0.005,
             arc_tolerance_rel: 0.001,
@@ -269,13 +389,32 @@ impl ParseOptions {
     fn validate(&self) -> Result<(), String> {
         let vectors = [
             ("start_mm", self.start_mm),
-            ("g54_offset_mm", self.g54_offset_mm),
             ("g28_position_mm", self.g28_position_mm),
         ];
         for (name, v) in vectors {
             if !v.iter().all(|x| x.abs() <= MAX_WORD_MAGNITUDE) {
                 return Err(format!(
                     "option {name} must be finite and at most {MAX_WORD_MAGNITUDE:e} mm in magnitude, got {v:?}"
+                ));
+            }
+        }
+        for (code, v) in WORK_SYSTEM_CODES.iter().zip(&self.work_offsets_mm) {
+            if !v.iter().all(|x| x.abs() <= MAX_WORK_OFFSET_MM) {
+                return Err(format!(
+                    "option work_offsets_mm: the {code} origin must be finite and within \
+                     ±{MAX_WORK_OFFSET_MM} mm, got {v:?}"
+                ));
+            }
+        }
+        for (i, t) in self.tools.iter().enumerate() {
+            if !(t.length_mm.abs() <= MAX_TOOL_LENGTH_MM
+                && t.diameter_mm >= 0.0
+                && t.diameter_mm <= MAX_TOOL_DIAMETER_MM)
+            {
+                return Err(format!(
+                    "option tools: tool {} must have a finite length within ±{MAX_TOOL_LENGTH_MM} mm \
+                     and a diameter in [0, {MAX_TOOL_DIAMETER_MM}] mm, got {t:?}",
+                    i + 1
                 ));
             }
         }
@@ -353,7 +492,7 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {}
 
 /// Parses a program held in memory with default [`ParseOptions`] (start at machine zero,
-/// G54 offset 0). `name` is used in messages.
+/// every work offset 0, no tools). `name` is used in messages.
 pub fn parse_str(name: &str, text: &str) -> Result<Program, Error> {
     parse_str_with(name, text, &ParseOptions::default())
 }

@@ -23,7 +23,7 @@ use controller_core::motion::planner::{
     Blend, MotionPlanner, PathSample, Plane, PlannerConfig, Segment,
 };
 use controller_core::servo::{Command, ServoState};
-use controller_core::settings::FACTORY;
+use controller_core::settings::{Settings, FACTORY, TOOL_COUNT};
 use controller_core::sim::run::{RunConfig, SimRun};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -96,6 +96,10 @@ pub struct GcodeReport {
     pub fault: Option<String>,
     /// Machine time over compute time of the simulation (> 1: faster than real time).
     pub realtime_ratio: f64,
+    /// Settings the run wrote back to the machine (`gantry run`: the work offsets and tools
+    /// the program's G10 changed), `(key, value)`; not part of the JSON.
+    #[serde(skip)]
+    pub settings_written: Vec<(String, String)>,
     #[serde(skip)]
     pub trace: Trace,
 }
@@ -141,6 +145,7 @@ impl GcodeReport {
             ignored: Vec::new(),
             fault: None,
             realtime_ratio: 0.0,
+            settings_written: Vec::new(),
             trace: Trace::default(),
         }
     }
@@ -194,8 +199,15 @@ pub fn segments(program: &Program) -> Vec<Segment> {
             MoveKind::Pause => Segment::dwell(0.0, tag),
             MoveKind::SetBlend(b) => {
                 blend = match b {
+                    // G61.1: the machine comes to rest at the end of every move
                     gcode::Blend::ExactStop => Blend::ExactStop,
-                    gcode::Blend::Tolerance { mm } => Blend::Tolerance(mm as f32),
+                    // G61: every programmed point exactly; with a tolerance of 0 the planner
+                    // stops at corners and passes smooth junctions (collinear lines, a line
+                    // tangent to an arc) without stopping, as LinuxCNC's exact path
+                    gcode::Blend::ExactPath => Blend::Tolerance(0.0),
+                    // (the naive-CAM tolerance Q is the path compressor's; the planner blends
+                    // within P)
+                    gcode::Blend::Tolerance { mm, .. } => Blend::Tolerance(mm as f32),
                     gcode::Blend::MachineDefault => Blend::Default,
                 };
                 continue;
@@ -289,24 +301,9 @@ fn distance(p: [f64; 3], m: &gcode::Move) -> Option<f64> {
     }
 }
 
-/// Length of the path of move `m`, mm.
+/// Length of the path of move `m`, mm ([`gcode::Move::length_mm`]).
 pub fn length(m: &gcode::Move) -> f64 {
-    match m.kind {
-        MoveKind::Rapid { to } | MoveKind::Line { to, .. } => norm(sub(to, m.from)),
-        MoveKind::Arc {
-            to,
-            center,
-            plane,
-            sweep_rad,
-            ..
-        } => {
-            let [i1, i2, n] = plane.axes();
-            let r0 = (m.from[i1] - center[i1]).hypot(m.from[i2] - center[i2]);
-            let r1 = (to[i1] - center[i1]).hypot(to[i2] - center[i2]);
-            (0.5 * (r0 + r1) * sweep_rad).hypot(to[n] - m.from[n])
-        }
-        _ => 0.0,
-    }
+    m.length_mm()
 }
 
 /// Distance from `p` to the programmed path near move `tag`.
@@ -471,6 +468,7 @@ impl<'a> PathMetrics<'a> {
             ignored: program.ignored.iter().map(|w| w.word.clone()).collect(),
             fault,
             realtime_ratio,
+            settings_written: Vec::new(),
             trace: self.trace,
         }
     }
@@ -535,17 +533,42 @@ pub fn travel_of(cfg: &RunConfig) -> Result<Travel> {
     Travel::new(t).map_err(|e| anyhow!("the machine's travel: {e}"))
 }
 
-/// Parse and check `program` from `start_mm` (nothing runs).
+/// The interpreter's machine context from a machine's `settings`: its work coordinate
+/// systems and tool table (each value as the decimal it was written as), the program
+/// starting at `start_mm`.
+pub fn parse_options(settings: &Settings, start_mm: [f64; 3]) -> ParseOptions {
+    ParseOptions {
+        start_mm,
+        work_offsets_mm: settings.work.to_array().map(|w| w.map(decimal)),
+        tools: (1..=TOOL_COUNT)
+            .filter_map(|n| settings.tool.get(n))
+            .map(|t| gcode::Tool {
+                length_mm: decimal(t.length_mm),
+                diameter_mm: decimal(t.diameter_mm),
+            })
+            .collect(),
+        ..ParseOptions::default()
+    }
+}
+
+/// Parse and check `program` from `start_mm` with the factory settings' work offsets and
+/// tool table (nothing runs).
 pub fn load_program(
     path: &Path,
     start_mm: [f64; 3],
     travel: &Travel,
 ) -> Result<Program, gcode::Error> {
-    let opts = ParseOptions {
-        start_mm,
-        ..ParseOptions::default()
-    };
-    let p = gcode::parse_file_with(path, &opts)?;
+    load_program_with(path, &parse_options(&FACTORY, start_mm), travel)
+}
+
+/// Parse `program` in the machine context `options` and check it against the travel in
+/// machine coordinates (work offsets and tool length applied; nothing runs).
+pub fn load_program_with(
+    path: &Path,
+    options: &ParseOptions,
+    travel: &Travel,
+) -> Result<Program, gcode::Error> {
+    let p = gcode::parse_file_with(path, options)?;
     check_travel(&p, travel)?;
     Ok(p)
 }
@@ -777,6 +800,14 @@ pub fn table(r: &GcodeReport) -> String {
     }
     if !r.ignored.is_empty() {
         let _ = writeln!(s, "  ignored words: {}", r.ignored.join(", "));
+    }
+    if !r.settings_written.is_empty() {
+        let written: Vec<String> = r
+            .settings_written
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect();
+        let _ = writeln!(s, "  settings written (G10): {}", written.join(", "));
     }
     let _ = writeln!(
         s,

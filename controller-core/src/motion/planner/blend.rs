@@ -94,6 +94,12 @@ impl Junction {
         dev: 0.0,
     };
 
+    /// The machine comes to rest at the junction, whatever its geometry.
+    pub const STOP: Junction = Junction {
+        stop: true,
+        ..Junction::NONE
+    };
+
     /// Correction jet at `x = σ − σ_k` (clamped to `[−d, d]`) for the incoming piece `a`
     /// and outgoing piece `b`. Whether the transition is active at a span end is the
     /// caller's decision (one-sided at breakpoints); `right` selects the side at `x = 0`,
@@ -265,10 +271,7 @@ pub(crate) fn plan_junction(
 }
 
 fn stop() -> Junction {
-    Junction {
-        stop: true,
-        ..Junction::NONE
-    }
+    Junction::STOP
 }
 
 #[cfg(test)]

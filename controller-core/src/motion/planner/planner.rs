@@ -382,15 +382,22 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             let last_id = self.front_piece_id + self.pieces.len() as u32 - 1;
             if let Some(last) = self.pieces.back_mut() {
                 let free = last.piece.len - last.cursor;
-                let j = plan_junction(
-                    &last.piece,
-                    &prep.piece(0),
-                    last.attr.tol_after,
-                    &last.j_in,
-                    free,
-                    FIT_TOL_MM,
-                    self.set.min_span_mm(),
-                );
+                // An exact stop (G61.1) ends its segment at rest even where the next one
+                // continues in the same direction: `plan_junction` passes smooth junctions
+                // in every mode, which is right between the pieces of one segment.
+                let j = if last.attr.tol_after.is_none() {
+                    Junction::STOP
+                } else {
+                    plan_junction(
+                        &last.piece,
+                        &prep.piece(0),
+                        last.attr.tol_after,
+                        &last.j_in,
+                        free,
+                        FIT_TOL_MM,
+                        self.set.min_span_mm(),
+                    )
+                };
                 last.j_out = j;
                 last.closed = true;
                 j_in = j;

@@ -37,9 +37,10 @@ pub enum Feed {
 pub enum Blend {
     /// G64 without P: blend within the configured `tolerance_mm`.
     Default,
-    /// G64 P<ε>: blend within ε mm of the programmed path (0 = stop at corners).
+    /// G64 P<ε>: blend within ε mm of the programmed path (0 = stop at corners, pass
+    /// smooth junctions: G61, exact path).
     Tolerance(f32),
-    /// G61: stop exactly at the end of the segment.
+    /// G61.1 (exact stop): stop exactly at the end of the segment.
     ExactStop,
 }
 

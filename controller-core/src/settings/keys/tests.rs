@@ -12,14 +12,14 @@ use crate::config::ConfigError;
 use crate::law::LawConfig;
 use crate::presets::board::BOARD_RATE_HZ;
 use crate::presets::gantry::{dsmc_for, tuning_for, GANTRY_X, GANTRY_Y};
-use crate::settings::FACTORY;
+use crate::settings::{FACTORY, TOOL_COUNT, WORK_SYSTEMS};
 use crate::sysid::tuning;
 use crate::sysid::AxisModel;
 
 const RATE: u32 = BOARD_RATE_HZ;
 
-/// Number of keys: 34 per axis, 10 others.
-const KEY_COUNT: usize = 34 * 3 + 11;
+/// Number of keys: 34 per axis, 11 others, 3 per work coordinate system, 2 per tool.
+const KEY_COUNT: usize = 34 * 3 + 11 + 3 * WORK_SYSTEMS + 2 * TOOL_COUNT;
 
 /// The factory tree with every axis' model known (so every key has a value).
 fn with_models() -> Settings {
@@ -558,6 +558,114 @@ fn change_classes() {
             k.name
         );
     }
+}
+
+#[test]
+fn work_offsets_and_tools_are_keys_taken_at_any_time() {
+    assert_eq!(KEY_COUNT, 156);
+    let names: Vec<&str> = keys().map(|k| k.name).collect();
+    // the tables come last, row by row: G54's three coordinates, ..., then the tools
+    let work = names.iter().position(|n| *n == "work.g54.x_mm").unwrap();
+    assert_eq!(
+        names[work..work + 6],
+        [
+            "work.g54.x_mm",
+            "work.g54.y_mm",
+            "work.g54.z_mm",
+            "work.g55.x_mm",
+            "work.g55.y_mm",
+            "work.g55.z_mm"
+        ]
+    );
+    assert_eq!(names[work + 26], "work.g59_3.z_mm");
+    assert_eq!(
+        names[work + 27..],
+        [
+            "tool.1.length_mm",
+            "tool.1.diameter_mm",
+            "tool.2.length_mm",
+            "tool.2.diameter_mm",
+            "tool.3.length_mm",
+            "tool.3.diameter_mm",
+            "tool.4.length_mm",
+            "tool.4.diameter_mm",
+            "tool.5.length_mm",
+            "tool.5.diameter_mm",
+            "tool.6.length_mm",
+            "tool.6.diameter_mm",
+            "tool.7.length_mm",
+            "tool.7.diameter_mm",
+            "tool.8.length_mm",
+            "tool.8.diameter_mm"
+        ]
+    );
+    for k in keys().filter(|k| k.name.starts_with("work.") || k.name.starts_with("tool.")) {
+        assert_eq!((k.apply, k.unit), (Apply::Anytime, "mm"), "{}", k.name);
+        assert_eq!(k.axis(), None);
+    }
+    assert_eq!(
+        find("work.g55.x_mm").map(|k| k.range),
+        Ok(Range::F32 {
+            min: -10_000.0,
+            max: 10_000.0
+        })
+    );
+    assert_eq!(
+        find("tool.8.length_mm").map(|k| k.range),
+        Ok(Range::F32 {
+            min: -1_000.0,
+            max: 1_000.0
+        })
+    );
+    assert_eq!(
+        find("tool.1.diameter_mm").map(|k| k.range),
+        Ok(Range::F32 {
+            min: 0.0,
+            max: 1_000.0
+        })
+    );
+    assert!(find("tool.0.length_mm").is_err() && find("tool.9.length_mm").is_err());
+    assert!(find("work.g59_4.x_mm").is_err() && find("work.g53.x_mm").is_err());
+
+    // set through the keys, read back from the tree's fields
+    let mut s = FACTORY;
+    s.set_text("work.g55.x_mm", "120.5", RATE).unwrap();
+    s.set_text("work.g59_3.z_mm", "-42.25", RATE).unwrap();
+    s.set_text("tool.3.length_mm", "37.5", RATE).unwrap();
+    s.set_text("tool.8.diameter_mm", "6", RATE).unwrap();
+    assert_eq!(s.work.g55.to_array(), [120.5, 0.0, 0.0]);
+    assert_eq!(s.work.g59_3.to_array(), [0.0, 0.0, -42.25]);
+    assert_eq!(s.work.to_array()[1], [120.5, 0.0, 0.0]);
+    assert_eq!((s.tool.t3.length_mm, s.tool.t3.diameter_mm), (37.5, 0.0));
+    assert_eq!(s.tool.t8.diameter_mm, 6.0);
+    assert_eq!(s.get("tool.3.length_mm"), Ok(Value::F32(37.5)));
+    // out of range: named, nothing changed
+    let before = s;
+    assert_eq!(
+        s.set_text("work.g54.y_mm", "20000", RATE)
+            .unwrap_err()
+            .to_string(),
+        "work.g54.y_mm: 20000 is outside the allowed range [-10000, 10000] mm"
+    );
+    assert_eq!(
+        s.set_text("tool.2.diameter_mm", "-1", RATE)
+            .unwrap_err()
+            .to_string(),
+        "tool.2.diameter_mm: -1 is outside the allowed range [0, 1000] mm"
+    );
+    assert!(s
+        .set("tool.2.length_mm", Value::F32(f32::NAN), RATE)
+        .is_err());
+    assert_eq!(s, before);
+    // no servo parameter changes: the machine takes it without a reconfiguration, armed
+    // or moving (the supervisor applies class None at once)
+    assert_eq!(FACTORY.change_class(&s), None);
+    let mut both = s;
+    both.set_text("axis.x.jog.speed_max_mm_s", "20", RATE)
+        .unwrap();
+    assert_eq!(FACTORY.change_class(&both), Some(Apply::Live));
+    // the servo configuration does not depend on them
+    assert_eq!(s.servo_config(RATE), FACTORY.servo_config(RATE));
 }
 
 #[test]
