@@ -85,6 +85,7 @@
 
 mod arc;
 mod codes;
+pub mod compress;
 mod interp;
 mod lexer;
 pub mod offsets;
