@@ -289,7 +289,7 @@ pub fn run_program<T: Transport>(
         if aborted {
             break;
         }
-        c.send(Request::Segment(*seg))?;
+        c.send(Request::Segment(seg.seg))?;
         c.pump()?;
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed.as_ref(), &mut aborted)?;

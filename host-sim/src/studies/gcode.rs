@@ -27,6 +27,7 @@ use controller_core::settings::FACTORY;
 use controller_core::sim::run::{RunConfig, SimRun};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
@@ -162,9 +163,20 @@ fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
 }
 
-/// The planner segments of `program`, tagged with the index of their move; `None` for a
-/// move that only changes the blend mode.
-pub fn segments(program: &Program) -> Vec<Segment> {
+/// One planner segment and the program moves it covers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanSegment {
+    /// What the planner gets; its `tag` is the index of the first move it covers (so
+    /// `program.moves[tag].line` is its G-code line).
+    pub seg: Segment,
+    /// Indices into `program.moves` of the moves the segment covers.
+    pub moves: Range<usize>,
+}
+
+/// The planner segments of `program`: the one place that maps program moves to planner
+/// segments. Today each covers exactly its one move (`i..i + 1`); blend changes (SetBlend)
+/// are covered by none.
+pub fn segments(program: &Program) -> Vec<PlanSegment> {
     let mut blend = Blend::Default;
     let mut out = Vec::with_capacity(program.moves.len());
     for (i, m) in program.moves.iter().enumerate() {
@@ -195,7 +207,7 @@ pub fn segments(program: &Program) -> Vec<Segment> {
             MoveKind::SetBlend(b) => {
                 blend = match b {
                     gcode::Blend::ExactStop => Blend::ExactStop,
-                    gcode::Blend::Tolerance { mm } => Blend::Tolerance(mm as f32),
+                    gcode::Blend::Tolerance { mm, .. } => Blend::Tolerance(mm as f32),
                     gcode::Blend::MachineDefault => Blend::Default,
                 };
                 continue;
@@ -205,7 +217,10 @@ pub fn segments(program: &Program) -> Vec<Segment> {
             controller_core::motion::planner::Motion::Dwell { .. } => seg,
             _ => seg.with_blend(blend),
         };
-        out.push(seg);
+        out.push(PlanSegment {
+            seg,
+            moves: i..i + 1,
+        });
     }
     out
 }
@@ -656,10 +671,10 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     let mut rest = 0u32;
     loop {
         while next < segs.len() && mp.free_slots() > 0 {
-            mp.push(&segs[next]).map_err(|e| {
+            mp.push(&segs[next].seg).map_err(|e| {
                 let line = program
                     .moves
-                    .get(segs[next].tag as usize)
+                    .get(segs[next].moves.start)
                     .map_or(0, |m| m.line);
                 anyhow!("{name}:{line}: the planner rejected the move: {e:?}")
             })?;
@@ -784,4 +799,38 @@ pub fn table(r: &GcodeReport) -> String {
         r.realtime_ratio
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segments_cover_the_motion_moves_in_order_and_are_tagged_with_their_first() {
+        let p = gcode::parse_str(
+            "s.nc",
+            "G21 G90 G61\nG0 X10\nG64 P0.02\nG1 X20 F600\nG4 P0.5\nG3 X20 Y0 I-5 J0\nM0\nG1 Y5\n",
+        )
+        .unwrap();
+        let segs = segments(&p);
+        let mut covered = vec![0u32; p.moves.len()];
+        let mut end = 0;
+        for s in &segs {
+            assert_eq!(s.seg.tag as usize, s.moves.start);
+            assert!(s.moves.start >= end && s.moves.end > s.moves.start);
+            end = s.moves.end;
+            for k in s.moves.clone() {
+                covered[k] += 1;
+            }
+        }
+        for (m, n) in p.moves.iter().zip(&covered) {
+            let want = u32::from(!matches!(m.kind, MoveKind::SetBlend(_)));
+            assert_eq!(*n, want, "{m:?}");
+        }
+        // today one segment per move; the G1 under G64 P0.02 carries its tolerance
+        assert_eq!(segs.len(), 6);
+        assert!(segs.iter().all(|s| s.moves.len() == 1));
+        assert_eq!(segs[1].seg.blend, Blend::Tolerance(0.02));
+        assert_eq!(segs[0].seg.blend, Blend::ExactStop);
+    }
 }
