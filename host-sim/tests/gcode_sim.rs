@@ -1,6 +1,7 @@
 //! `host-sim gcode` end to end on the shipped programs: the planner and the servo step on
 //! the simulated gantry, measured against the programmed path.
 
+use host_sim::studies::gcode::tolerance::TOLERANCE_SLACK_MM;
 use host_sim::studies::gcode::{run, GcodeReport};
 use std::path::{Path, PathBuf};
 
@@ -46,6 +47,11 @@ fn square_stops_exactly_at_its_corners_and_the_tool_stays_on_the_path() {
     assert!(r.contour_max_mm < 0.02, "{}", r.contour_max_mm);
     assert!(r.contour_rms_mm < 0.003, "{}", r.contour_rms_mm);
     assert!(r.feed_ratio_mean > 0.9, "{}", r.feed_ratio_mean);
+    // G61 throughout: the program's tolerance is 0, and it holds
+    assert_eq!(r.tolerances_mm, vec![0.0]);
+    assert_eq!(r.tolerance_mm, 0.0);
+    assert_eq!(r.tolerance_default_mm, 0.01);
+    assert_eq!(r.tolerance_violations, 0);
     within_limits(&r);
 }
 
@@ -88,4 +94,77 @@ fn rejected_programs_run_nothing_and_name_the_line() {
         e.message
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Runs `text` as a program file of its own.
+fn run_text(name: &str, text: &str) -> GcodeReport {
+    let dir = std::env::temp_dir().join(format!("gcode_sim_{}_{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join(format!("{name}.nc"));
+    std::fs::write(&file, text).unwrap();
+    let r = run(&file, None, false).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(r.status, "completed", "{name}: {:?}", r.error);
+    r
+}
+
+#[test]
+fn a_steep_helix_within_its_tolerance_reads_no_violation() {
+    // 0.86 mm radius, 85 mm of lead: the nearest point of a point beside the path is far
+    // from its planar angle (the old per-angle distance read 0.037 mm here)
+    let r = run_text(
+        "steep",
+        "G21 G90 G64 P0.01\nG0 X0.86 Y0 Z42\nG1 Z41 F600\nG3 X0.86 Y0 Z-43 I-0.86 J0 F1200\nG1 X0 Y0 Z-44\nM30\n",
+    );
+    assert_eq!(
+        r.tolerance_violations, 0,
+        "lines {:?}, by {} mm",
+        r.tolerance_violation_lines, r.tolerance_violation_max_mm
+    );
+    assert!(
+        r.corner_deviation_max_mm <= 0.01 + TOLERANCE_SLACK_MM,
+        "{}",
+        r.corner_deviation_max_mm
+    );
+    assert!(r.contour_max_mm < 0.02, "{}", r.contour_max_mm);
+}
+
+#[test]
+fn g64_p005_and_g61_parts_each_keep_their_own_tolerance() {
+    let r = run_text(
+        "mixed",
+        "G21 G90 G61\nG0 X-40 Y-40 Z2\nG1 Z-1 F600\nG1 X40 F3000\nG1 Y40\nG64 P0.05\nG1 X-40\n\
+         G1 Y-20\nG2 X-20 Y0 I20 J0\nG1 X20 Y10\nG61\nG1 X30 Y-30\nG1 X-40 Y-40\nG0 Z2\nM30\n",
+    );
+    assert_eq!(r.tolerances_mm, vec![0.0, 0.05]);
+    assert_eq!(r.tolerance_mm, 0.0);
+    assert_eq!(
+        r.tolerance_violations, 0,
+        "lines {:?}, by {} mm",
+        r.tolerance_violation_lines, r.tolerance_violation_max_mm
+    );
+    // the P0.05 corners use their tolerance, not the default's 0.01
+    assert!(
+        r.corner_deviation_max_mm > 0.02 && r.corner_deviation_max_mm <= 0.05 + TOLERANCE_SLACK_MM,
+        "{}",
+        r.corner_deviation_max_mm
+    );
+}
+
+#[test]
+fn the_feed_ratio_of_a_feed_far_above_the_axes_is_near_1_on_a_long_line() {
+    // F600000 = 10 m/s, 40 times what X allows (the programmed feed would give 0.02)
+    let r = run_text(
+        "fast",
+        "G21 G90 G61\nG0 X-140 Y0 Z0\nG1 X140 F600000\nM30\n",
+    );
+    assert!(
+        r.feed_ratio_mean > 0.8 && r.feed_ratio_mean < 1.001,
+        "{}",
+        r.feed_ratio_mean
+    );
+    // cruising at the axis' 250 mm/s reads 1
+    let top = r.trace.feed_ratio.iter().copied().fold(0.0, f64::max);
+    assert!((top - 1.0).abs() < 0.002, "{top}");
+    within_limits(&r);
 }

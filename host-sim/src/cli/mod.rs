@@ -327,7 +327,7 @@ pub fn run_program<T: Transport>(
     let compute_s = started.elapsed().as_secs_f64();
 
     // figures from telemetry: every sample in Run (a jerk only between consecutive ones)
-    let mut metrics = PathMetrics::new(&program, limits, 1.5 * telemetry_period_s);
+    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s);
     for t in samples
         .iter()
         .filter(|t| matches!(t.state, MachineState::Run { .. }))
@@ -339,7 +339,6 @@ pub fn run_program<T: Transport>(
             vel_mm_s: t.ref_vel_mm_s.map(f64::from),
             acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
             actual_mm: t.pos_mm.map(f64::from),
-            feed_ratio: f64::from(t.feed_ratio),
             along_mm: 0.0,
         };
         metrics.add(&sample, true, true);
@@ -350,15 +349,7 @@ pub fn run_program<T: Transport>(
     } else {
         0.0
     };
-    let mut report = metrics.report(
-        &program,
-        segs.len(),
-        duration_s,
-        limits,
-        tol,
-        fault,
-        realtime,
-    );
+    let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
     if aborted && report.status == "completed" {
         report.status = "aborted".into();
     }
