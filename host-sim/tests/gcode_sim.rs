@@ -127,6 +127,12 @@ fn a_steep_helix_within_its_tolerance_reads_no_violation() {
         r.corner_deviation_max_mm
     );
     assert!(r.contour_max_mm < 0.02, "{}", r.contour_max_mm);
+    assert!(
+        r.time_bound_s <= r.duration_s,
+        "{} > {}",
+        r.time_bound_s,
+        r.duration_s
+    );
 }
 
 #[test]
@@ -149,6 +155,12 @@ fn g64_p005_and_g61_parts_each_keep_their_own_tolerance() {
         "{}",
         r.corner_deviation_max_mm
     );
+    assert!(
+        r.time_bound_s <= r.duration_s,
+        "{} > {}",
+        r.time_bound_s,
+        r.duration_s
+    );
 }
 
 #[test]
@@ -167,4 +179,44 @@ fn the_feed_ratio_of_a_feed_far_above_the_axes_is_near_1_on_a_long_line() {
     let top = r.trace.feed_ratio.iter().copied().fold(0.0, f64::max);
     assert!((top - 1.0).abs() < 0.002, "{top}");
     within_limits(&r);
+}
+
+#[test]
+fn no_run_beats_its_time_bound() {
+    for name in ["square.nc", "arcs.nc", "helix.nc", "dense_contour.nc"] {
+        let r = run(&program(name), None, false).unwrap();
+        assert_eq!(r.status, "completed");
+        assert_eq!(
+            r.tolerance_violations, 0,
+            "{name}: lines {:?}, by {} mm",
+            r.tolerance_violation_lines, r.tolerance_violation_max_mm
+        );
+        assert!(
+            r.time_bound_s > 0.0 && r.time_bound_s <= r.duration_s,
+            "{name}: bound {} s, run {} s",
+            r.time_bound_s,
+            r.duration_s
+        );
+        // the planner is within a factor of 2 of any planner on these
+        assert!(
+            r.time_ratio_to_bound < 2.0,
+            "{name}: {}",
+            r.time_ratio_to_bound
+        );
+    }
+    // a circle of 10,000 chords of radius 25.4 mm: a planner could cruise near
+    // √(2000·25.4) = 225 mm/s; this one takes 14.5 times the bound (the 4-decimal
+    // rounding turns each 0.016 mm chord by up to 9 mrad: docs/planner.md §3)
+    let mut text = String::from("G21 G90 G61\nG0 X25.4 Y0\nG64\nF30000\n");
+    for k in 1..=10_000 {
+        let a = std::f64::consts::TAU * k as f64 / 10_000.0;
+        text += &format!("G1 X{:.4} Y{:.4}\n", 25.4 * a.cos(), 25.4 * a.sin());
+    }
+    let r = run_text("circle", &text);
+    assert!(
+        r.time_bound_s > 0.9 && r.time_bound_s <= r.duration_s,
+        "{} vs {}",
+        r.time_bound_s,
+        r.duration_s
+    );
 }

@@ -11,15 +11,18 @@
 //! Figures: the executed reference against the programmed path (corner deviation: the
 //! planner's blending) and against the tolerance in force at each move (violations), the
 //! true (simulated) tool position against the programmed path (contour error), the
-//! planned per-axis velocity, acceleration and jerk against the planner's limits, and the
-//! feed reached on feed moves over the achievable one.
+//! planned per-axis velocity, acceleration and jerk against the planner's limits, the feed
+//! reached on feed moves over the achievable one, and the machine time over a lower bound
+//! no planner within the limits can beat.
 //!
 //! Modules: [`distance`] (exact distance to a move's path), [`cursor`] (the search over the
 //! moves near the tool), [`tolerance`] (the tolerance in force at each move), [`directions`]
-//! (axis limits along a direction) and [`metrics`] (the figures, sample by sample).
+//! (axis limits along a direction), [`metrics`] (the figures, sample by sample) and
+//! [`bound`] (the lower bound of the machine time).
 //!
 //! [`Servo::set_planner_reference`]: controller_core::servo::Servo::set_planner_reference
 
+pub mod bound;
 pub mod cursor;
 pub mod directions;
 pub mod distance;
@@ -116,6 +119,10 @@ pub struct GcodeReport {
     /// velocity limits projected on the programmed tangent where they allow less), over
     /// the samples whose nearest programmed point is on a feed move.
     pub feed_ratio_mean: f64,
+    /// A lower bound of the machine time no planner within the limits and tolerances can
+    /// beat ([`bound`]), s, and `duration_s` over it.
+    pub time_bound_s: f64,
+    pub time_ratio_to_bound: f64,
     /// Words accepted but ignored (`S`, `M3`, …), as reported by the parser.
     pub ignored: Vec<String>,
     /// The fault that stopped the machine (status `fault`).
@@ -169,6 +176,8 @@ impl GcodeReport {
             tolerance_violation_max_mm: 0.0,
             tolerance_violation_lines: Vec::new(),
             feed_ratio_mean: 0.0,
+            time_bound_s: 0.0,
+            time_ratio_to_bound: 0.0,
             ignored: Vec::new(),
             fault: None,
             realtime_ratio: 0.0,
@@ -522,6 +531,11 @@ pub fn table(r: &GcodeReport) -> String {
         s,
         "  {} segments, {:.1} mm of path in {:.3} s (feed ratio {:.3} of the achievable feed on feed moves)",
         r.segments, r.path_length_mm, r.duration_s, r.feed_ratio_mean
+    );
+    let _ = writeln!(
+        s,
+        "  time bound {:.3} s: the run took {:.3} times the least any planner within the limits could",
+        r.time_bound_s, r.time_ratio_to_bound
     );
     let tolerances: Vec<String> = r.tolerances_mm.iter().map(|t| t.to_string()).collect();
     let _ = writeln!(

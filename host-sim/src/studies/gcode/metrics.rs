@@ -6,8 +6,10 @@
 //! ([`PathCursor`], within the current segment's moves), the reference's deviation
 //! against the tolerance in force there ([`Tolerances`]), and its path speed over the
 //! achievable feed (the programmed feed, or less where the axes' velocity limits projected
-//! on the programmed tangent allow less).
+//! on the programmed tangent allow less). At the end, the lower bound of the machine time
+//! ([`bound::time_bound_s`]).
 
+use super::bound;
 use super::cursor::{PathCursor, ProgramPath, REACH_MARGIN_MM, REACH_TOLERANCES};
 use super::directions::projected;
 use super::distance::{self, norm};
@@ -214,6 +216,7 @@ impl<'a> PathMetrics<'a> {
         fault: Option<String>,
         realtime_ratio: f64,
     ) -> GcodeReport {
+        let bound_s = bound::time_bound_s(program, &self.tol, &limits);
         let mut lines: Vec<u32> = program
             .moves
             .iter()
@@ -255,6 +258,12 @@ impl<'a> PathMetrics<'a> {
             tolerance_violation_lines: lines,
             feed_ratio_mean: if self.feed_n > 0 {
                 self.feed_sum / self.feed_n as f64
+            } else {
+                0.0
+            },
+            time_bound_s: bound_s,
+            time_ratio_to_bound: if bound_s > 0.0 {
+                duration_s / bound_s
             } else {
                 0.0
             },
@@ -350,6 +359,8 @@ mod tests {
             r.tolerance_violation_max_mm
         );
         assert!((r.corner_deviation_max_mm - 0.06).abs() < 1e-12);
+        assert!(r.time_bound_s > 0.0);
+        assert!((r.time_ratio_to_bound - 5.0 / r.time_bound_s).abs() < 1e-12);
     }
 
     #[test]
