@@ -252,7 +252,8 @@ pub fn run_program<T: Transport>(
         return Ok(GcodeReport::rejected(&name, &e, limits, tol));
     }
     let s = ready(c, true)?;
-    let program = match load_program(path, s.pos_mm.map(f64::from), &travel) {
+    let start = planner_start_mm(c, &s)?;
+    let program = match load_program(path, start, &travel) {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
@@ -354,6 +355,21 @@ pub fn run_program<T: Transport>(
         report.status = "aborted".into();
     }
     Ok(report)
+}
+
+/// Where the machine's planner starts a program: the reference the servo holds at rest (the
+/// latest telemetry sample's, as `cargo sim gcode` takes `planner_start_mm`), not the
+/// measured position, which differs by the hold error (6 µm after homing the simulated
+/// gantry: the program's first move would start off the path the planner runs). The
+/// measured position when no telemetry at rest arrives within a poll.
+fn planner_start_mm<T: Transport>(c: &mut Client<T>, s: &Status) -> Result<[f64; 3]> {
+    c.take_telemetry();
+    c.sleep_ms(POLL_MS)?;
+    let at_rest =
+        c.take_telemetry().into_iter().rev().find(|t| {
+            t.state == MachineState::Idle && t.reference_mm.iter().all(|x| x.is_finite())
+        });
+    Ok(at_rest.map_or(s.pos_mm, |t| t.reference_mm).map(f64::from))
 }
 
 /// Move to `target_mm` at the rapid rate (a one-segment program: the planner's limits and
