@@ -71,6 +71,21 @@ fn a_program_runs_over_the_link_with_a_feed_hold_and_stays_on_the_path() {
         plain.corner_deviation_max_mm
     );
     assert_eq!(c.telemetry_gaps, 0);
+    // the figures of `cargo sim gcode`, from telemetry: G61 throughout, held exactly, and
+    // no faster than the time bound
+    assert_eq!(plain.tolerances_mm, vec![0.0]);
+    assert_eq!(
+        plain.tolerance_violations, 0,
+        "lines {:?}, by {} mm",
+        plain.tolerance_violation_lines, plain.tolerance_violation_max_mm
+    );
+    assert!(plain.feed_ratio_mean > 0.9, "{}", plain.feed_ratio_mean);
+    assert!(
+        plain.time_bound_s > 9.0 && plain.time_bound_s <= plain.duration_s,
+        "{} vs {}",
+        plain.time_bound_s,
+        plain.duration_s
+    );
 
     let mut c = connect(SimModels::Designed);
     let hold = Hold {

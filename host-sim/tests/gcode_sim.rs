@@ -3,6 +3,7 @@
 
 use controller_core::motion::planner::Blend;
 use host_sim::gcode::parse_str;
+use host_sim::studies::gcode::tolerance::TOLERANCE_SLACK_MM;
 use host_sim::studies::gcode::{run, segments, GcodeReport};
 use std::path::{Path, PathBuf};
 
@@ -48,6 +49,11 @@ fn square_stops_exactly_at_its_corners_and_the_tool_stays_on_the_path() {
     assert!(r.contour_max_mm < 0.02, "{}", r.contour_max_mm);
     assert!(r.contour_rms_mm < 0.003, "{}", r.contour_rms_mm);
     assert!(r.feed_ratio_mean > 0.9, "{}", r.feed_ratio_mean);
+    // G61 throughout: the program's tolerance is 0, and it holds
+    assert_eq!(r.tolerances_mm, vec![0.0]);
+    assert_eq!(r.tolerance_mm, 0.0);
+    assert_eq!(r.tolerance_default_mm, 0.01);
+    assert_eq!(r.tolerance_violations, 0);
     within_limits(&r);
 }
 
@@ -99,7 +105,7 @@ fn path_control_reaches_the_planner_as_linuxcnc_defines_it() {
         "G61\nG1 X10 F600\nG61.1\nX20\nG64 P0.05 Q0.1\nX30\nG64\nX40\n",
     )
     .unwrap();
-    let blends: Vec<Blend> = segments(&p).iter().map(|s| s.blend).collect();
+    let blends: Vec<Blend> = segments(&p).iter().map(|s| s.seg.blend).collect();
     // G61: tolerance 0 (corners stop, smooth junctions pass); G61.1: a stop after every
     // move; G64 P: the planner blends within P (Q is the path compressor's)
     assert_eq!(
@@ -145,4 +151,129 @@ fn exact_path_passes_collinear_junctions_and_exact_stop_stops_at_each() {
         path.duration_s
     );
     assert!(path.feed_ratio_mean > stop.feed_ratio_mean);
+}
+
+/// Runs `text` as a program file of its own.
+fn run_text(name: &str, text: &str) -> GcodeReport {
+    let dir = std::env::temp_dir().join(format!("gcode_sim_{}_{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join(format!("{name}.nc"));
+    std::fs::write(&file, text).unwrap();
+    let r = run(&file, None, false).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(r.status, "completed", "{name}: {:?}", r.error);
+    r
+}
+
+#[test]
+fn a_steep_helix_within_its_tolerance_reads_no_violation() {
+    // 0.86 mm radius, 85 mm of lead: the nearest point of a point beside the path is far
+    // from its planar angle (the old per-angle distance read 0.037 mm here)
+    let r = run_text(
+        "steep",
+        "G21 G90 G64 P0.01\nG0 X0.86 Y0 Z42\nG1 Z41 F600\nG3 X0.86 Y0 Z-43 I-0.86 J0 F1200\nG1 X0 Y0 Z-44\nM30\n",
+    );
+    assert_eq!(
+        r.tolerance_violations, 0,
+        "lines {:?}, by {} mm",
+        r.tolerance_violation_lines, r.tolerance_violation_max_mm
+    );
+    assert!(
+        r.corner_deviation_max_mm <= 0.01 + TOLERANCE_SLACK_MM,
+        "{}",
+        r.corner_deviation_max_mm
+    );
+    assert!(r.contour_max_mm < 0.02, "{}", r.contour_max_mm);
+    assert!(
+        r.time_bound_s <= r.duration_s,
+        "{} > {}",
+        r.time_bound_s,
+        r.duration_s
+    );
+}
+
+#[test]
+fn g64_p005_and_g61_parts_each_keep_their_own_tolerance() {
+    let r = run_text(
+        "mixed",
+        "G21 G90 G61\nG0 X-40 Y-40 Z2\nG1 Z-1 F600\nG1 X40 F3000\nG1 Y40\nG64 P0.05\nG1 X-40\n\
+         G1 Y-20\nG2 X-20 Y0 I20 J0\nG1 X20 Y10\nG61\nG1 X30 Y-30\nG1 X-40 Y-40\nG0 Z2\nM30\n",
+    );
+    assert_eq!(r.tolerances_mm, vec![0.0, 0.05]);
+    assert_eq!(r.tolerance_mm, 0.0);
+    assert_eq!(
+        r.tolerance_violations, 0,
+        "lines {:?}, by {} mm",
+        r.tolerance_violation_lines, r.tolerance_violation_max_mm
+    );
+    // the P0.05 corners use their tolerance, not the default's 0.01
+    assert!(
+        r.corner_deviation_max_mm > 0.02 && r.corner_deviation_max_mm <= 0.05 + TOLERANCE_SLACK_MM,
+        "{}",
+        r.corner_deviation_max_mm
+    );
+    assert!(
+        r.time_bound_s <= r.duration_s,
+        "{} > {}",
+        r.time_bound_s,
+        r.duration_s
+    );
+}
+
+#[test]
+fn the_feed_ratio_of_a_feed_far_above_the_axes_is_near_1_on_a_long_line() {
+    // F600000 = 10 m/s, 40 times what X allows (the programmed feed would give 0.02)
+    let r = run_text(
+        "fast",
+        "G21 G90 G61\nG0 X-140 Y0 Z0\nG1 X140 F600000\nM30\n",
+    );
+    assert!(
+        r.feed_ratio_mean > 0.8 && r.feed_ratio_mean < 1.001,
+        "{}",
+        r.feed_ratio_mean
+    );
+    // cruising at the axis' 250 mm/s reads 1
+    let top = r.trace.feed_ratio.iter().copied().fold(0.0, f64::max);
+    assert!((top - 1.0).abs() < 0.002, "{top}");
+    within_limits(&r);
+}
+
+#[test]
+fn no_run_beats_its_time_bound() {
+    for name in ["square.nc", "arcs.nc", "helix.nc", "dense_contour.nc"] {
+        let r = run(&program(name), None, false).unwrap();
+        assert_eq!(r.status, "completed");
+        assert_eq!(
+            r.tolerance_violations, 0,
+            "{name}: lines {:?}, by {} mm",
+            r.tolerance_violation_lines, r.tolerance_violation_max_mm
+        );
+        assert!(
+            r.time_bound_s > 0.0 && r.time_bound_s <= r.duration_s,
+            "{name}: bound {} s, run {} s",
+            r.time_bound_s,
+            r.duration_s
+        );
+        // the planner is within a factor of 2 of any planner on these
+        assert!(
+            r.time_ratio_to_bound < 2.0,
+            "{name}: {}",
+            r.time_ratio_to_bound
+        );
+    }
+    // a circle of 10,000 chords of radius 25.4 mm: a planner could cruise near
+    // √(2000·25.4) = 225 mm/s; this one takes 14.5 times the bound (the 4-decimal
+    // rounding turns each 0.016 mm chord by up to 9 mrad: docs/planner.md §3)
+    let mut text = String::from("G21 G90 G61\nG0 X25.4 Y0\nG64\nF30000\n");
+    for k in 1..=10_000 {
+        let a = std::f64::consts::TAU * k as f64 / 10_000.0;
+        text += &format!("G1 X{:.4} Y{:.4}\n", 25.4 * a.cos(), 25.4 * a.sin());
+    }
+    let r = run_text("circle", &text);
+    assert!(
+        r.time_bound_s > 0.9 && r.time_bound_s <= r.duration_s,
+        "{} vs {}",
+        r.time_bound_s,
+        r.duration_s
+    );
 }

@@ -315,7 +315,8 @@ pub fn run_program<T: Transport>(
         return Ok(GcodeReport::rejected(&name, &e, limits, tol));
     }
     let s = ready(c, true)?;
-    let opts = options(s.pos_mm.map(f64::from));
+    let start = planner_start_mm(c, &s)?;
+    let opts = options(start);
     let program = match load_program_with(path, &opts, &travel) {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
@@ -353,7 +354,7 @@ pub fn run_program<T: Transport>(
         if aborted {
             break;
         }
-        c.send(Request::Segment(*seg))?;
+        c.send(Request::Segment(seg.seg))?;
         c.pump()?;
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed.as_ref(), &mut aborted)?;
@@ -391,7 +392,7 @@ pub fn run_program<T: Transport>(
     let compute_s = started.elapsed().as_secs_f64();
 
     // figures from telemetry: every sample in Run (a jerk only between consecutive ones)
-    let mut metrics = PathMetrics::new(&program, limits, 1.5 * telemetry_period_s);
+    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s);
     for t in samples
         .iter()
         .filter(|t| matches!(t.state, MachineState::Run { .. }))
@@ -403,7 +404,6 @@ pub fn run_program<T: Transport>(
             vel_mm_s: t.ref_vel_mm_s.map(f64::from),
             acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
             actual_mm: t.pos_mm.map(f64::from),
-            feed_ratio: f64::from(t.feed_ratio),
             along_mm: 0.0,
         };
         metrics.add(&sample, true, true);
@@ -414,15 +414,7 @@ pub fn run_program<T: Transport>(
     } else {
         0.0
     };
-    let mut report = metrics.report(
-        &program,
-        segs.len(),
-        duration_s,
-        limits,
-        tol,
-        fault,
-        realtime,
-    );
+    let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
     if aborted && report.status == "completed" {
         report.status = "aborted".into();
     }
@@ -443,6 +435,21 @@ pub fn run_program<T: Transport>(
         );
     }
     Ok(report)
+}
+
+/// Where the machine's planner starts a program: the reference the servo holds at rest (the
+/// latest telemetry sample's, as `cargo sim gcode` takes `planner_start_mm`), not the
+/// measured position, which differs by the hold error (6 µm after homing the simulated
+/// gantry: the program's first move would start off the path the planner runs). The
+/// measured position when no telemetry at rest arrives within a poll.
+fn planner_start_mm<T: Transport>(c: &mut Client<T>, s: &Status) -> Result<[f64; 3]> {
+    c.take_telemetry();
+    c.sleep_ms(POLL_MS)?;
+    let at_rest =
+        c.take_telemetry().into_iter().rev().find(|t| {
+            t.state == MachineState::Idle && t.reference_mm.iter().all(|x| x.is_finite())
+        });
+    Ok(at_rest.map_or(s.pos_mm, |t| t.reference_mm).map(f64::from))
 }
 
 /// Move to `target_mm` at the rapid rate (a one-segment program: the planner's limits and

@@ -62,9 +62,14 @@ pub const MIN_BUDGET_MM: f64 = 1.0e-4;
 /// A merged primitive, in machine mm. `via` and `to` are the f32 values the planner gets.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Primitive {
-    Line { to: [f64; 3] },
+    Line {
+        to: [f64; 3],
+    },
     /// The arc from the start through `via` to `to` (less than half a turn).
-    Arc { via: [f64; 3], to: [f64; 3] },
+    Arc {
+        via: [f64; 3],
+        to: [f64; 3],
+    },
 }
 
 /// How one stretch of the program goes to the planner.
@@ -210,7 +215,9 @@ fn arc_fit(pts: &[V], cum: &[f64], tol: f64) -> Option<(V, f64)> {
     let e2 = cross(nrm, e1);
     let angle = |p: V| {
         let q = sub(sub(p, a), c);
-        dot(q, e2).atan2(dot(q, e1)).rem_euclid(std::f64::consts::TAU)
+        dot(q, e2)
+            .atan2(dot(q, e1))
+            .rem_euclid(std::f64::consts::TAU)
     };
     let sweep = angle(b);
     if !(sweep <= MAX_ARC_SWEEP_RAD) {
@@ -417,12 +424,19 @@ mod tests {
             .collect();
         let r = compress_run(&pts, 0.005);
         assert!(r.len() <= 3, "{} primitives", r.len());
-        assert!(r.iter().all(|x| matches!(x.1, Primitive::Arc { .. }) && x.2 <= 0.005));
+        assert!(r
+            .iter()
+            .all(|x| matches!(x.1, Primitive::Arc { .. }) && x.2 <= 0.005));
     }
 
     #[test]
     fn a_corner_is_kept() {
-        let pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0]];
+        let pts = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 1.0, 0.0],
+        ];
         let r = compress_run(&pts, 0.01);
         assert_eq!(r.len(), 2);
         assert_eq!(r[0].0, 2);
@@ -431,7 +445,12 @@ mod tests {
     #[test]
     fn a_run_that_turns_back_is_not_one_line() {
         // back and forth along X (within any tolerance of the line, but reversing)
-        let pts = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
+        let pts = [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+        ];
         let r = compress_run(&pts, 0.01);
         assert!(r.len() >= 2, "{r:?}");
     }

@@ -54,7 +54,7 @@ pub fn figures(dir: &Path, r: &GcodeReport) -> Result<usize> {
     n += both(dir, "feed", (1000, 500), &|add| {
         add(Panel::Lines {
             title: format!(
-                "feed ratio along the path (path speed / programmed feed; mean {:.3} on feed moves)",
+                "feed ratio along the path (path speed / achievable feed; mean {:.3} on feed moves)",
                 r.feed_ratio_mean
             ),
             xl: "distance along the path (mm)".into(),

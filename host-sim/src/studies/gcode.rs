@@ -8,12 +8,29 @@
 //! runs its period against the simulated machine. Segments are streamed into the
 //! planner's fixed queue as slots free up, as the link does.
 //!
-//! Figures: the planned reference against the programmed path (corner deviation: the
-//! planner's blending), the true (simulated) tool position against the programmed path
-//! (contour error), the planned per-axis velocity, acceleration and jerk against the
-//! planner's limits, and the feed actually reached on feed moves.
+//! Figures: the executed reference against the programmed path (corner deviation: the
+//! planner's blending) and against the tolerance in force at each move (violations), the
+//! true (simulated) tool position against the programmed path (contour error), the
+//! planned per-axis velocity, acceleration and jerk against the planner's limits, the feed
+//! reached on feed moves over the achievable one, and the machine time over a lower bound
+//! no planner within the limits can beat.
+//!
+//! Modules: [`distance`] (exact distance to a move's path), [`cursor`] (the search over the
+//! moves near the tool), [`tolerance`] (the tolerance in force at each move), [`directions`]
+//! (axis limits along a direction), [`metrics`] (the figures, sample by sample) and
+//! [`bound`] (the lower bound of the machine time).
 //!
 //! [`Servo::set_planner_reference`]: controller_core::servo::Servo::set_planner_reference
+
+pub mod bound;
+pub mod cursor;
+pub mod directions;
+pub mod distance;
+pub mod metrics;
+pub mod tolerance;
+
+pub use distance::length;
+pub use metrics::{MetricSample, PathMetrics};
 
 use crate::builtin;
 use crate::gcode::{self, check_travel, MoveKind, ParseOptions, Program, Travel};
@@ -27,6 +44,7 @@ use controller_core::settings::{Settings, FACTORY, TOOL_COUNT};
 use controller_core::sim::run::{RunConfig, SimRun};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
@@ -38,9 +56,6 @@ pub type Planner = MotionPlanner<64, 256, 128, 32>;
 const HOMING_TIMEOUT_S: f64 = 120.0;
 /// Periods at rest after the program ends before the run stops (settling of the servo).
 const SETTLE_PERIODS: u32 = 200;
-/// Moves either side of the current one searched for the nearest programmed point (a
-/// blend spans one junction; short CAM segments may put the tool a few moves away).
-const SEARCH_WINDOW: usize = 4;
 /// Programs whose simulation takes longer than this many periods get a progress bar
 /// (10 s of machine time at 10 kHz: about a second of compute).
 const PROGRESS_PERIODS: u64 = 100_000;
@@ -75,7 +90,8 @@ pub struct GcodeReport {
     pub duration_s: f64,
     /// Length of the programmed path, mm.
     pub path_length_mm: f64,
-    /// Largest distance of the planned reference from the programmed path, mm.
+    /// Largest distance of the executed reference (the executor's sample each period) from
+    /// the programmed path, mm.
     pub corner_deviation_max_mm: f64,
     /// Largest and RMS distance of the true tool position from the programmed path, mm
     /// (RMS over the periods in motion).
@@ -86,10 +102,27 @@ pub struct GcodeReport {
     pub max_acc_mm_s2: [f64; 3],
     pub max_jerk_mm_s3: [f64; 3],
     pub limits: LimitsJson,
-    /// The planner's default path tolerance (G64 without P), mm.
+    /// The program's own tolerance: the smallest in force on any feed move (G64 P in mm,
+    /// the configured default under G64 or no path mode, 0 under G61), mm.
     pub tolerance_mm: f64,
-    /// Mean of the path speed over the programmed feed, over the periods on feed moves.
+    /// The distinct tolerances in force on the program's moves, ascending, mm.
+    pub tolerances_mm: Vec<f64>,
+    /// The configured tolerance of G64 without P (`planner.tolerance_mm`), mm.
+    pub tolerance_default_mm: f64,
+    /// Program moves at which the executed reference deviated beyond the tolerance in force
+    /// (plus [`tolerance::TOLERANCE_SLACK_MM`]), the worst excess, mm, and the first G-code
+    /// lines of those moves.
+    pub tolerance_violations: usize,
+    pub tolerance_violation_max_mm: f64,
+    pub tolerance_violation_lines: Vec<u32>,
+    /// Mean of the path speed over the achievable feed (the programmed feed, or the axes'
+    /// velocity limits projected on the programmed tangent where they allow less), over
+    /// the samples whose nearest programmed point is on a feed move.
     pub feed_ratio_mean: f64,
+    /// A lower bound of the machine time no planner within the limits and tolerances can
+    /// beat ([`bound`]), s, and `duration_s` over it.
+    pub time_bound_s: f64,
+    pub time_ratio_to_bound: f64,
     /// Words accepted but ignored (`S`, `M3`, …), as reported by the parser.
     pub ignored: Vec<String>,
     /// The fault that stopped the machine (status `fault`).
@@ -114,7 +147,7 @@ pub struct Trace {
     /// Planned per-axis velocity and acceleration.
     pub vel_mm_s: Vec<[f64; 3]>,
     pub acc_mm_s2: Vec<[f64; 3]>,
-    /// Feed ratio (path speed over the programmed feed; 0 on rapids and dwells) and the
+    /// Feed ratio (path speed over the achievable feed; 0 on rapids and dwells) and the
     /// distance along the reference, mm.
     pub feed_ratio: Vec<f64>,
     pub along_mm: Vec<f64>,
@@ -141,7 +174,14 @@ impl GcodeReport {
             max_jerk_mm_s3: [0.0; 3],
             limits,
             tolerance_mm: tol,
+            tolerances_mm: Vec::new(),
+            tolerance_default_mm: tol,
+            tolerance_violations: 0,
+            tolerance_violation_max_mm: 0.0,
+            tolerance_violation_lines: Vec::new(),
             feed_ratio_mean: 0.0,
+            time_bound_s: 0.0,
+            time_ratio_to_bound: 0.0,
             ignored: Vec::new(),
             fault: None,
             realtime_ratio: 0.0,
@@ -167,9 +207,20 @@ fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
 }
 
-/// The planner segments of `program`, tagged with the index of their move; `None` for a
-/// move that only changes the blend mode.
-pub fn segments(program: &Program) -> Vec<Segment> {
+/// One planner segment and the program moves it covers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanSegment {
+    /// What the planner gets; its `tag` is the index of the first move it covers (so
+    /// `program.moves[tag].line` is its G-code line).
+    pub seg: Segment,
+    /// Indices into `program.moves` of the moves the segment covers.
+    pub moves: Range<usize>,
+}
+
+/// The planner segments of `program`: the one place that maps program moves to planner
+/// segments. Today each covers exactly its one move (`i..i + 1`); blend changes (SetBlend)
+/// are covered by none.
+pub fn segments(program: &Program) -> Vec<PlanSegment> {
     let mut blend = Blend::Default;
     let mut out = Vec::with_capacity(program.moves.len());
     for (i, m) in program.moves.iter().enumerate() {
@@ -217,261 +268,12 @@ pub fn segments(program: &Program) -> Vec<Segment> {
             controller_core::motion::planner::Motion::Dwell { .. } => seg,
             _ => seg.with_blend(blend),
         };
-        out.push(seg);
+        out.push(PlanSegment {
+            seg,
+            moves: i..i + 1,
+        });
     }
     out
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-/// The point of an arc move at fraction `f` of its sweep (radius and normal coordinate
-/// linear in the angle, as the planner interpolates them).
-fn arc_point(
-    from: [f64; 3],
-    to: [f64; 3],
-    center: [f64; 3],
-    plane: gcode::Plane,
-    cw: bool,
-    sweep: f64,
-    f: f64,
-) -> [f64; 3] {
-    let [i1, i2, n] = plane.axes();
-    let (a0, b0) = (from[i1] - center[i1], from[i2] - center[i2]);
-    let (a1, b1) = (to[i1] - center[i1], to[i2] - center[i2]);
-    let (r0, r1) = (a0.hypot(b0), a1.hypot(b1));
-    let psi = b0.atan2(a0) + if cw { -sweep * f } else { sweep * f };
-    let r = r0 + (r1 - r0) * f;
-    let mut q = [0.0; 3];
-    q[i1] = center[i1] + r * psi.cos();
-    q[i2] = center[i2] + r * psi.sin();
-    q[n] = from[n] + (to[n] - from[n]) * f;
-    q
-}
-
-/// Distance from `p` to the path of move `m`, mm (0 for moves that do not move).
-fn distance(p: [f64; 3], m: &gcode::Move) -> Option<f64> {
-    match m.kind {
-        MoveKind::Rapid { to } | MoveKind::Line { to, .. } => {
-            let ab = sub(to, m.from);
-            let ap = sub(p, m.from);
-            let l2 = dot(ab, ab);
-            let t = if l2 > 0.0 {
-                (dot(ap, ab) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            Some(norm(sub(ap, ab.map(|x| x * t))))
-        }
-        MoveKind::Arc {
-            to,
-            center,
-            plane,
-            clockwise,
-            sweep_rad,
-            ..
-        } => {
-            let [i1, i2, n] = plane.axes();
-            let at = |f: f64| arc_point(m.from, to, center, plane, clockwise, sweep_rad, f);
-            // the angle of `p` along the sweep, in each turn; the nearest of those points
-            let psi0 = (m.from[i2] - center[i2]).atan2(m.from[i1] - center[i1]);
-            let psi = (p[i2] - center[i2]).atan2(p[i1] - center[i1]);
-            let tau = std::f64::consts::TAU;
-            let d0 = if clockwise { psi0 - psi } else { psi - psi0 }.rem_euclid(tau);
-            let mut best = norm(sub(p, at(0.0))).min(norm(sub(p, at(1.0))));
-            let mut k = 0.0;
-            while d0 + k * tau <= sweep_rad + tau {
-                let f = ((d0 + k * tau) / sweep_rad).clamp(0.0, 1.0);
-                best = best.min(norm(sub(p, at(f))));
-                k += 1.0;
-            }
-            let _ = (i1, i2, n);
-            Some(best)
-        }
-        MoveKind::Dwell { .. } | MoveKind::Pause | MoveKind::SetBlend(_) => None,
-    }
-}
-
-/// Length of the path of move `m`, mm ([`gcode::Move::length_mm`]).
-pub fn length(m: &gcode::Move) -> f64 {
-    m.length_mm()
-}
-
-/// Distance from `p` to the programmed path near move `tag`.
-pub fn path_distance(p: [f64; 3], moves: &[gcode::Move], tag: usize) -> f64 {
-    let lo = tag.saturating_sub(SEARCH_WINDOW);
-    let hi = (tag + SEARCH_WINDOW + 1).min(moves.len());
-    moves
-        .get(lo..hi)
-        .unwrap_or_default()
-        .iter()
-        .filter_map(|m| distance(p, m))
-        .fold(f64::INFINITY, f64::min)
-}
-
-/// One reference sample for [`PathMetrics`].
-#[derive(Clone, Copy, Debug)]
-pub struct MetricSample {
-    pub t_s: f64,
-    /// Segment tag (index of the program's move).
-    pub tag: usize,
-    /// The planned reference: position, velocity, acceleration.
-    pub planned_mm: [f64; 3],
-    pub vel_mm_s: [f64; 3],
-    pub acc_mm_s2: [f64; 3],
-    /// The tool's position (true, or as measured).
-    pub actual_mm: [f64; 3],
-    pub feed_ratio: f64,
-    /// Distance along the reference so far, mm (0 when not known).
-    pub along_mm: f64,
-}
-
-/// The figures of a program run, accumulated sample by sample against the programmed
-/// path; one implementation for `cargo sim gcode` (every period) and `gantry run`
-/// (telemetry samples).
-pub struct PathMetrics<'a> {
-    moves: &'a [gcode::Move],
-    feed_move: Vec<bool>,
-    /// Largest time between samples over which a jerk is estimated, s.
-    max_gap_s: f64,
-    prev: Option<(f64, [f64; 3])>,
-    vmax: [f64; 3],
-    amax: [f64; 3],
-    jmax: [f64; 3],
-    dev_max: f64,
-    c_max: f64,
-    c_sq: f64,
-    c_n: u64,
-    feed_sum: f64,
-    feed_n: u64,
-    pub trace: Trace,
-}
-
-impl<'a> PathMetrics<'a> {
-    pub fn new(program: &'a Program, limits: LimitsJson, max_gap_s: f64) -> Self {
-        Self {
-            moves: &program.moves,
-            feed_move: program
-                .moves
-                .iter()
-                .map(|m| matches!(m.kind, MoveKind::Line { .. } | MoveKind::Arc { .. }))
-                .collect(),
-            max_gap_s,
-            prev: None,
-            vmax: [0.0; 3],
-            amax: [0.0; 3],
-            jmax: [0.0; 3],
-            dev_max: 0.0,
-            c_max: 0.0,
-            c_sq: 0.0,
-            c_n: 0,
-            feed_sum: 0.0,
-            feed_n: 0,
-            trace: Trace {
-                limits: Some(limits),
-                ..Trace::default()
-            },
-        }
-    }
-
-    /// Account one sample; `moving`: the program is still running (the distances and the
-    /// feed count only then); `record`: keep it for the plots.
-    pub fn add(&mut self, s: &MetricSample, moving: bool, record: bool) {
-        for i in 0..3 {
-            self.vmax[i] = self.vmax[i].max(s.vel_mm_s[i].abs());
-            self.amax[i] = self.amax[i].max(s.acc_mm_s2[i].abs());
-        }
-        if let Some((t0, a0)) = self.prev {
-            let dt = s.t_s - t0;
-            if dt > 0.0 && dt <= self.max_gap_s {
-                for ((j, a), a0) in self.jmax.iter_mut().zip(s.acc_mm_s2).zip(a0) {
-                    *j = j.max(((a - a0) / dt).abs());
-                }
-            }
-        }
-        self.prev = Some((s.t_s, s.acc_mm_s2));
-        let contour = (moving || record).then(|| path_distance(s.actual_mm, self.moves, s.tag));
-        if let (true, Some(c)) = (moving, contour) {
-            self.dev_max = self
-                .dev_max
-                .max(path_distance(s.planned_mm, self.moves, s.tag));
-            self.c_max = self.c_max.max(c);
-            self.c_sq += c * c;
-            self.c_n += 1;
-            if self.feed_move.get(s.tag).copied().unwrap_or(false) {
-                self.feed_sum += s.feed_ratio;
-                self.feed_n += 1;
-            }
-        }
-        if let (true, Some(c)) = (record, contour) {
-            let t = &mut self.trace;
-            t.t_s.push(s.t_s);
-            t.pos_mm.push(s.actual_mm);
-            t.contour_mm.push(c);
-            t.vel_mm_s.push(s.vel_mm_s);
-            t.acc_mm_s2.push(s.acc_mm_s2);
-            t.feed_ratio.push(s.feed_ratio);
-            t.along_mm.push(s.along_mm);
-        }
-    }
-
-    /// The report of a run that ended (`fault`: why it stopped early).
-    #[allow(clippy::too_many_arguments)]
-    pub fn report(
-        self,
-        program: &Program,
-        segments: usize,
-        duration_s: f64,
-        limits: LimitsJson,
-        tolerance_mm: f64,
-        fault: Option<String>,
-        realtime_ratio: f64,
-    ) -> GcodeReport {
-        GcodeReport {
-            program: program.name.clone(),
-            status: if fault.is_some() {
-                "fault"
-            } else {
-                "completed"
-            }
-            .into(),
-            error: None,
-            segments,
-            duration_s,
-            path_length_mm: program.moves.iter().map(length).sum(),
-            corner_deviation_max_mm: self.dev_max,
-            contour_max_mm: self.c_max,
-            contour_rms_mm: if self.c_n > 0 {
-                (self.c_sq / self.c_n as f64).sqrt()
-            } else {
-                0.0
-            },
-            max_vel_mm_s: self.vmax,
-            max_acc_mm_s2: self.amax,
-            max_jerk_mm_s3: self.jmax,
-            limits,
-            tolerance_mm,
-            feed_ratio_mean: if self.feed_n > 0 {
-                self.feed_sum / self.feed_n as f64
-            } else {
-                0.0
-            },
-            ignored: program.ignored.iter().map(|w| w.word.clone()).collect(),
-            fault,
-            realtime_ratio,
-            settings_written: Vec::new(),
-            trace: self.trace,
-        }
-    }
 }
 
 /// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
@@ -673,16 +475,16 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     let mut k = 0u64;
     let mut along = 0.0f64;
     // (every period: a jerk between consecutive periods)
-    let mut metrics = PathMetrics::new(&program, limits, 1.5 * dt);
+    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * dt);
     let mut fault = None;
     let mut finished_at = None;
     let mut rest = 0u32;
     loop {
         while next < segs.len() && mp.free_slots() > 0 {
-            mp.push(&segs[next]).map_err(|e| {
+            mp.push(&segs[next].seg).map_err(|e| {
                 let line = program
                     .moves
-                    .get(segs[next].tag as usize)
+                    .get(segs[next].moves.start)
                     .map_or(0, |m| m.line);
                 anyhow!("{name}:{line}: the planner rejected the move: {e:?}")
             })?;
@@ -706,7 +508,6 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
                 vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
                 acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
                 actual_mm: truth,
-                feed_ratio: f64::from(sample.feed_ratio),
                 along_mm: along,
             },
             finished_at.is_none(),
@@ -748,15 +549,7 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     } else {
         0.0
     };
-    Ok(metrics.report(
-        &program,
-        segs.len(),
-        duration_s,
-        limits,
-        tol,
-        fault,
-        realtime,
-    ))
+    Ok(metrics.report(&program, segs.len(), duration_s, limits, fault, realtime))
 }
 
 /// The report as a table for the terminal.
@@ -773,14 +566,44 @@ pub fn table(r: &GcodeReport) -> String {
     }
     let _ = writeln!(
         s,
-        "  {} segments, {:.1} mm of path in {:.3} s (feed ratio {:.3} on feed moves)",
+        "  {} segments, {:.1} mm of path in {:.3} s (feed ratio {:.3} of the achievable feed on feed moves)",
         r.segments, r.path_length_mm, r.duration_s, r.feed_ratio_mean
     );
     let _ = writeln!(
         s,
-        "  corner deviation (planned vs programmed) max {:.4} mm (tolerance {} mm)",
-        r.corner_deviation_max_mm, r.tolerance_mm
+        "  time bound {:.3} s: the run took {:.3} times the least any planner within the limits could",
+        r.time_bound_s, r.time_ratio_to_bound
     );
+    let tolerances: Vec<String> = r.tolerances_mm.iter().map(|t| t.to_string()).collect();
+    let _ = writeln!(
+        s,
+        "  corner deviation (executed reference vs programmed) max {:.4} mm (program tolerance {} mm; in force: {} mm; default {} mm)",
+        r.corner_deviation_max_mm,
+        r.tolerance_mm,
+        tolerances.join(", "),
+        r.tolerance_default_mm
+    );
+    if r.tolerance_violations > 0 {
+        let lines: Vec<String> = r
+            .tolerance_violation_lines
+            .iter()
+            .map(|l| l.to_string())
+            .collect();
+        let _ = writeln!(
+            s,
+            "  TOLERANCE VIOLATED at {} moves, by up to {:.4} mm (lines {}{})",
+            r.tolerance_violations,
+            r.tolerance_violation_max_mm,
+            lines.join(", "),
+            if r.tolerance_violations > lines.len() {
+                ", …"
+            } else {
+                ""
+            }
+        );
+    } else {
+        let _ = writeln!(s, "  within the tolerance in force at every move");
+    }
     let _ = writeln!(
         s,
         "  contour error (actual vs programmed) max {:.4} mm, RMS {:.4} mm",
@@ -815,4 +638,38 @@ pub fn table(r: &GcodeReport) -> String {
         r.realtime_ratio
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segments_cover_the_motion_moves_in_order_and_are_tagged_with_their_first() {
+        let p = gcode::parse_str(
+            "s.nc",
+            "G21 G90 G61\nG0 X10\nG64 P0.02\nG1 X20 F600\nG4 P0.5\nG3 X20 Y0 I-5 J0\nM0\nG1 Y5\n",
+        )
+        .unwrap();
+        let segs = segments(&p);
+        let mut covered = vec![0u32; p.moves.len()];
+        let mut end = 0;
+        for s in &segs {
+            assert_eq!(s.seg.tag as usize, s.moves.start);
+            assert!(s.moves.start >= end && s.moves.end > s.moves.start);
+            end = s.moves.end;
+            for k in s.moves.clone() {
+                covered[k] += 1;
+            }
+        }
+        for (m, n) in p.moves.iter().zip(&covered) {
+            let want = u32::from(!matches!(m.kind, MoveKind::SetBlend(_)));
+            assert_eq!(*n, want, "{m:?}");
+        }
+        // today one segment per move; the G1 under G64 P0.02 carries its tolerance
+        assert_eq!(segs.len(), 6);
+        assert!(segs.iter().all(|s| s.moves.len() == 1));
+        assert_eq!(segs[1].seg.blend, Blend::Tolerance(0.02));
+        assert_eq!(segs[0].seg.blend, Blend::Tolerance(0.0));
+    }
 }
