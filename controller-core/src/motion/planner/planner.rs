@@ -25,7 +25,7 @@ use super::geometry::{Piece, V3};
 use super::lookahead::{choose_jerk, Ahead};
 use super::profile::{braking_distance, integrate};
 use super::ring::{to_cum, SpanRing, SpanSlot};
-use super::scan::{ScanCache, ScanInput};
+use super::scan::{ScanCache, ScanInput, STOP_ACC_SLACK};
 use super::segment::{prepare, PieceAttr, Segment, SegmentError};
 use super::span::{
     derivative_bounds, fit, offset_at, path_limits, PathLimits, Span, FIT_TOL_MM, SPANS_PER_PERIOD,
@@ -864,11 +864,17 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 _ => break,
             }
         }
-        // Scan as far as any braking could need: to a stop at the floor limits, plus the
-        // most that braking to a low speed w instead of zero can add (it ends with a
-        // ramp-out at w: (v+w)τ/2 − w²/2A grows until w = Aτ/2, by A³/8J² at most).
-        let horizon = braking_distance(v_next, a.mx(0.0) + lim0.jerk * t, 0.0, floor_a, floor_j)
-            + floor_a * floor_a * floor_a / (8.0 * floor_j * floor_j)
+        // Scan as far as any braking could need: to a stop with the weakest limits of the
+        // spans held (any braking runs on them; the end of what is held is a stop), plus
+        // the most that braking to a low speed w instead of zero can add (it ends with a
+        // ramp-out at w: (v+w)τ/2 − w²/2A grows until w = Aτ/2, by A³/8J² at most). The
+        // acceleration with the slack the executor's own stop may brake with
+        // (`scan::STOP_ACC_SLACK`), so that its stop too ends within what is sent.
+        let last_idx = self.spans.len() - 1;
+        let weak_a = (self.spans.min_acc(idx, last_idx) * (1.0 - STOP_ACC_SLACK)).mx(floor_a);
+        let weak_j = self.spans.min_jerk(idx, last_idx).mx(floor_j);
+        let horizon = braking_distance(v_next, a.mx(0.0) + lim0.jerk * t, 0.0, weak_a, weak_j)
+            + weak_a * weak_a * weak_a / (8.0 * weak_j * weak_j)
             + 2.0 * v_next * t
             + 1.0e-3;
         // Acceleration limits matter up to the most the acceleration can reach next period

@@ -560,7 +560,7 @@ impl ScanCache {
 const STOP_LIMIT_STEPS: usize = 4;
 /// Fraction of the acceleration limit the executor's stop leaves unused (see
 /// `ScanCache::stop_limit`).
-const STOP_ACC_SLACK: f32 = 0.03;
+pub(crate) const STOP_ACC_SLACK: f32 = 0.03;
 
 /// Cap steps one scan keeps exactly; the rest of a longer staircase is represented by its
 /// lowest cap at the last kept point (conservative).
