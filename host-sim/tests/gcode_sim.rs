@@ -105,7 +105,7 @@ fn path_control_reaches_the_planner_as_linuxcnc_defines_it() {
         "G61\nG1 X10 F600\nG61.1\nX20\nG64 P0.05 Q0.1\nX30\nG64\nX40\n",
     )
     .unwrap();
-    let blends: Vec<Blend> = segments(&p).iter().map(|s| s.seg.blend).collect();
+    let blends: Vec<Blend> = segments(&p, 0.01).0.iter().map(|s| s.seg.blend).collect();
     // G61: tolerance 0 (corners stop, smooth junctions pass); G61.1: a stop after every
     // move; G64 P: the planner blends within P (Q is the path compressor's)
     assert_eq!(

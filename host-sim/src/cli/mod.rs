@@ -321,7 +321,7 @@ pub fn run_program<T: Transport>(
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
-    let segs = segments(&program);
+    let (segs, compression) = segments(&program, tol);
     expect_done("run", c.exec(Request::Run)?)?;
     c.take_telemetry();
     let started = Instant::now();
@@ -415,6 +415,7 @@ pub fn run_program<T: Transport>(
         0.0
     };
     let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
+    report.compression = compression;
     if aborted && report.status == "completed" {
         report.status = "aborted".into();
     }

@@ -33,7 +33,7 @@ pub use distance::length;
 pub use metrics::{MetricSample, PathMetrics};
 
 use crate::builtin;
-use crate::gcode::{self, check_travel, MoveKind, ParseOptions, Program, Travel};
+use crate::gcode::{self, check_travel, compress, MoveKind, ParseOptions, Program, Travel};
 use crate::studies::resolve_all;
 use anyhow::{anyhow, bail, Result};
 use controller_core::motion::planner::{
@@ -84,8 +84,14 @@ pub struct GcodeReport {
     /// `completed`, `rejected` (nothing ran) or `fault` (the machine stopped on a fault).
     pub status: String,
     pub error: Option<ErrorJson>,
-    /// Segments given to the planner (moves, arcs and dwells).
+    /// Segments given to the planner (moves, arcs, dwells and the primitives runs of short
+    /// moves were merged into).
     pub segments: usize,
+    /// The program's moves (those that move or wait): the segments without compression.
+    pub moves: usize,
+    /// What the path compressor did (`gcode::compress`): chords considered, primitives
+    /// they became (lines, arcs).
+    pub compression: compress::Stats,
     /// Machine time from `Run` until the planner is idle again, s.
     pub duration_s: f64,
     /// Length of the programmed path, mm.
@@ -164,6 +170,8 @@ impl GcodeReport {
                 message: e.to_string(),
             }),
             segments: 0,
+            moves: 0,
+            compression: compress::Stats::default(),
             duration_s: 0.0,
             path_length_mm: 0.0,
             corner_deviation_max_mm: 0.0,
@@ -220,60 +228,99 @@ pub struct PlanSegment {
 /// The planner segments of `program`: the one place that maps program moves to planner
 /// segments. Today each covers exactly its one move (`i..i + 1`); blend changes (SetBlend)
 /// are covered by none.
-pub fn segments(program: &Program) -> Vec<PlanSegment> {
+pub fn segments(program: &Program, default_tol_mm: f64) -> (Vec<PlanSegment>, compress::Stats) {
+    let (groups, stats) = compress::groups(program, default_tol_mm);
     let mut blend = Blend::Default;
-    let mut out = Vec::with_capacity(program.moves.len());
-    for (i, m) in program.moves.iter().enumerate() {
+    // (the tolerance in force per segment, for the blends after merged ones)
+    let mut out: Vec<(PlanSegment, f64, Option<f64>)> = Vec::with_capacity(groups.len());
+    for g in &groups {
+        let i = g.moves.start;
+        let Some(m) = program.moves.get(i) else {
+            continue;
+        };
         let tag = u32::try_from(i).unwrap_or(u32::MAX);
-        let seg = match m.kind {
-            MoveKind::Rapid { to } => Segment::rapid(f32s(to), tag),
-            MoveKind::Line { to, feed_mm_s } => Segment::line(f32s(to), feed_mm_s as f32, tag),
-            MoveKind::Arc {
-                to,
-                center,
-                plane,
-                clockwise,
-                turns,
-                feed_mm_s,
-                ..
-            } => Segment::arc(
-                f32s(to),
-                f32s(center),
-                plane_of(plane),
-                clockwise,
-                turns.saturating_sub(1),
-                feed_mm_s as f32,
-                tag,
-            ),
-            MoveKind::Dwell { s } => Segment::dwell(s as f32, tag),
-            // the simulated operator resumes at once: M0 is an exact stop
-            MoveKind::Pause => Segment::dwell(0.0, tag),
-            MoveKind::SetBlend(b) => {
-                blend = match b {
-                    // G61.1: the machine comes to rest at the end of every move
-                    gcode::Blend::ExactStop => Blend::ExactStop,
-                    // G61: every programmed point exactly; with a tolerance of 0 the planner
-                    // stops at corners and passes smooth junctions (collinear lines, a line
-                    // tangent to an arc) without stopping, as LinuxCNC's exact path
-                    gcode::Blend::ExactPath => Blend::Tolerance(0.0),
-                    // (the naive-CAM tolerance Q is the path compressor's; the planner blends
-                    // within P)
-                    gcode::Blend::Tolerance { mm, .. } => Blend::Tolerance(mm as f32),
-                    gcode::Blend::MachineDefault => Blend::Default,
-                };
-                continue;
+        let seg = if let Some(prim) = g.merged {
+            let feed = g.feed_mm_s as f32;
+            match prim {
+                compress::Primitive::Line { to } => Segment::line(f32s(to), feed, tag),
+                compress::Primitive::Arc { via, to } => {
+                    Segment::arc_through(f32s(via), f32s(to), feed, tag)
+                }
+            }
+        } else {
+            match m.kind {
+                MoveKind::Rapid { to } => Segment::rapid(f32s(to), tag),
+                MoveKind::Line { to, feed_mm_s } => Segment::line(f32s(to), feed_mm_s as f32, tag),
+                MoveKind::Arc {
+                    to,
+                    center,
+                    plane,
+                    clockwise,
+                    turns,
+                    feed_mm_s,
+                    ..
+                } => Segment::arc(
+                    f32s(to),
+                    f32s(center),
+                    plane_of(plane),
+                    clockwise,
+                    turns.saturating_sub(1),
+                    feed_mm_s as f32,
+                    tag,
+                ),
+                MoveKind::Dwell { s } => Segment::dwell(s as f32, tag),
+                // the simulated operator resumes at once: M0 is an exact stop
+                MoveKind::Pause => Segment::dwell(0.0, tag),
+                MoveKind::SetBlend(b) => {
+                    blend = match b {
+                        // G61.1: the machine comes to rest at the end of every move
+                        gcode::Blend::ExactStop => Blend::ExactStop,
+                        // G61: every programmed point exactly; with a tolerance of 0 the
+                        // planner stops at corners and passes smooth junctions (collinear
+                        // lines, a line tangent to an arc) without stopping, as LinuxCNC's
+                        // exact path
+                        gcode::Blend::ExactPath => Blend::Tolerance(0.0),
+                        // (the naive-CAM tolerance Q is the path compressor's; the planner
+                        // blends within P)
+                        gcode::Blend::Tolerance { mm, .. } => Blend::Tolerance(mm as f32),
+                        gcode::Blend::MachineDefault => Blend::Default,
+                    };
+                    continue;
+                }
             }
         };
-        let seg = match seg.motion {
-            controller_core::motion::planner::Motion::Dwell { .. } => seg,
-            _ => seg.with_blend(blend),
+        let (seg, tol) = match seg.motion {
+            controller_core::motion::planner::Motion::Dwell { .. } => (seg, None),
+            _ => (
+                seg.with_blend(blend),
+                match blend {
+                    Blend::Tolerance(e) => Some(f64::from(e)),
+                    Blend::Default => Some(default_tol_mm),
+                    Blend::ExactStop => None,
+                },
+            ),
         };
-        out.push(PlanSegment {
-            seg,
-            moves: i..i + 1,
-        });
+        out.push((
+            PlanSegment {
+                seg,
+                moves: g.moves.clone(),
+            },
+            g.dev_mm,
+            tol,
+        ));
     }
-    out
+    // The blend after a merged primitive (or before one) keeps the commanded path within P
+    // of the programmed chords: it gets what the primitives' fit left of P
+    // (gcode::compress, "The bound").
+    for k in 0..out.len() {
+        let dev_next = out.get(k + 1).map_or(0.0, |n| n.1);
+        let (ps, dev, tol) = &mut out[k];
+        let worst = dev.max(dev_next);
+        if let (true, Some(p)) = (worst > 0.0, *tol) {
+            ps.seg.blend = Blend::Tolerance(((p - worst).max(0.0)) as f32);
+        }
+    }
+    (out.into_iter().map(|(ps, _, _)| ps).collect(), stats)
 }
 
 /// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
@@ -445,7 +492,7 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
-    let segs = segments(&program);
+    let (segs, compression) = segments(&program, tol);
     let mut mp = Box::new(Planner::new(&pcfg, here).map_err(|e| anyhow!("planner: {e:?}"))?);
 
     let path_length_mm: f64 = program.moves.iter().map(length).sum();
@@ -549,7 +596,9 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     } else {
         0.0
     };
-    Ok(metrics.report(&program, segs.len(), duration_s, limits, fault, realtime))
+    let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
+    report.compression = compression;
+    Ok(report)
 }
 
 /// The report as a table for the terminal.
@@ -651,7 +700,7 @@ mod tests {
             "G21 G90 G61\nG0 X10\nG64 P0.02\nG1 X20 F600\nG4 P0.5\nG3 X20 Y0 I-5 J0\nM0\nG1 Y5\n",
         )
         .unwrap();
-        let segs = segments(&p);
+        let (segs, _) = segments(&p, 0.01);
         let mut covered = vec![0u32; p.moves.len()];
         let mut end = 0;
         for s in &segs {

@@ -237,6 +237,12 @@ impl<'a> PathMetrics<'a> {
             .into(),
             error: None,
             segments,
+            moves: program
+                .moves
+                .iter()
+                .filter(|m| !matches!(m.kind, MoveKind::SetBlend(_)))
+                .count(),
+            compression: Default::default(),
             duration_s,
             path_length_mm: program.moves.iter().map(distance::length).sum(),
             corner_deviation_max_mm: self.dev_max,
@@ -315,7 +321,7 @@ mod tests {
             "G21 G90 G61\nG1 X10 F600\nG64 P0.05\nG1 Y10\nG1 X0\nG61\nG1 Y0\n",
         )
         .unwrap();
-        let segs = segments(&p);
+        let (segs, _) = segments(&p, 0.01);
         let tag = |line: u32| segs.iter().find(|s| p.moves[s.moves.start].line == line);
         let tag = |line: u32| tag(line).map(|s| s.seg.tag as usize).unwrap();
         let mut m = PathMetrics::new(&p, &segs, LIMITS, 0.01, 1.0);
@@ -372,7 +378,7 @@ mod tests {
             "G21 G90\nG1 X100 F60000\nG1 X200 Y100\nG1 X210 F300\n",
         )
         .unwrap();
-        let segs = segments(&p);
+        let (segs, _) = segments(&p, 0.0);
         let mut m = PathMetrics::new(&p, &segs, LIMITS, 0.01, 1.0);
         m.add(
             &sample(0.0, 0, [50.0, 0.0, 0.0], [250.0, 0.0, 0.0]),
