@@ -4,7 +4,7 @@
 //! both directions (the sampling step is added to what is measured, so a pass is a proof
 //! up to the step).
 
-use host_sim::gcode::compress::{budget_mm, groups, Primitive, FIT_SHARE};
+use host_sim::gcode::compress::{budget_mm, groups, Primitive, MAX_FIT_SHARE};
 use host_sim::gcode::{parse_str, Blend, MoveKind, Program};
 
 type V = [f64; 3];
@@ -171,12 +171,12 @@ fn check(name: &str, program: &Program, default_tol: f64) -> (usize, usize) {
         }
         let Some(prim) = g.merged else { continue };
         merged += 1;
-        let budget = budget_mm(blend, default_tol);
+        let budget = budget_mm(blend, default_tol, program.coordinate_resolution_mm);
         let p_tol = match blend {
             Blend::Tolerance { mm, .. } => mm,
             _ => default_tol,
         };
-        assert!(budget > 0.0 && budget <= FIT_SHARE * p_tol, "{name}");
+        assert!(budget > 0.0 && budget <= MAX_FIT_SHARE * p_tol, "{name}");
         assert!(g.dev_mm <= budget, "{name}: dev {} > {budget}", g.dev_mm);
         let mut pts = vec![first.from];
         pts.extend(program.moves[g.moves.clone()].iter().map(|m| m.to()));

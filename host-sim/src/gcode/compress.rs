@@ -27,7 +27,9 @@
 //!   nearest arc points is within `max(d)` of the programmed chord, linearly; the arc
 //!   within `s` of its chord).
 //!
-//! The budget: `b = min(Q, FIT_SHARE · P) − PLANNER_MARGIN_MM`. The planner's blend at a
+//! The budget: `b = min(Q, FIT_SHARE · P) − PLANNER_MARGIN_MM`, raised (up to
+//! `MAX_FIT_SHARE · P`) to what the program's own rounding needs (`ROUNDING_STEPS` of
+//! its coordinate step). The planner's blend at a
 //! junction after a merged primitive gets `P − max(dev of the two primitives it joins)`,
 //! where `dev` is the primitive's measured deviation (≤ b): the blend keeps the commanded
 //! path within that of the primitives (`motion::planner::blend`), so the commanded path
@@ -49,6 +51,14 @@ use std::ops::Range;
 /// the commanded path stays close to the chords (`dense_contour.nc` on the simulated
 /// gantry: contour RMS 1.2 µm with a tenth, 2.6 µm with a quarter, 4.2 µm with half).
 pub const FIT_SHARE: f64 = 0.1;
+/// The most of P the compressor takes where the program's own rounding needs more than
+/// [`FIT_SHARE`] (a G20 program written with 4 decimals moves its points by up to
+/// 1.27 µm: with the default 10 µm tolerance a tenth would merge nothing).
+pub const MAX_FIT_SHARE: f64 = 0.5;
+/// The budget a program's rounding needs, in steps of its coordinates: twice the largest
+/// displacement of a point rounded on three axes (√3 · step / 2).
+pub const ROUNDING_STEPS: f64 = 1.732_050_807_568_877_2;
+
 /// Kept out of the fit budget for the planner's own numbers: its span fit (2e-5 mm), the
 /// f32 arc through three points and f32 positions near 150 mm (≤ 1e-5 mm each).
 pub const PLANNER_MARGIN_MM: f64 = 5.0e-5;
@@ -127,14 +137,18 @@ fn f32r(p: V) -> V {
 }
 
 /// The fit budget of a run under `blend` (the planner's configured tolerance for
-/// `MachineDefault`): 0 where nothing may be merged.
-pub fn budget_mm(blend: Blend, default_tol_mm: f64) -> f64 {
+/// `MachineDefault`) for a program written in steps of `resolution_mm`: 0 where nothing
+/// may be merged.
+pub fn budget_mm(blend: Blend, default_tol_mm: f64, resolution_mm: f64) -> f64 {
     let (p, q) = match blend {
         Blend::Tolerance { mm, naive_cam_mm } => (mm, naive_cam_mm),
         Blend::MachineDefault => (default_tol_mm, default_tol_mm),
         Blend::ExactPath | Blend::ExactStop => (0.0, 0.0),
     };
-    let b = q.min(FIT_SHARE * p) - PLANNER_MARGIN_MM;
+    let share = (FIT_SHARE * p)
+        .max(ROUNDING_STEPS * resolution_mm)
+        .min(MAX_FIT_SHARE * p);
+    let b = q.min(share) - PLANNER_MARGIN_MM;
     if b >= MIN_BUDGET_MM {
         b
     } else {
@@ -347,7 +361,7 @@ pub fn groups(program: &Program, default_tol_mm: f64) -> (Vec<Group>, Stats) {
         if let MoveKind::SetBlend(b) = m.kind {
             blend = b;
         }
-        let budget = budget_mm(blend, default_tol_mm);
+        let budget = budget_mm(blend, default_tol_mm, program.coordinate_resolution_mm);
         let feed = match m.kind {
             MoveKind::Line { feed_mm_s, .. } if budget > 0.0 => Some(feed_mm_s),
             _ => None,

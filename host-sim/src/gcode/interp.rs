@@ -102,6 +102,8 @@ pub(crate) struct Interp<'a> {
     pub(super) moves: Vec<Move>,
     pub(super) ignored: Vec<Ignored>,
     pub(super) bounds: [[f64; 2]; 3],
+    /// The finest step the program's axis words are written in, mm (∞: none seen).
+    pub(super) resolution_mm: f64,
 }
 
 impl<'a> Interp<'a> {
@@ -124,6 +126,7 @@ impl<'a> Interp<'a> {
             moves: Vec::new(),
             ignored: Vec::new(),
             bounds: opts.start_mm.map(|p| [p, p]),
+            resolution_mm: f64::INFINITY,
         }
     }
 
@@ -137,6 +140,11 @@ impl<'a> Interp<'a> {
             end_line: self.end_line,
             work_offsets_mm: self.frames.work_mm,
             tools: self.frames.tools,
+            coordinate_resolution_mm: if self.resolution_mm.is_finite() {
+                self.resolution_mm
+            } else {
+                0.0
+            },
         }
     }
 
@@ -368,6 +376,15 @@ impl<'a> Interp<'a> {
         }
 
         // Non-modal commands and motion share the axis words (a G43.1 took them above).
+        // (the step they are written in: how far a CAM post's rounding moved the points;
+        // the most decimals seen, as posts drop trailing zeros)
+        for w in ['X', 'Y', 'Z'].iter().filter_map(|&l| values.word(l)) {
+            let decimals = w.text.split_once('.').map_or(0, |(_, f)| {
+                f.chars().take_while(char::is_ascii_digit).count()
+            });
+            let step = 10f64.powi(-(decimals.min(12) as i32)) * self.unit_mm();
+            self.resolution_mm = self.resolution_mm.min(step);
+        }
         let axes = [values.get('X'), values.get('Y'), values.get('Z')];
         let has_axes = axes.iter().any(Option::is_some);
         if let Some((Cmd::Motion(m), _)) = explicit_motion {

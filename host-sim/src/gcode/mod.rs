@@ -318,6 +318,11 @@ pub struct Program {
     /// The tool table as the program leaves it: [`ParseOptions::tools`] with its G10 L1
     /// applied.
     pub tools: Vec<Tool>,
+    /// The step the axis words are written in: the finest one seen, as posts drop
+    /// trailing zeros (mm; `X1.2345` in G20 is 0.00254 mm). A CAM post's rounding moves
+    /// every point by up to half of it, which the path compressor's budget must exceed
+    /// (`compress::budget_mm`). 0 without axis words.
+    pub coordinate_resolution_mm: f64,
 }
 
 impl Program {

@@ -68,6 +68,14 @@ pub const CHORD_WINDOWS_MM: [f64; 3] = [0.5, 2.0, 8.0];
 /// ε of three points can flatten the sagitta by 2ε; beyond 4ε at least half of it is left).
 pub const CHORD_SAGITTA_TOLERANCES: f64 = 4.0;
 /// Cells per radian of arc sweep at most: 1° cells, each capped by its largest cap.
+/// A chord window counts only where the chords turn evenly (a curve, not a corner): no
+/// vertex in it turns by more than this (rad)...
+pub const CHORD_WINDOW_MAX_TURN_RAD: f64 = 0.35;
+/// ... nor by more than this many times the window's mean turn (plus the rounding of a
+/// straight run): a window's curvature holds somewhere in it, and applied at its middle it
+/// must not be a nearby corner's (a corner has its own cap).
+pub const CHORD_WINDOW_EVEN_TURN: f64 = 3.0;
+const CHORD_WINDOW_TURN_NOISE_RAD: f64 = 1.0e-3;
 pub const ARC_CELL_RAD: f64 = std::f64::consts::PI / 180.0;
 
 /// The exact time-optimal rest-to-rest time of a 1-D motion over `len_mm` with velocity,
@@ -360,14 +368,27 @@ fn corner(a: &Part, b: &Part, eps: f64, lim: &LimitsJson) -> Corner {
     let a_n = support(lim.acc, unit(jump));
     let vel_between = directions::max_projected_between(lim.vel, ta, tb);
     let feed = a.feed.max(b.feed);
+    let zone_mm = if half.cos() > 0.0 {
+        r * half.tan()
+    } else {
+        f64::INFINITY
+    };
+    // The fillet argument holds where the fillet fits on the two lines: a tiny chord's
+    // corner (a CAM post's rounding makes them by the thousand) may be smoothed over its
+    // neighbours instead, within the tolerance; then only the chord windows bound it.
+    let fits = match (a.geo, b.geo) {
+        (Geo::Line { len: la, .. }, Geo::Line { len: lb, .. }) => zone_mm <= la.min(lb),
+        _ => true,
+    };
+    let bend = if fits {
+        (a_n * r).sqrt()
+    } else {
+        f64::INFINITY
+    };
     Corner {
-        cap: (a_n * r).sqrt().min(vel_between).min(feed),
+        cap: bend.min(vel_between).min(feed),
         vel_between,
-        zone_mm: if half.cos() > 0.0 {
-            r * half.tan()
-        } else {
-            f64::INFINITY
-        },
+        zone_mm,
         shortcut_mm: (2.0 * eps * half.tan()).min(4.0 * eps),
     }
 }
@@ -496,6 +517,35 @@ fn run_caps(run: &[Part], program: &Program, tol: &Tolerances, lim: &LimitsJson,
         }
     }
     let total = cum.last().copied().unwrap_or(0.0);
+    // how much the chords turn at each vertex
+    let turn: Vec<f64> = (0..pts.len())
+        .map(|v| {
+            if v == 0 || v + 1 >= pts.len() {
+                return 0.0;
+            }
+            let (a, b) = (sub(pts[v], pts[v - 1]), sub(pts[v + 1], pts[v]));
+            let (na, nb) = (norm(a), norm(b));
+            if na > 0.0 && nb > 0.0 {
+                (dot(a, b) / (na * nb)).clamp(-1.0, 1.0).acos()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let even = |lo: f64, hi: f64| {
+        let (a, b) = (
+            cum.partition_point(|&c| c < lo),
+            cum.partition_point(|&c| c <= hi),
+        );
+        let w = turn.get(a..b).unwrap_or_default();
+        if w.is_empty() {
+            return false;
+        }
+        let max = w.iter().fold(0.0f64, |m, &x| m.max(x));
+        let mean = w.iter().sum::<f64>() / w.len() as f64;
+        max <= CHORD_WINDOW_MAX_TURN_RAD
+            && max <= CHORD_WINDOW_EVEN_TURN * mean + CHORD_WINDOW_TURN_NOISE_RAD
+    };
     let eps = run
         .iter()
         .map(|p| tol.after_mm.get(p.k).copied().unwrap_or(0.0))
@@ -512,7 +562,7 @@ fn run_caps(run: &[Part], program: &Program, tol: &Tolerances, lim: &LimitsJson,
         let vx = pts[v];
         let mut cap = f64::INFINITY;
         for l in CHORD_WINDOWS_MM {
-            if sv - l < 0.0 || sv + l > total {
+            if sv - l < 0.0 || sv + l > total || !even(sv - l, sv + l) {
                 continue;
             }
             let (pm, pp) = (at(sv - l), at(sv + l));

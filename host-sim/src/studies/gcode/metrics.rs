@@ -13,7 +13,9 @@ use super::bound;
 use super::cursor::{PathCursor, ProgramPath, REACH_MARGIN_MM, REACH_TOLERANCES};
 use super::directions::projected;
 use super::distance::{self, norm};
-use super::tolerance::{Tolerances, TOLERANCE_SLACK_MM};
+#[cfg(test)]
+use super::tolerance::TOLERANCE_SLACK_MM;
+use super::tolerance::{slack_mm, Tolerances};
 use super::{GcodeReport, LimitsJson, PlanSegment, Trace};
 use crate::gcode::{MoveKind, Program};
 use std::ops::Range;
@@ -165,7 +167,7 @@ impl<'a> PathMetrics<'a> {
                 let d = f.near.dist_mm;
                 self.dev_max = self.dev_max.max(d);
                 let allowed = self.tol.allowed_mm.get(f.k).copied().unwrap_or(0.0);
-                let excess = d - allowed - TOLERANCE_SLACK_MM;
+                let excess = d - allowed - slack_mm(s.planned_mm);
                 if excess > 0.0 {
                     if let Some(v) = self.violated.get_mut(f.k) {
                         *v = true;

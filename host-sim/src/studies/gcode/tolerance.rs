@@ -15,8 +15,27 @@ pub const PLANNER_FIT_MM: f64 = controller_core::motion::planner::span::FIT_TOL_
 /// gcode`), inside the fit plus this.
 pub const F32_POSITION_ROUNDING_MM: f64 = 5.0e-6;
 /// Numerical slack on top of the tolerance in force before a deviation counts as a
-/// violation, mm: the span fit plus the f32 rounding (2.5e-5 mm).
+/// violation near the origin, mm: the span fit plus the f32 rounding (2.5e-5 mm); farther
+/// out it grows with the f32 resolution ([`slack_mm`]).
 pub const TOLERANCE_SLACK_MM: f64 = PLANNER_FIT_MM + F32_POSITION_ROUNDING_MM;
+
+/// f32 units in the last place the executed reference may be off by at a position (the
+/// span polynomial's Horner sum and the arc geometry in f32): measured up to 2.1 at
+/// 61 mm from the origin (a 36 mm-radius G61 circle deviates by 3.27e-5 mm).
+pub const F32_POSITION_ULPS: f64 = 4.0;
+
+/// The slack at position `p` (mm): [`TOLERANCE_SLACK_MM`], or the span fit plus
+/// [`F32_POSITION_ULPS`] of the f32 resolution at the largest coordinate, whichever is
+/// more (3.5e-5 mm at 32-64 mm, 5.1e-5 mm at 64-128 mm, 8.1e-5 mm at 128-256 mm).
+pub fn slack_mm(p: [f64; 3]) -> f64 {
+    let m = p.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let ulp = if m >= f64::from(f32::MIN_POSITIVE) {
+        (m.log2().floor() - 23.0).exp2()
+    } else {
+        0.0
+    };
+    TOLERANCE_SLACK_MM.max(PLANNER_FIT_MM + F32_POSITION_ULPS * ulp)
+}
 
 /// The tolerance a blend mode allows, mm: G64 P ε → ε, G64 → the configured default,
 /// G61 and G61.1 → 0 (no blend: corners are passed exactly, stopping where the tangent
@@ -186,5 +205,8 @@ mod tests {
         assert_eq!(t.program_mm(&p), 0.02);
         assert_eq!(t.distinct_mm(&p), vec![0.02]);
         assert!((TOLERANCE_SLACK_MM - 2.5e-5).abs() < 1e-12);
+        assert_eq!(slack_mm([0.0, 1.0, -2.0]), TOLERANCE_SLACK_MM);
+        // 64-128 mm: ulp 7.63e-6 mm
+        assert!((slack_mm([-100.0, 0.0, 0.0]) - (2.0e-5 + 4.0 * 7.62939453125e-6)).abs() < 1e-9);
     }
 }
