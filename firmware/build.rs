@@ -1,7 +1,8 @@
 //! Build script of the firmware.
 //!
-//! * Copies the workspace's `memory.x` into `OUT_DIR` and puts it on the linker search
-//!   path (cortex-m-rt's `link.x`, passed by `.cargo/config.toml`, includes it).
+//! * Copies `firmware/memory.x` into `OUT_DIR` and puts it on the linker search
+//!   path (cortex-m-rt's `link.x`, passed by `.cargo/config.toml`, includes it); for the
+//!   QEMU build with the CCM RAM region moved into the emulator's larger SRAM.
 //! * Adds `-Tdefmt.x` for the firmware binary only (`rustc-link-arg-bins`), so other
 //!   thumb binaries in the workspace do not need defmt.
 //! * With the `qemu` feature: the QEMU rig's scenario table. Every
@@ -29,9 +30,17 @@ fn main() {
     if !env::var("TARGET").unwrap_or_default().starts_with("thumb") {
         return;
     }
-    let memory_x = manifest_dir.join("..").join("memory.x");
+    let memory_x = manifest_dir.join("memory.x");
     println!("cargo:rerun-if-changed={}", memory_x.display());
-    fs::copy(&memory_x, out.join("memory.x")).expect("copy memory.x into OUT_DIR");
+    let layout = fs::read_to_string(&memory_x).expect("read memory.x");
+    // QEMU's STM32F405 has no CCM RAM but 192 KiB of SRAM: the 64 KiB above the board's
+    // 128 KiB stand in for it (same size, same use)
+    #[cfg(feature = "qemu")]
+    let layout = layout.replace(
+        "CCMRAM : ORIGIN = 0x10000000",
+        "CCMRAM : ORIGIN = 0x20020000",
+    );
+    fs::write(out.join("memory.x"), layout).expect("write memory.x into OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
 }

@@ -27,6 +27,9 @@ static mut MEMORY: MachineMemory<Executor> = MachineMemory {
     planner: SplitExecutor::DETACHED,
     scope: Scope::new(),
 };
+/// The planning half in the CCM RAM (core-coupled, otherwise unused: the look-ahead's
+/// queue is most of it). Its initial image is copied there by [`init_ccm`].
+#[cfg_attr(target_os = "none", link_section = ".ccmdata")]
 static mut PLANNER: MachineTaskPlanner = MachineTaskPlanner::BLANK;
 static mut CHANNELS: PlannerChannels = PlannerChannels::new();
 static mut TASK: Option<PlanTask> = None;
@@ -54,6 +57,8 @@ pub fn build(
     if MEMORY_TAKEN.swap(true, Ordering::AcqRel) {
         return Err(BuildError::Twice);
     }
+    // SAFETY: the first and only build, before anything has a reference to a CCM static.
+    unsafe { init_ccm() };
     // SAFETY: the flag above hands out the only references to `MEMORY`, `PLANNER`,
     // `CHANNELS` and `TASK` (before `take_plan_task` can see it), once.
     let (memory, planner, channels, task) = unsafe {
@@ -80,3 +85,26 @@ pub fn take_plan_task() -> Option<PlanTask> {
     // `build` no longer holds its reference, and the flag above hands this one out once.
     unsafe { (*core::ptr::addr_of_mut!(TASK)).take() }
 }
+
+/// Copies the initial image of the `.ccmdata` statics from flash into the CCM RAM
+/// (memory.x): cortex-m-rt initialises `.data` only.
+///
+/// # Safety
+/// Once, before any reference to a `.ccmdata` static exists (`build` calls it first).
+#[cfg(target_os = "none")]
+unsafe fn init_ccm() {
+    extern "C" {
+        static mut __sccmdata: u32;
+        static __eccmdata: u32;
+        static __siccmdata: u32;
+    }
+    let start = core::ptr::addr_of_mut!(__sccmdata);
+    let end = core::ptr::addr_of!(__eccmdata);
+    let words = (end as usize - start as usize) / 4;
+    // word by word from the flash image (both 4-aligned by the linker script)
+    core::ptr::copy_nonoverlapping(core::ptr::addr_of!(__siccmdata), start, words);
+}
+
+/// On the host (unit tests) the statics are ordinary ones, already initialised.
+#[cfg(not(target_os = "none"))]
+unsafe fn init_ccm() {}

@@ -45,9 +45,9 @@ use crate::sysid::IdentifyStatus;
 pub const REQUEST_QUEUE: usize = 16;
 
 /// Segment slots of the machine's planner.
-pub const MACHINE_SEGMENTS: usize = 32;
+pub const MACHINE_SEGMENTS: usize = 48;
 /// Spans in the planner's ring.
-pub const MACHINE_SPANS: usize = 128;
+pub const MACHINE_SPANS: usize = 256;
 
 /// The machine's planner with both halves in the period (host-sim, tests): 32 segments,
 /// 128 spans, and between its halves as many spans and steps as the board's queues.

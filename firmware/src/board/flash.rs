@@ -62,7 +62,7 @@ const _: () = assert!(STORE_OFFSET + STORE_BYTES == FLASH_BYTES);
 
 /// `memory.x` must end the program's FLASH region where the store begins (768 KiB), so the
 /// linker fails if the firmware ever grows into it.
-const MEMORY_X: &[u8] = include_bytes!("../../../memory.x");
+const MEMORY_X: &[u8] = include_bytes!("../../memory.x");
 const _: () = assert!(
     contains(MEMORY_X, b"FLASH : ORIGIN = 0x08000000, LENGTH = 768K"),
     "memory.x: FLASH must be 0x08000000 + 768K, ending where the settings sectors begin"

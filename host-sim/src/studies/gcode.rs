@@ -36,9 +36,7 @@ use crate::builtin;
 use crate::gcode::{self, check_travel, compress, MoveKind, ParseOptions, Program, Travel};
 use crate::studies::resolve_all;
 use anyhow::{anyhow, bail, Result};
-use controller_core::motion::planner::{
-    Blend, MotionPlanner, PathSample, Plane, PlannerConfig, Segment,
-};
+use controller_core::motion::planner::{Blend, PathSample, Plane, PlannerConfig, Segment};
 use controller_core::servo::{Command, ServoState};
 use controller_core::settings::{Settings, FACTORY, TOOL_COUNT};
 use controller_core::sim::run::{RunConfig, SimRun};
@@ -48,9 +46,9 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
-/// The planner used here: 64 segment slots, 256 spans, 128 spans in the executor's
-/// channel, 32 steps buffered (the board's sizes).
-pub type Planner = MotionPlanner<64, 256, 128, 32>;
+/// The planner used here: the machine's (the board's sizes: `MACHINE_SEGMENTS` segment
+/// slots, `MACHINE_SPANS` spans, the split channels' spans and steps between the halves).
+pub type Planner = controller_core::machine::MachinePlanner;
 
 /// Simulated time allowed for homing a machine that homes, s.
 const HOMING_TIMEOUT_S: f64 = 120.0;
