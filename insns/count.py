@@ -62,7 +62,8 @@ except ImportError as exc:  # pragma: no cover - environment problem
     sys.exit(2)
 
 FLASH = (0x0800_0000, 1024 * 1024)
-RAM = (0x2000_0000, 128 * 1024)
+# 192 KiB: the board's SRAM plus its CCM RAM (kernels/memory.x)
+RAM = (0x2000_0000, 192 * 1024)
 # Private peripheral bus (SCB: CPACR for the FPU enable in the reset handler).
 PPB = (0xE000_0000, 0x10_0000)
 # Return address for called functions: an unused, mapped flash word (emulation stops

@@ -17,6 +17,7 @@
 
 pub mod link;
 pub mod parts;
+pub mod plan_task;
 pub mod planner;
 
 use controller_core::axes::AXES;

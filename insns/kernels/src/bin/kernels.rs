@@ -70,6 +70,7 @@ mod cortex_m4 {
     use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
     use insns_kernels::link::{LinkDecode, LinkEncode};
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
+    use insns_kernels::plan_task::{PlanTask, Program};
     use insns_kernels::planner::PlannerState;
     use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
 
@@ -153,6 +154,24 @@ mod cortex_m4 {
         PlannerState,
         PlannerState::setup_segment(),
         |k| k.add_segment()
+    );
+    kernel!(
+        plan_task_period,
+        PlanTask,
+        PlanTask::setup_period(Program::Chords),
+        |k| k.run()
+    );
+    kernel!(
+        plan_task_segment,
+        PlanTask,
+        PlanTask::setup_segment(Program::Chords),
+        |k| k.run()
+    );
+    kernel!(
+        plan_task_arc,
+        PlanTask,
+        PlanTask::setup_segment(Program::Arcs),
+        |k| k.run()
     );
     kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
         .step());
