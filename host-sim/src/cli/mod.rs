@@ -15,8 +15,8 @@ pub mod sim;
 
 use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
 use crate::studies::gcode::{
-    load_program_with, machine_and_planner, segments, GcodeReport, LimitsJson, MetricSample,
-    PathMetrics,
+    load_program_with, machine_and_planner, segments, ComputeJson, GcodeReport, LimitsJson,
+    MetricSample, PathMetrics,
 };
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
@@ -317,11 +317,15 @@ pub fn run_program<T: Transport>(
     let s = ready(c, true)?;
     let start = planner_start_mm(c, &s)?;
     let opts = options(start);
+    let parse_started = Instant::now();
     let program = match load_program_with(path, &opts, &travel) {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
+    let parse_s = parse_started.elapsed().as_secs_f64();
+    let compress_started = Instant::now();
     let (segs, compression) = segments(&program, tol);
+    let compress_s = compress_started.elapsed().as_secs_f64();
     expect_done("run", c.exec(Request::Run)?)?;
     c.take_telemetry();
     let started = Instant::now();
@@ -416,6 +420,11 @@ pub fn run_program<T: Transport>(
     };
     let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
     report.compression = compression;
+    report.compute = ComputeJson {
+        parse_s,
+        compress_s,
+        run_s: compute_s,
+    };
     if aborted && report.status == "completed" {
         report.status = "aborted".into();
     }

@@ -90,6 +90,9 @@ pub struct GcodeReport {
     /// What the path compressor did (`gcode::compress`): chords considered, primitives
     /// they became (lines, arcs).
     pub compression: compress::Stats,
+    /// Compute time of the host's part, s: parsing with the travel check, compression,
+    /// and the run (planner and, in `cargo sim gcode`, the simulated machine).
+    pub compute: ComputeJson,
     /// Machine time from `Run` until the planner is idle again, s.
     pub duration_s: f64,
     /// Length of the programmed path, mm.
@@ -141,6 +144,14 @@ pub struct GcodeReport {
     pub trace: Trace,
 }
 
+/// Compute times of a run (keys of the JSON's `compute`).
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct ComputeJson {
+    pub parse_s: f64,
+    pub compress_s: f64,
+    pub run_s: f64,
+}
+
 /// Decimated samples for the plots.
 #[derive(Clone, Debug, Default)]
 pub struct Trace {
@@ -170,6 +181,7 @@ impl GcodeReport {
             segments: 0,
             moves: 0,
             compression: compress::Stats::default(),
+            compute: ComputeJson::default(),
             duration_s: 0.0,
             path_length_mm: 0.0,
             corner_deviation_max_mm: 0.0,
@@ -486,11 +498,15 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
         .planner_start_mm()
         .ok_or_else(|| anyhow!("the servo is not running the planner"))?;
     // the program from where the machine stands now (after homing, if any)
+    let parse_started = Instant::now();
     let program = match load_program(program_path, here.map(f64::from), &travel) {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
+    let parse_s = parse_started.elapsed().as_secs_f64();
+    let compress_started = Instant::now();
     let (segs, compression) = segments(&program, tol);
+    let compress_s = compress_started.elapsed().as_secs_f64();
     let mut mp = Box::new(Planner::new(&pcfg, here).map_err(|e| anyhow!("planner: {e:?}"))?);
 
     let path_length_mm: f64 = program.moves.iter().map(length).sum();
@@ -596,6 +612,11 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     };
     let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
     report.compression = compression;
+    report.compute = ComputeJson {
+        parse_s,
+        compress_s,
+        run_s: compute_s,
+    };
     Ok(report)
 }
 

@@ -245,6 +245,7 @@ impl<'a> PathMetrics<'a> {
                 .filter(|m| !matches!(m.kind, MoveKind::SetBlend(_)))
                 .count(),
             compression: Default::default(),
+            compute: Default::default(),
             duration_s,
             path_length_mm: program.moves.iter().map(distance::length).sum(),
             corner_deviation_max_mm: self.dev_max,
