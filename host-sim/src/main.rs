@@ -140,6 +140,16 @@ enum Command {
         #[arg(long)]
         no_plots: bool,
     },
+    /// Write the planner's benchmark programs (host_sim::bench_programs) to DIR as
+    /// `<name>.nc`, the rest-to-rest lines as `r2r_<dir>_<len>.nc` (docs/planner.md).
+    BenchPrograms {
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write the 170,000-line `huge.nc` (4.7 MB).
+        #[arg(long)]
+        huge: bool,
+    },
     /// Compare a QEMU scenario's figures from the firmware's log with host-sim's (used by
     /// firmware/qemu/run-all); prints `qemu <name> passed` or `qemu <name> FAILED: <why>`.
     QemuVerdict {
@@ -201,6 +211,7 @@ fn main() -> ExitCode {
                 no_plots,
             )
         }
+        Some(Command::BenchPrograms { out, huge }) => write_bench_programs(&out, huge),
         Some(Command::QemuVerdict { file, log, rate_hz }) => {
             return run_verdict(&file, &log, rate_hz)
         }
@@ -402,6 +413,30 @@ fn run_gcode(
             ExitCode::FAILURE
         }
     }
+}
+
+/// `bench-programs --out DIR [--huge]`: the benchmark set as files.
+fn write_bench_programs(out: &Path, huge: bool) -> Result<()> {
+    use host_sim::bench_programs;
+    create_dir(out)?;
+    let mut files: Vec<(String, String)> = bench_programs::all()
+        .into_iter()
+        .map(|(name, text)| (name.to_string(), text))
+        .collect();
+    files.extend(
+        bench_programs::rest_to_rest_cases()
+            .into_iter()
+            .map(|(name, len, dir)| (name, bench_programs::rest_to_rest(len, dir))),
+    );
+    if huge {
+        files.push(("huge".into(), bench_programs::huge()));
+    }
+    for (name, text) in &files {
+        let path = out.join(format!("{name}.nc"));
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    println!("{} programs in {}", files.len(), out.display());
+    Ok(())
 }
 
 fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {
