@@ -12,7 +12,8 @@
 //!   scenario file, and the QEMU verdict;
 //! - [`gcode`]: G-code programs → validated machine moves (before any motion), soft limits;
 //! - [`output`]: tables, JSON, CSV and plots (bundled font: renders on a bare machine);
-//! - [`bench_programs`]: the planner's generated benchmark programs.
+//! - [`bench_programs`]: the planner's generated benchmark programs;
+//! - [`overrides`]: `--set KEY=VALUE` settings overrides of a run.
 
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -24,4 +25,5 @@ pub mod engine;
 pub mod gcode;
 pub mod jobs;
 pub mod output;
+pub mod overrides;
 pub mod studies;
