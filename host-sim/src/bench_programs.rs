@@ -185,8 +185,9 @@ pub const DENSE_CURVE_PATH_MM: f64 = 738.0;
 
 /// Lengths of the rest-to-rest lines (mm).
 pub const REST_TO_REST_LENGTHS_MM: [f64; 8] = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0];
-/// Feed of the rest-to-rest lines (mm/min = 250 mm/s, the axes' limit: the feed never
-/// binds before the axes do along X, and the 45° and diagonal lines are held by the axes).
+/// Feed of the rest-to-rest lines (mm/min = 250 mm/s along the path): the axis' own limit
+/// along X; at 45° and along the diagonal it binds before the axes (177 and 144 mm/s per
+/// axis of their 250), so a time-optimal comparison takes it as a path speed limit.
 pub const REST_TO_REST_FEED_MM_MIN: f64 = 15_000.0;
 
 /// Direction of a rest-to-rest line.
