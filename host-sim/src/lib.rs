@@ -11,15 +11,19 @@
 //! - [`studies`]: the paper reproduction, the seed methods, the velocity estimators, any
 //!   scenario file, and the QEMU verdict;
 //! - [`gcode`]: G-code programs → validated machine moves (before any motion), soft limits;
-//! - [`output`]: tables, JSON, CSV and plots (bundled font: renders on a bare machine).
+//! - [`output`]: tables, JSON, CSV and plots (bundled font: renders on a bare machine);
+//! - [`bench_programs`]: the planner's generated benchmark programs;
+//! - [`overrides`]: `--set KEY=VALUE` settings overrides of a run.
 
 // `!(x > 0.0)` is deliberate: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod bench_programs;
 pub mod builtin;
 pub mod cli;
 pub mod engine;
 pub mod gcode;
 pub mod jobs;
 pub mod output;
+pub mod overrides;
 pub mod studies;

@@ -139,6 +139,22 @@ enum Command {
         /// Skip the plots.
         #[arg(long)]
         no_plots: bool,
+        /// Override a setting for this run, `KEY=VALUE` (repeatable), on the factory
+        /// settings by dotted key, checked as `gantry settings set` checks it: the
+        /// planner's (`planner.*`, `axis.<a>.planner.*`), the work offsets and the tools
+        /// (e.g. `--set planner.servo_reserve=0`).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
+    /// Write the planner's benchmark programs (host_sim::bench_programs) to DIR as
+    /// `<name>.nc`, the rest-to-rest lines as `r2r_<dir>_<len>.nc` (docs/planner.md).
+    BenchPrograms {
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write the 170,000-line `huge.nc` (4.7 MB).
+        #[arg(long)]
+        huge: bool,
     },
     /// Compare a QEMU scenario's figures from the firmware's log with host-sim's (used by
     /// firmware/qemu/run-all); prints `qemu <name> passed` or `qemu <name> FAILED: <why>`.
@@ -192,6 +208,7 @@ fn main() -> ExitCode {
             json,
             out,
             no_plots,
+            set,
         }) => {
             return run_gcode(
                 &file,
@@ -199,8 +216,10 @@ fn main() -> ExitCode {
                 json.as_deref(),
                 out.as_deref(),
                 no_plots,
+                &set,
             )
         }
+        Some(Command::BenchPrograms { out, huge }) => write_bench_programs(&out, huge),
         Some(Command::QemuVerdict { file, log, rate_hz }) => {
             return run_verdict(&file, &log, rate_hz)
         }
@@ -370,11 +389,23 @@ fn run_gcode(
     json: Option<&Path>,
     out: Option<&Path>,
     no_plots: bool,
+    set: &[String],
 ) -> ExitCode {
     use host_sim::studies::gcode;
     let started = Instant::now();
     let res = (|| -> Result<gcode::GcodeReport> {
-        let r = gcode::run(file, machine, std::io::stderr().is_terminal())?;
+        // the overrides are checked at the machine's control rate, before anything runs
+        let (machine_cfg, _) = gcode::machine_and_planner(machine)?;
+        let settings = host_sim::overrides::gcode_run_settings(
+            &controller_core::settings::FACTORY,
+            set,
+            machine_cfg.servo.rate_hz,
+        )?;
+        if !set.is_empty() {
+            println!("settings overrides: {}", set.join(", "));
+        }
+        let r =
+            gcode::run_with_settings(file, machine, &settings, std::io::stderr().is_terminal())?;
         print!("{}", gcode::table(&r));
         if let Some(j) = json {
             write_json(j, &r)?;
@@ -402,6 +433,30 @@ fn run_gcode(
             ExitCode::FAILURE
         }
     }
+}
+
+/// `bench-programs --out DIR [--huge]`: the benchmark set as files.
+fn write_bench_programs(out: &Path, huge: bool) -> Result<()> {
+    use host_sim::bench_programs;
+    create_dir(out)?;
+    let mut files: Vec<(String, String)> = bench_programs::all()
+        .into_iter()
+        .map(|(name, text)| (name.to_string(), text))
+        .collect();
+    files.extend(
+        bench_programs::rest_to_rest_cases()
+            .into_iter()
+            .map(|(name, len, dir)| (name, bench_programs::rest_to_rest(len, dir))),
+    );
+    if huge {
+        files.push(("huge".into(), bench_programs::huge()));
+    }
+    for (name, text) in &files {
+        let path = out.join(format!("{name}.nc"));
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    println!("{} programs in {}", files.len(), out.display());
+    Ok(())
 }
 
 fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {

@@ -336,6 +336,15 @@ pub fn segments(program: &Program, default_tol_mm: f64) -> (Vec<PlanSegment>, co
 /// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
 /// configuration at the machine's rate.
 pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, PlannerConfig)> {
+    machine_and_planner_with(machine, &FACTORY)
+}
+
+/// [`machine_and_planner`] with the planner configured from `settings` instead of the
+/// factory settings (`cargo sim gcode --set`).
+pub fn machine_and_planner_with(
+    machine: Option<&Path>,
+    settings: &Settings,
+) -> Result<(RunConfig, PlannerConfig)> {
     let file = match machine {
         Some(m) => builtin::load_on_machine("gcode.toml", m)?,
         None => builtin::load("gcode.toml")?,
@@ -344,9 +353,10 @@ pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, Planner
     let r = runs
         .first()
         .ok_or_else(|| anyhow!("gcode.toml has no run"))?;
-    // the factory settings' planner (controller-core settings, from GANTRY_PLANNER), its
-    // speeds capped at the machine's own limits (a `--machine` may be slower)
-    let mut cfg = FACTORY.planner_config(r.run.servo.rate_hz);
+    // the settings' planner (controller-core settings, the factory's from GANTRY_PLANNER
+    // unless `--set`), its speeds capped at the machine's own limits (a `--machine` may
+    // be slower)
+    let mut cfg = settings.planner_config(r.run.servo.rate_hz);
     for (v, safety) in cfg.vel_max_mm_s.iter_mut().zip(&r.run.servo.safety.axes) {
         if safety.vel_max_mm_s.is_finite() && safety.vel_max_mm_s > 0.0 {
             *v = v.min(safety.vel_max_mm_s);
@@ -450,7 +460,18 @@ fn run_while(run: &mut SimRun<f32>, state: ServoState, max: u64) -> Result<()> {
 /// report with status `rejected`, not an error (errors: the machine file, a refused
 /// command, a planner that never finishes).
 pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Result<GcodeReport> {
-    let (mut cfg, pcfg) = machine_and_planner(machine)?;
+    run_with_settings(program_path, machine, &FACTORY, progress)
+}
+
+/// [`run`] with `settings` in place of the factory settings: the planner's limits and
+/// tolerances, the work offsets and the tool table (`cargo sim gcode --set`).
+pub fn run_with_settings(
+    program_path: &Path,
+    machine: Option<&Path>,
+    settings: &Settings,
+    progress: bool,
+) -> Result<GcodeReport> {
+    let (mut cfg, pcfg) = machine_and_planner_with(machine, settings)?;
     let limits = limits_of(&pcfg);
     let tol = decimal(pcfg.tolerance_mm);
     let name = program_path.display().to_string();
@@ -461,7 +482,7 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
     let mut run = SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))?;
     let start = run.world().state().map(|s| s.pos);
     // rejected before any motion
-    if let Err(e) = load_program(program_path, start, &travel) {
+    if let Err(e) = load_program_with(program_path, &parse_options(settings, start), &travel) {
         return Ok(GcodeReport::rejected(&name, &e, limits, tol));
     }
 
@@ -498,8 +519,9 @@ pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Resul
         .planner_start_mm()
         .ok_or_else(|| anyhow!("the servo is not running the planner"))?;
     // the program from where the machine stands now (after homing, if any)
+    let options = parse_options(settings, here.map(f64::from));
     let parse_started = Instant::now();
-    let program = match load_program(program_path, here.map(f64::from), &travel) {
+    let program = match load_program_with(program_path, &options, &travel) {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
