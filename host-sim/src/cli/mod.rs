@@ -21,7 +21,9 @@ use crate::studies::gcode::{
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
 use controller_core::link::RealtimeRequest;
-use controller_core::machine::messages::{IdentifyMsg, MachineState, Outcome, Request, Status};
+use controller_core::machine::messages::{
+    IdentifyMsg, MachineState, Outcome, Request, Status, Telemetry,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::path::Path;
@@ -344,7 +346,27 @@ pub fn run_program<T: Transport>(
     // an operator at a terminal: hold, resume and abort from the keyboard
     let typed = progress.then(keyboard);
     let mut aborted = false;
-    let mut samples = Vec::new();
+    // figures from telemetry as it comes (no sample kept: a long program runs for hours):
+    // every sample in Run (a jerk only between consecutive ones)
+    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s);
+    let mut account = |samples: Vec<Telemetry>| {
+        for t in samples
+            .iter()
+            .filter(|t| matches!(t.state, MachineState::Run { .. }))
+        {
+            let sample = MetricSample {
+                t_s: f64::from(t.period) * period_s,
+                tag: t.tag as usize,
+                planned_mm: t.reference_mm.map(f64::from),
+                vel_mm_s: t.ref_vel_mm_s.map(f64::from),
+                acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
+                actual_mm: t.pos_mm.map(f64::from),
+                along_mm: 0.0,
+            };
+            // (no plot trace: `gantry run` draws none)
+            metrics.add(&sample, true, false);
+        }
+    };
     let (mut held_at, mut resumed) = (None, false);
     for (k, seg) in segs.iter().enumerate() {
         // wait for room here, not in `send`: a feed hold stops the planner taking
@@ -362,7 +384,7 @@ pub fn run_program<T: Transport>(
         c.pump()?;
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed.as_ref(), &mut aborted)?;
-        samples.extend(c.take_telemetry());
+        account(c.take_telemetry());
         if let Some(b) = &bar {
             b.set_position(k as u64 + 1);
         }
@@ -377,7 +399,7 @@ pub fn run_program<T: Transport>(
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed.as_ref(), &mut aborted)?;
         let s = c.status()?;
-        samples.extend(c.take_telemetry());
+        account(c.take_telemetry());
         if matches!(s.last, Outcome::Refused(_)) {
             let Outcome::Refused(why) = &s.last else {
                 unreachable!()
@@ -395,23 +417,7 @@ pub fn run_program<T: Transport>(
     let duration_s = f64::from(end.period.wrapping_sub(p0)) * period_s;
     let compute_s = started.elapsed().as_secs_f64();
 
-    // figures from telemetry: every sample in Run (a jerk only between consecutive ones)
-    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s);
-    for t in samples
-        .iter()
-        .filter(|t| matches!(t.state, MachineState::Run { .. }))
-    {
-        let sample = MetricSample {
-            t_s: f64::from(t.period) * period_s,
-            tag: t.tag as usize,
-            planned_mm: t.reference_mm.map(f64::from),
-            vel_mm_s: t.ref_vel_mm_s.map(f64::from),
-            acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
-            actual_mm: t.pos_mm.map(f64::from),
-            along_mm: 0.0,
-        };
-        metrics.add(&sample, true, true);
-    }
+    drop(account);
     let fault = (end.state == MachineState::Fault).then(|| fault_text(&end));
     let realtime = if compute_s > 0.0 {
         duration_s / compute_s
