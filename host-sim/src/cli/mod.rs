@@ -417,7 +417,6 @@ pub fn run_program<T: Transport>(
     let duration_s = f64::from(end.period.wrapping_sub(p0)) * period_s;
     let compute_s = started.elapsed().as_secs_f64();
 
-    drop(account);
     let fault = (end.state == MachineState::Fault).then(|| fault_text(&end));
     let realtime = if compute_s > 0.0 {
         duration_s / compute_s
