@@ -1,6 +1,7 @@
 //! Corners between lines: the samples stay within the blend tolerance ε of the programmed
-//! polyline for every turn angle (near-tangent to reversal), keep the per-axis limits, and
-//! stop exactly on the corner with G61.1 (exact stop) or ε = 0 (G61); an exact stop also
+//! polyline for every turn angle (near-tangent to reversal) and keep the per-axis limits; a
+//! corner is never slower than an exact stop (sharp ones stop, `motion::planner::corner`);
+//! G61.1 (exact stop) and ε = 0 (G61) stop exactly on the corner, and an exact stop also
 //! stops where the next line goes on straight.
 
 mod planner_common;
@@ -80,9 +81,17 @@ fn blended_corners_stay_within_tolerance() {
                 dev <= eps as f64 + 3e-5,
                 "turn {turn} ε {eps}: deviation {dev}"
             );
+            // Blended or stopped, whichever is faster (`corner`): never slower than the
+            // exact stop, and gentle corners are blended.
+            let stop = corner(turn, Blend::ExactStop, 50.0).0;
+            assert!(
+                s.len() <= stop.len() + 2,
+                "turn {turn} ε {eps}: {} periods, {} with an exact stop",
+                s.len(),
+                stop.len()
+            );
             let v = speed_at_corner(&s);
-            if turn < 180.0 {
-                // Blended: the machine does not stop at the corner.
+            if turn <= 10.0 {
                 assert!(v > 0.1, "turn {turn} ε {eps}: corner speed {v}");
             }
         }
@@ -98,11 +107,16 @@ fn near_tangent_join_keeps_the_feed() {
 
 #[test]
 fn larger_tolerance_gives_faster_corners() {
-    let v: Vec<f32> = [0.002f32, 0.01, 0.05]
-        .iter()
-        .map(|&e| speed_at_corner(&corner(90.0, Blend::Tolerance(e), 50.0).0))
-        .collect();
-    assert!(v[0] < v[1] && v[1] < v[2], "{v:?}");
+    // 20°: a stop within 2 µm, a blend within 50 µm
+    let run = |e: f32| corner(20.0, Blend::Tolerance(e), 50.0).0;
+    let (s0, s1, s2) = (run(0.002), run(0.01), run(0.05));
+    let n: Vec<usize> = [&s0, &s1, &s2].iter().map(|s| s.len()).collect();
+    assert!(n[0] >= n[1] && n[1] >= n[2] && n[2] < n[0], "periods {n:?}");
+    let v: Vec<f32> = [&s0, &s1, &s2].iter().map(|s| speed_at_corner(s)).collect();
+    assert!(
+        v[0] <= v[1] && v[1] < v[2] && v[2] > 10.0,
+        "corner speeds {v:?}"
+    );
 }
 
 #[test]

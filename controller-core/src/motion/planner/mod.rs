@@ -32,6 +32,7 @@
 mod blend;
 pub mod channel;
 pub mod config;
+mod corner;
 mod executor;
 pub mod fmath;
 mod geometry;

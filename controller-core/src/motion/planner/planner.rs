@@ -20,6 +20,7 @@ use heapless::Deque;
 use super::blend::{plan_junction, Jet, Junction};
 use super::channel::Sink;
 use super::config::{PlannerConfig, PlannerConfigError, Settings};
+use super::corner::stop_is_faster;
 use super::executor::{ExecMode, ExecutorStatus, Step};
 use super::geometry::{Piece, V3};
 use super::lookahead::{choose_jerk, Ahead};
@@ -385,18 +386,26 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 // An exact stop (G61.1) ends its segment at rest even where the next one
                 // continues in the same direction: `plan_junction` passes smooth junctions
                 // in every mode, which is right between the pieces of one segment.
+                let next = prep.piece(0);
                 let j = if last.attr.tol_after.is_none() {
                     Junction::STOP
                 } else {
-                    plan_junction(
+                    let j = plan_junction(
                         &last.piece,
-                        &prep.piece(0),
+                        &next,
                         last.attr.tol_after,
                         &last.j_in,
                         free,
                         FIT_TOL_MM,
                         self.set.min_span_mm(),
-                    )
+                    );
+                    // A sharp corner is passed faster at rest than along its blend.
+                    let feed = last.attr.feed.mn(prep.attr.feed);
+                    if stop_is_faster(&j, &last.piece, &next, feed, &self.set) {
+                        Junction::STOP
+                    } else {
+                        j
+                    }
                 };
                 last.j_out = j;
                 last.closed = true;
