@@ -275,11 +275,12 @@ fn stop() -> Junction {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::super::geometry::{add, scale, Shape};
     use super::*;
 
-    fn line(start: V3, end: V3) -> Piece {
+    /// The line piece from `start` to `end` (also for `corner`'s tests).
+    pub(crate) fn line(start: V3, end: V3) -> Piece {
         let d = sub(end, start);
         let len = norm(d);
         Piece {

@@ -85,21 +85,8 @@ fn speed_change_time(dv: f32, acc: f32, jerk: f32) -> f32 {
 mod tests {
     use super::*;
     use crate::motion::planner::blend::plan_junction;
+    use crate::motion::planner::blend::tests::line;
     use crate::motion::planner::config::GANTRY_PLANNER;
-    use crate::motion::planner::geometry::{norm, scale, sub, Shape};
-
-    fn line(start: [f32; 3], end: [f32; 3]) -> Piece {
-        let d = sub(end, start);
-        let len = norm(d);
-        Piece {
-            start,
-            end,
-            len,
-            shape: Shape::Line {
-                u: scale(d, 1.0 / len),
-            },
-        }
-    }
 
     fn stops(turn_deg: f32, reserve: f32, feed: f32) -> bool {
         let mut c = GANTRY_PLANNER;
