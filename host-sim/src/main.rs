@@ -459,6 +459,9 @@ fn write_bench_programs(out: &Path, huge: bool) -> Result<()> {
     Ok(())
 }
 
+/// Largest QEMU log `qemu-verdict` reads (a scenario's defmt log is a few MiB at most).
+const QEMU_LOG_MAX_BYTES: u64 = 256 << 20;
+
 fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {
     let stem = file
         .file_stem()
@@ -466,7 +469,8 @@ fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {
         .unwrap_or_default();
     let res = (|| {
         let f = gantry_scenario::file::load_at_rate(file, rate_hz)?;
-        let text = std::fs::read_to_string(log)
+        let text = gantry_scenario::file::read_regular(log, QEMU_LOG_MAX_BYTES)
+            .map_err(anyhow::Error::msg)
             .with_context(|| format!("cannot read log {}", log.display()))?;
         qemu_verdict::verdict(&f, &text)
     })();

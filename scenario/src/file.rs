@@ -110,20 +110,48 @@ impl Includes for EmbeddedIncludes<'_> {
 
 /// Read a file, refusing anything over [`MAX_FILE_BYTES`].
 pub fn read_capped(path: &Path) -> Result<String, String> {
+    read_regular(path, MAX_FILE_BYTES)
+}
+
+/// Read a regular file of at most `max_bytes` as text. A named pipe, a device or a
+/// directory is refused before it is opened (opening a pipe waits for a writer, a device
+/// such as /dev/zero never ends), and the read itself stops after `max_bytes` + 1 bytes
+/// whatever the file's size said.
+pub fn read_regular(path: &Path, max_bytes: u64) -> Result<String, String> {
+    use std::io::Read;
     let meta =
         std::fs::metadata(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     if !meta.is_file() {
-        return Err(format!("{} is not a file", path.display()));
-    }
-    if meta.len() > MAX_FILE_BYTES {
         return Err(format!(
-            "{} is {} bytes; scenario files are limited to {} bytes",
-            path.display(),
-            meta.len(),
-            MAX_FILE_BYTES
+            "{} is not a regular file (pipes, devices and directories are refused)",
+            path.display()
         ));
     }
-    std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+    let too_big = |n: u64| {
+        format!(
+            "{} is {n} bytes or more; files here are limited to {max_bytes} bytes",
+            path.display()
+        )
+    };
+    if meta.len() > max_bytes {
+        return Err(too_big(meta.len()));
+    }
+    let file =
+        std::fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut bytes = Vec::new();
+    file.take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_big(bytes.len() as u64));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        format!(
+            "{} is not UTF-8 text (byte {})",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        )
+    })
 }
 
 /// Load a scenario file from disk (includes relative to its directory).

@@ -8,6 +8,8 @@ use anyhow::{bail, Context, Result};
 
 /// The simulated machine's control rate (host-sim/scenarios/gcode.toml), Hz.
 const CONTROL_RATE_HZ: u32 = 10_000;
+/// Largest settings file `settings import` reads (an export is a few KiB).
+const SETTINGS_FILE_MAX_BYTES: u64 = 1 << 20;
 use clap::{ArgGroup, Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use controller_core::machine::scope::ScopeConfig;
@@ -60,7 +62,7 @@ enum Cmd {
     /// ratio, segment tag).
     Log {
         out: PathBuf,
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, value_parser = cli::args::duration_s)]
         seconds: f32,
         /// Up to 4 more signals per sample, comma-separated (as `scope --signals`):
         /// columns after the fixed ones.
@@ -91,7 +93,7 @@ enum Cmd {
         #[arg(long)]
         run: Option<PathBuf>,
         /// Give up when the capture is not complete after this much machine time, s.
-        #[arg(long, default_value_t = 10.0)]
+        #[arg(long, default_value_t = 10.0, value_parser = cli::args::duration_s)]
         timeout_s: f32,
         /// No figure.
         #[arg(long)]
@@ -113,18 +115,19 @@ enum Cmd {
     /// Jog an axis at a speed for a time (homes first), then stop.
     Jog {
         axis: String,
+        #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         vel_mm_s: f32,
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, value_parser = cli::args::duration_s)]
         seconds: f32,
     },
     /// Move to a point (machine mm) at the rapid rate, homing and arming first; refused
     /// before anything moves when the point is outside the travel.
     Move {
-        #[arg(allow_negative_numbers = true)]
+        #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         x_mm: f32,
-        #[arg(allow_negative_numbers = true)]
+        #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         y_mm: f32,
-        #[arg(allow_negative_numbers = true)]
+        #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         z_mm: f32,
     },
     /// Run a G-code program (homes and arms first); prints the `cargo sim gcode` keys.
@@ -134,10 +137,10 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
         /// Feed hold after this many seconds of machine time...
-        #[arg(long)]
+        #[arg(long, value_parser = cli::args::instant_s)]
         hold_at_s: Option<f32>,
         /// ...and resume this long after it.
-        #[arg(long, default_value_t = 0.5)]
+        #[arg(long, default_value_t = 0.5, value_parser = cli::args::duration_s)]
         hold_for_s: f32,
     },
     /// Identify axes (x, y, z or all); --accept stores the models in the settings.
@@ -202,6 +205,13 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
+    // (clap's `requires` counts the flag's default as given)
+    if cli.elf.is_some() && !cli.qemu {
+        bail!("--elf is the firmware for --qemu; it does nothing with --sim or --port");
+    }
+    if cli.factory && !cli.sim {
+        bail!("--factory starts the simulated machine; it goes with --sim only");
+    }
     if cli.telemetry_hz == 0 || cli.telemetry_hz > 10_000 {
         bail!(
             "--telemetry-hz must be within 1-10000, got {}",
@@ -509,8 +519,8 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             }
             SettingsOp::Import { file } => {
                 let name = file.display().to_string();
-                let text = std::fs::read_to_string(&file)
-                    .with_context(|| format!("cannot read {name}"))?;
+                let text = gantry_scenario::file::read_regular(&file, SETTINGS_FILE_MAX_BYTES)
+                    .map_err(anyhow::Error::msg)?;
                 let changes = cli::parse_settings_toml(&name, &text)?;
                 let changed = cli::import_settings(&mut c, &changes, CONTROL_RATE_HZ)?;
                 println!("{} settings changed: {}", changed.len(), changed.join(", "));

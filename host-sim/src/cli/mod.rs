@@ -7,6 +7,7 @@
 //! Every subcommand speaks the link protocol ([`client`]): requests on the reliable
 //! channel, status by real-time request, telemetry for the program run.
 
+pub mod args;
 pub mod client;
 pub mod port;
 pub mod qemu;

@@ -555,6 +555,17 @@ pub fn parse_file_with(path: &Path, options: &ParseOptions) -> Result<Program, E
         kind,
         message,
     };
+    // (a pipe or a device is refused before it is opened: opening a pipe waits for a
+    // writer, and a device such as /dev/zero never ends)
+    let meta = std::fs::metadata(path)
+        .map_err(|e| err(ErrorKind::Io, None, format!("cannot open the file: {e}")))?;
+    if !meta.is_file() {
+        return Err(err(
+            ErrorKind::Io,
+            None,
+            "not a regular file (pipes, devices and directories are refused)".into(),
+        ));
+    }
     let file = std::fs::File::open(path)
         .map_err(|e| err(ErrorKind::Io, None, format!("cannot open the file: {e}")))?;
     let mut bytes = Vec::new();
