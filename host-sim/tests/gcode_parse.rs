@@ -799,3 +799,28 @@ fn files_size_cap_encoding_and_missing() {
     assert_eq!(e.kind, ErrorKind::Io);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// What the planner would refuse or run off the path, and absurd values, are `FILE:LINE`
+/// errors of the front end, before any motion: more arc turns than the planner queues, a
+/// radius beyond its f32 precision, a dwell of days, a feed of nanometres a minute.
+#[test]
+fn limits_the_planner_enforces_are_checked_before_any_motion() {
+    let e = err("G21 G90 G17\nG1 X1 F600\nG2 X1 Y0 I5 J0 P2000\n");
+    assert!(e.contains(":3:") && e.contains("at most 16 turns"), "{e}");
+    // 16 turns are what one arc may have (the planner's pieces)
+    ok("G21 G90 G17\nG1 X1 F600\nG2 X1 Y0 I5 J0 P16\n");
+    let e = err("G21 G90 G17\nG1 X1 F600\nG2 X10 R9999999\n");
+    assert!(e.contains(":3:") && e.contains("above 10000 mm"), "{e}");
+    let e = err("G21 G90 G17\nG1 X1 F600\nG3 X1 Y0 I-20000 J0\n");
+    assert!(e.contains(":3:") && e.contains("radius 20000.0 mm"), "{e}");
+    ok("G21 G90 G17\nG1 X1 F600\nG3 X1 Y0 I-9000 J0\n");
+    let e = err("G21 G90\nG4 P10000000\n");
+    assert!(e.contains(":2:") && e.contains("longer than 3600 s"), "{e}");
+    ok("G21 G90\nG4 P3600\n");
+    let e = err("G21 G90\nG1 X1 F0.000001\n");
+    assert!(e.contains(":2:") && e.contains("slowest feed"), "{e}");
+    // in inches too: 0.0001 in/min = 0.00254 mm/min
+    let e = err("G20 G90\nG1 X1 F0.0001\n");
+    assert!(e.contains(":2:") && e.contains("slowest feed"), "{e}");
+    ok("G21 G90\nG1 X1 F0.01\n");
+}

@@ -324,6 +324,16 @@ impl<'a> Interp<'a> {
                     format!("F{f} is not a usable feed rate: it must be greater than zero"),
                 ));
             }
+            if !self.inverse_time && f * k < super::MIN_FEED_MM_MIN {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Invalid,
+                    format!(
+                        "F{f} is below the slowest feed, {} mm/min",
+                        super::MIN_FEED_MM_MIN
+                    ),
+                ));
+            }
             if self.inverse_time {
                 inverse_f = Some(f);
             } else {
@@ -346,6 +356,16 @@ impl<'a> Interp<'a> {
                     line,
                     ErrorKind::Invalid,
                     format!("G4 P{s}: the dwell time must not be negative"),
+                ));
+            }
+            if s > super::MAX_DWELL_S {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Invalid,
+                    format!(
+                        "G4 P{s}: the dwell is longer than {} s (use a feed hold to wait longer)",
+                        super::MAX_DWELL_S
+                    ),
                 ));
             }
             self.push(line, MoveKind::Dwell { s });
@@ -725,6 +745,16 @@ impl<'a> Interp<'a> {
                     format!("{code} P{t}: the number of turns must be a whole number ≥ 1"),
                 ));
             }
+            if t > f64::from(super::MAX_ARC_TURNS) {
+                return Err(self.error(
+                    line,
+                    ErrorKind::Arc,
+                    format!(
+                        "{code} P{t}: at most {} turns in one arc",
+                        super::MAX_ARC_TURNS
+                    ),
+                ));
+            }
             t as u32
         } else {
             1
@@ -741,6 +771,18 @@ impl<'a> Interp<'a> {
             self.opts.arc_tolerance_rel,
         )
         .map_err(|m| self.error(line, ErrorKind::Arc, m))?;
+        let [a0, a1, _] = plane.axes();
+        let radius = (self.pos[a0] - resolved.center[a0]).hypot(self.pos[a1] - resolved.center[a1]);
+        if radius > super::MAX_ARC_RADIUS_MM {
+            return Err(self.error(
+                line,
+                ErrorKind::Arc,
+                format!(
+                    "{code}: the arc's radius {radius:.1} mm is above {} mm (program a line)",
+                    super::MAX_ARC_RADIUS_MM
+                ),
+            ));
+        }
         let length = arc::arc_length_mm(self.pos, to, resolved.center, plane, resolved.sweep_rad);
         let feed_mm_s = self.feed_mm_s(line, motion, inverse_f, length)?;
         self.push(

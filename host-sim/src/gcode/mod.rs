@@ -119,6 +119,21 @@ pub const ZERO_LENGTH_MM: f64 = 1e-9;
 pub const FULL_CIRCLE_CHORD_MM: f64 = 1e-6;
 /// Smallest arc radius (mm); below it the radius counts as zero.
 pub const MIN_ARC_RADIUS_MM: f64 = 1e-6;
+/// Largest arc radius (mm): the planner's arc through a point takes up to this
+/// (`MAX_ARC_THROUGH_RADIUS_MM`, 10 m); beyond it the planner's f32 centre and angles lose
+/// the path (`G2 X10 R9999999` ran 0.73 mm off), and within any tolerance such an arc is a
+/// line anyway.
+pub const MAX_ARC_RADIUS_MM: f64 =
+    controller_core::motion::planner::segment::MAX_ARC_THROUGH_RADIUS_MM as f64;
+/// Most turns of one arc (`P`): the planner queues an arc as one piece a turn, at most
+/// `MAX_ARC_PIECES` (16).
+pub const MAX_ARC_TURNS: u32 = controller_core::motion::planner::segment::MAX_ARC_PIECES as u32;
+/// Longest dwell (`G4 P`, s): an hour. A longer one is a typo (`P10000000` is 116 days);
+/// the operator's feed hold is the way to wait longer.
+pub const MAX_DWELL_S: f64 = 3600.0;
+/// Slowest feed (mm/min): 0.01 mm/min, a micrometre in 6 s, below any cutting feed. Below
+/// it a move of a few mm would take days of machine time.
+pub const MIN_FEED_MM_MIN: f64 = 0.01;
 
 /// Axis names by index.
 pub const AXIS_NAMES: [char; 3] = ['X', 'Y', 'Z'];
