@@ -171,6 +171,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    host_sim::closed_stdout::exit_quietly_on_closed_stdout();
     let cli = Cli::parse();
     let result = match cli.command {
         None => run_paper(&cli.paper),

@@ -106,3 +106,22 @@ fn non_finite_and_out_of_range_numbers_are_refused() {
         &["--factory", "--sim"],
     );
 }
+
+/// A reader that goes away (`gantry settings list | head -1`) ends gantry with the shell's
+/// broken-pipe status and no panic message.
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gantry"))
+        .args(["--sim", "settings", "list"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("gantry runs");
+    // The read end closes at once, long before the simulated machine is up and the
+    // first line is printed.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(141), "{err}");
+}

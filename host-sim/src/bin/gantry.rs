@@ -195,6 +195,7 @@ fn axis_index(a: &str) -> Result<usize> {
 }
 
 fn main() -> ExitCode {
+    host_sim::closed_stdout::exit_quietly_on_closed_stdout();
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(e) => {
