@@ -130,36 +130,29 @@ fn the_cli_refuses_a_bad_override_before_anything_runs() {
     let file = dir.join("r2r_x_1.nc");
     std::fs::write(&file, rest_to_rest(1.0, Direction::X)).unwrap();
     let json = dir.join("out.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args([
+    // `host-sim gcode FILE --no-plots --json JSON --set S …`
+    let gcode = |sets: &[&str]| {
+        let mut args = vec![
             "gcode",
             file.to_str().unwrap(),
             "--no-plots",
             "--json",
             json.to_str().unwrap(),
-            "--set",
-            "planner.servo_reserve=0",
-            "--set",
-            "planner.servo_reserve=1.5",
-        ])
-        .output()
-        .unwrap();
+        ];
+        for s in sets {
+            args.extend(["--set", s]);
+        }
+        Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let o = gcode(&["planner.servo_reserve=0", "planner.servo_reserve=1.5"]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("planner.servo_reserve=1.5"), "{stderr}");
     assert!(!json.exists(), "a JSON was written");
-    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args([
-            "gcode",
-            file.to_str().unwrap(),
-            "--no-plots",
-            "--json",
-            json.to_str().unwrap(),
-            "--set",
-            "planner.servo_reserve=0",
-        ])
-        .output()
-        .unwrap();
+    let o = gcode(&["planner.servo_reserve=0"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
