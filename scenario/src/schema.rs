@@ -203,6 +203,9 @@ pub struct SafetyTimings {
     pub stop_timeout_s: f32,
     pub encoder_check_time_s: f32,
     pub encoder_check_counts: u32,
+    pub stuck_decel_mm_s2: f32,
+    pub estop_category: u8,
+    pub estop_stop_time_s: f32,
 }
 
 impl Default for SafetyTimings {
@@ -218,6 +221,9 @@ impl Default for SafetyTimings {
             stop_timeout_s: d.stop_timeout_s,
             encoder_check_time_s: d.encoder_check_time_s,
             encoder_check_counts: d.encoder_check_counts,
+            stuck_decel_mm_s2: d.stuck_decel_mm_s2,
+            estop_category: d.estop_category,
+            estop_stop_time_s: d.estop_stop_time_s,
         }
     }
 }
@@ -236,6 +242,9 @@ impl SafetyTimings {
             stop_timeout_s: self.stop_timeout_s,
             encoder_check_time_s: self.encoder_check_time_s,
             encoder_check_counts: self.encoder_check_counts,
+            stuck_decel_mm_s2: self.stuck_decel_mm_s2,
+            estop_category: self.estop_category,
+            estop_stop_time_s: self.estop_stop_time_s,
         }
     }
 }

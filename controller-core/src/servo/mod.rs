@@ -232,6 +232,11 @@ pub struct Servo<R> {
     rest_periods: u32,
     settle_periods: u32,
     stop_timeout_periods: u32,
+    /// The e-stop is a controlled stop (category 1).
+    estop_controlled: bool,
+    estop_stop_periods: u32,
+    /// Periods a category-1 e-stop's stop may still take before the outputs go off.
+    estop_left: Option<u32>,
     stop_decel: [f32; AXES],
     check: Option<Check>,
     check_periods: u32,
@@ -344,6 +349,16 @@ impl<R: Real> Servo<R> {
                 positive(s.stop_settle_s, "safety.stop_settle_s")?,
                 period_s,
             ),
+            estop_controlled: match s.estop_category {
+                0 => false,
+                1 => true,
+                _ => return Err(ConfigError::OutOfRange("safety.estop_category (0 or 1)")),
+            },
+            estop_stop_periods: monitor::periods(
+                positive(s.estop_stop_time_s, "safety.estop_stop_time_s")?,
+                period_s,
+            ),
+            estop_left: None,
             stop_timeout_periods: monitor::periods(
                 positive(s.stop_timeout_s, "safety.stop_timeout_s")?,
                 period_s,
@@ -535,7 +550,15 @@ impl<R: Real> Servo<R> {
             self.state,
             ServoState::Idle | ServoState::Run | ServoState::Jog | ServoState::Homing
         );
-        match (f.kind.stop(), self.state) {
+        let category = if f.kind == FaultKind::EStop && self.estop_controlled {
+            StopCategory::Controlled
+        } else {
+            f.kind.stop()
+        };
+        if f.kind == FaultKind::EStop && self.estop_controlled && self.estop_left.is_none() {
+            self.estop_left = Some(self.estop_stop_periods);
+        }
+        match (category, self.state) {
             (_, ServoState::Fault) => {}
             (StopCategory::Controlled, _) if moving => {
                 let here;
@@ -851,6 +874,17 @@ impl<R: Real> Servo<R> {
         if inputs.estop {
             self.trip(Fault::system(FaultKind::EStop), 0.0, None);
         }
+        if let Some(left) = self.estop_left {
+            // a category-1 e-stop: the stop gets a bounded time, then the outputs go off
+            self.estop_left = match (self.state, left) {
+                (ServoState::Stopping, 0) => {
+                    self.state = ServoState::Fault;
+                    None
+                }
+                (ServoState::Stopping, n) => Some(n - 1),
+                _ => None,
+            };
+        }
         for a in Axis::ALL {
             if inputs.amp_fault[a.index()] {
                 self.trip(Fault::on(FaultKind::AmplifierFault, a), 0.0, None);
@@ -926,6 +960,11 @@ impl<R: Real> Servo<R> {
             | ServoState::Stopping => {
                 let prev = self.applied.to_array().map(Real::to_f32);
                 if let Some((f, v)) = self.monitor.check_encoders(&steps, &vel, &prev) {
+                    self.trip(f, v, Some(&reference));
+                }
+                let v_ref = reference.vel.to_array().map(Real::to_f32);
+                let a_ref = reference.acc.to_array().map(Real::to_f32);
+                if let Some((f, v)) = self.monitor.check_counts_due(&steps, &v_ref, &a_ref, &prev) {
                     self.trip(f, v, Some(&reference));
                 }
                 if let Some((f, v)) = self

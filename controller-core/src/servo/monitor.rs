@@ -104,6 +104,21 @@ pub struct SafetyConfig {
     /// Counts the axis must move in the commanded direction for the check to pass.
     #[cfg_attr(feature = "serde", serde(default = "d_check_counts"))]
     pub encoder_check_counts: u32,
+    /// Largest deceleration a moving axis may undergo while neither its reference nor its
+    /// effort asks for one (a change of outside load: a cutting force, the Stribeck excess
+    /// of friction as it slows), mm/s². The moving-stuck check's model
+    /// ([`Monitor::check_encoders`]): a count is due once the axis must have travelled
+    /// more than one count at this deceleration.
+    #[cfg_attr(feature = "serde", serde(default = "d_stuck_decel"))]
+    pub stuck_decel_mm_s2: f32,
+    /// Stop category of the e-stop (IEC 60204-1): 0, every output off in the period it is
+    /// seen (the axes coast); 1, a controlled stop at the axes' `stop_decel_mm_s2`, then
+    /// every output off, at the latest [`Self::estop_stop_time_s`] after the e-stop.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub estop_category: u8,
+    /// Longest a category-1 e-stop keeps the outputs on, s.
+    #[cfg_attr(feature = "serde", serde(default = "d_estop_time"))]
+    pub estop_stop_time_s: f32,
 }
 
 /// Defaults, with their reasoning (docs/safety.md).
@@ -128,6 +143,16 @@ pub mod defaults {
     pub const ENCODER_CHECK_TIME_S: f32 = 0.03;
     /// 16 counts (10 µm at 1600 counts/mm).
     pub const ENCODER_CHECK_COUNTS: u32 = 16;
+    /// 200 mm/s²: 13 mN·m of sudden load on X (J = 0.064), 36 on Y, 8 on Z, beyond what
+    /// the effort answers within the couple of periods before the controller reacts; at
+    /// this bound a stuck encoder is found within 20 periods down to 1 mm/s
+    /// (docs/safety.md, the speed grid). A load step larger than this that stops a healthy
+    /// axis slower than ~1.5 mm/s within one count reads as a stuck encoder: an immediate
+    /// stop, and the encoder check lets the reset through.
+    pub const STUCK_DECEL_MM_S2: f32 = 200.0;
+    /// 0.3 s: from the gantry's 250 mm/s at the slowest stop deceleration (Y, 1500
+    /// mm/s²) the stop takes 0.167 s, plus the 20 ms settle, with 50 % margin.
+    pub const ESTOP_STOP_TIME_S: f32 = 0.3;
 }
 
 #[cfg(feature = "serde")]
@@ -166,6 +191,14 @@ fn d_check_time() -> f32 {
 fn d_check_counts() -> u32 {
     defaults::ENCODER_CHECK_COUNTS
 }
+#[cfg(feature = "serde")]
+fn d_estop_time() -> f32 {
+    defaults::ESTOP_STOP_TIME_S
+}
+#[cfg(feature = "serde")]
+fn d_stuck_decel() -> f32 {
+    defaults::STUCK_DECEL_MM_S2
+}
 
 impl SafetyConfig {
     /// The given axis limits with the default timings.
@@ -181,6 +214,9 @@ impl SafetyConfig {
             stop_timeout_s: defaults::STOP_TIMEOUT_S,
             encoder_check_time_s: defaults::ENCODER_CHECK_TIME_S,
             encoder_check_counts: defaults::ENCODER_CHECK_COUNTS,
+            stuck_decel_mm_s2: defaults::STUCK_DECEL_MM_S2,
+            estop_category: 0,
+            estop_stop_time_s: defaults::ESTOP_STOP_TIME_S,
         }
     }
 
@@ -223,6 +259,17 @@ struct AxisLimits {
     /// Largest physical second difference of the counts, counts/period².
     jump_counts: f32,
     runaway_speed: f32,
+    /// The counts-due check is on (the stuck check is: `stuck_effort_change` finite).
+    due_on: bool,
+    /// `stuck_decel_mm_s2` in counts/period².
+    due_decel: f32,
+    /// Deceleration per unit of effort dropped, counts/period² (`accel_max / full_scale`:
+    /// at least `1 / J`).
+    due_decel_per_effort: f32,
+    /// mm/s to counts/period.
+    vel_counts: f32,
+    /// mm/s² to counts/period².
+    acc_counts: f32,
 }
 
 /// Per-axis memory of the checks. The count history is the previous step: a step between
@@ -241,7 +288,29 @@ struct AxisWatch {
     u_ref: f32,
     runaway: u32,
     runaway_from: f32,
+    /// The counts-due check's memory ([`Monitor::check_counts_due`]).
+    due: CountsDue,
 }
+
+/// What the counts-due check knows since the last count change.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct CountsDue {
+    /// Direction of the last change: +1, -1, or 0 (none yet, or a reversal: no claim).
+    dir: i8,
+    /// Readings since it.
+    since: u32,
+    /// Lower bound of the speed along `dir`, counts/period.
+    v_lb: f32,
+    /// Lower bound of the travel since it, counts.
+    travel: f32,
+    /// Effort applied when it happened.
+    u_at: f32,
+}
+
+/// Travel beyond the last count change, in counts, after which the next change is overdue:
+/// the next edge is at most one count away, plus half a count for the edges' spacing
+/// (duty cycle and phase errors of a real encoder).
+pub const COUNTS_DUE_TRAVEL: f32 = 1.5;
 
 /// Quantisation of three readings in a second difference (±2 counts) plus one of margin.
 pub const JUMP_QUANTISATION_COUNTS: f32 = 3.0;
@@ -298,7 +367,13 @@ impl Monitor {
             runaway_effort: 0.0,
             jump_counts: 0.0,
             runaway_speed: 0.0,
+            due_on: false,
+            due_decel: 0.0,
+            due_decel_per_effort: 0.0,
+            vel_counts: 0.0,
+            acc_counts: 0.0,
         }; AXES];
+        let stuck_decel = positive(cfg.stuck_decel_mm_s2, "safety.stuck_decel_mm_s2")?;
         let ratio = positive(cfg.overspeed_ratio, "safety.overspeed_ratio")?;
         if ratio < 1.0 {
             return Err(ConfigError::OutOfRange("safety.overspeed_ratio (>= 1)"));
@@ -338,6 +413,15 @@ impl Monitor {
                 },
                 jump_counts: accel * t2 * counts + JUMP_QUANTISATION_COUNTS,
                 runaway_speed: 0.02 * vel_max,
+                due_on: a.stuck_effort_change.is_finite() && stuck_decel.is_finite(),
+                due_decel: stuck_decel * t2 * counts,
+                due_decel_per_effort: if fs.is_finite() && fs > 0.0 {
+                    accel / fs * t2 * counts
+                } else {
+                    f32::INFINITY
+                },
+                vel_counts: period_s as f32 * counts,
+                acc_counts: t2 * counts,
             };
         }
         let window = periods(
@@ -454,6 +538,101 @@ impl Monitor {
         w.step1 = step;
         w.primed = if w.primed >= 2 { 2 } else { w.primed + 1 };
         found
+    }
+
+    /// The counts-due check (encoder stuck or reversed while moving, at any speed): after a count
+    /// change the axis was moving at least at the average speed the change shows (one
+    /// count per interval, `c / (g + 1)` counts per period for `c` counts after `g`
+    /// periods), and it can slow down only as fast as its reference decelerates, its
+    /// effort along the motion drops (`accel_max / full_scale` per unit), or an outside
+    /// load changes (`stuck_decel_mm_s2`), and never below the reference's speed along
+    /// the motion (the controller keeps it there). Integrating that lower bound, once the
+    /// axis must have moved [`COUNTS_DUE_TRAVEL`] counts with no new count, the encoder
+    /// is stuck; a count the other way while that bound is still above zero is a count
+    /// the axis cannot make (reported as a jump: swapped A/B). `steps` as in
+    /// [`Self::check_encoders`]; reference velocity (mm/s) and
+    /// acceleration (mm/s²); the efforts applied during the period that just ended.
+    pub fn check_counts_due(
+        &mut self,
+        steps: &[i32; AXES],
+        v_ref: &[f32; AXES],
+        a_ref: &[f32; AXES],
+        effort: &[f32; AXES],
+    ) -> Option<(Fault, f32)> {
+        let x = self.count_due(0, steps[0], v_ref[0], a_ref[0], effort[0]);
+        let y = self.count_due(1, steps[1], v_ref[1], a_ref[1], effort[1]);
+        let z = self.count_due(2, steps[2], v_ref[2], a_ref[2], effort[2]);
+        x.or(y).or(z)
+    }
+
+    #[inline(always)]
+    fn count_due(
+        &mut self,
+        i: usize,
+        step: i32,
+        v_ref: f32,
+        a_ref: f32,
+        effort: f32,
+    ) -> Option<(Fault, f32)> {
+        let (l, d) = (&self.lim[i], &mut self.watch[i].due);
+        if !l.due_on {
+            return None;
+        }
+        if step != 0 {
+            let dir: i8 = if step > 0 { 1 } else { -1 };
+            let gap = d.since.saturating_add(1) as f32;
+            let s = f32::from(dir);
+            // the average speed over the interval, less what the interval's deceleration
+            // may have taken off by its end; a first change or a reversal claims nothing
+            let avg = if d.dir == dir {
+                step.unsigned_abs() as f32 / (gap + 1.0)
+            } else {
+                0.0
+            };
+            let decel = l.due_decel + (-s * a_ref * l.acc_counts).max(0.0);
+            if d.dir == -dir && d.v_lb > 0.0 {
+                // counts the wrong way while the axis must still be moving the other:
+                // physically impossible (swapped A/B, a reversed counter)
+                let v_lb = d.v_lb;
+                d.dir = 0;
+                return Some((Fault::on(FaultKind::EncoderJump, Axis::ALL[i]), -s * v_lb));
+            }
+            // speed falls at most `decel`, so the interval's average exceeds its end's
+            // speed by at most `decel × length / 2`
+            let v = (avg - 0.5 * decel * (gap + 1.0)).min(s * v_ref * l.vel_counts);
+            *d = CountsDue {
+                dir,
+                since: 0,
+                v_lb: if v > 0.0 { v } else { 0.0 },
+                travel: 0.0,
+                u_at: effort,
+            };
+            return None;
+        }
+        d.since = d.since.saturating_add(1);
+        if d.dir == 0 || d.v_lb <= 0.0 {
+            return None;
+        }
+        let s = f32::from(d.dir);
+        let dropped = -s * (effort - d.u_at);
+        let decel = l.due_decel
+            + (-s * a_ref * l.acc_counts).max(0.0)
+            + if dropped > 0.0 {
+                dropped * l.due_decel_per_effort
+            } else {
+                0.0
+            };
+        // NaN anywhere ends the claim (`!(v > 0)`)
+        let v = (d.v_lb - decel).min(s * v_ref * l.vel_counts);
+        d.v_lb = if v > 0.0 { v } else { 0.0 };
+        d.travel += d.v_lb;
+        if d.travel > COUNTS_DUE_TRAVEL {
+            let travel = d.travel;
+            // one report per stall: the claim restarts at the next change
+            d.dir = 0;
+            return Some((Fault::on(FaultKind::EncoderStuck, Axis::ALL[i]), travel));
+        }
+        None
     }
 
     /// Following error (`error` mm, reference velocity `v_ref` mm/s; the limit is scaled

@@ -11,9 +11,14 @@ use super::resolve_all;
 use crate::builtin;
 use crate::jobs;
 use anyhow::{anyhow, bail, Context, Result};
+use controller_core::axes::Axis;
+use controller_core::motion::path::PathConfig;
 use controller_core::servo::{Command, ServoState};
 use controller_core::sim::run::SimRun;
+use controller_core::sim::run::TimedInjection;
+use controller_core::sim::world::Injection;
 use controller_core::Vec3;
+use gantry_scenario::file::Run;
 use gantry_scenario::Resolved;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -48,6 +53,34 @@ struct CaseStudy {
     /// Largest travel allowed during the encoder check of that reset, mm.
     #[serde(default)]
     bound_check_drift_mm: Option<f64>,
+    /// Periods from the injection to the outputs off (default: `bound_periods`, the
+    /// immediate stops; a controlled stop's case gives its stop time).
+    #[serde(default)]
+    bound_off_periods: Option<u32>,
+    /// Largest travel from the injection to the detection, mm (the motion the servo did
+    /// not see; default: not bounded beyond `bound_overrun_mm`).
+    #[serde(default)]
+    bound_blind_mm: Option<f64>,
+    /// Run the case over this grid of speeds, axes and directions instead (each point a
+    /// row named `<case>_<axis><+|->_<speed>`): the path is a line along the axis at the
+    /// speed, the fault is on that axis.
+    /// Set on a grid's rows: their speed, mm/s.
+    #[serde(default)]
+    speed_mm_s: Option<f64>,
+}
+
+/// A case's speed grid.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Grid {
+    speeds_mm_s: Vec<f64>,
+    axes: Vec<Axis>,
+    /// +1 and/or -1.
+    directions: Vec<i8>,
+    /// Per speed (same length as `speeds_mm_s`): the overrun bound at that speed, mm
+    /// (the stop distance grows with the speed); default: the case's one bound.
+    #[serde(default)]
+    bound_overrun_mm: Option<Vec<f64>>,
 }
 
 /// One row of the matrix (JSON keys are public interface).
@@ -69,7 +102,14 @@ pub struct CaseResult {
     pub outputs_off_periods: Option<u32>,
     /// How far the machine travelled after the detection (or since the injection), mm.
     pub overrun_mm: f64,
+    /// How far the machine travelled from the injection to the detection (or to the end,
+    /// undetected), mm.
+    pub blind_mm: f64,
+    /// The speed of a grid row, mm/s (`null`: not a grid row).
+    pub speed_mm_s: Option<f64>,
     pub bound_periods: u32,
+    pub bound_off_periods: u32,
+    pub bound_blind_mm: Option<f64>,
     pub bound_overrun_mm: f64,
     /// For reset cases: the reset was refused and the axis moved this much meanwhile.
     pub reset_refused: Option<bool>,
@@ -102,6 +142,25 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
         .run
         .inject
         .ok_or_else(|| anyhow!("case {} injects no fault", r.name))?;
+    let finite = |v: f64, what: &str| -> Result<()> {
+        if v.is_finite() && v >= 0.0 {
+            Ok(())
+        } else {
+            bail!(
+                "case {}: study.{what} = {v} is not a finite distance",
+                r.name
+            )
+        }
+    };
+    finite(study.bound_overrun_mm, "bound_overrun_mm")?;
+    for (v, what) in [
+        (study.bound_check_drift_mm, "bound_check_drift_mm"),
+        (study.bound_blind_mm, "bound_blind_mm"),
+    ] {
+        if let Some(v) = v {
+            finite(v, what)?;
+        }
+    }
     let mut run = SimRun::<f32>::new(&r.run)
         .map_err(|e| anyhow!("case {}: invalid configuration: {e}", r.name))?;
     let dt = run.servo().period_s();
@@ -113,6 +172,8 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
     let (mut p_inject, mut p_detect) = (None, None);
     let mut overrun = 0.0f64;
     let mut check: Option<(Vec3<f64>, f64)> = None;
+    let mut early: Option<String> = None;
+    let mut blind = 0.0f64;
     let mut k = 0u32;
     while !run.done() {
         let cmds: &[Command] = if k == 0 {
@@ -133,6 +194,12 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
         if run.injected_at().is_some() && p_inject.is_none() {
             p_inject = Some(p);
         }
+        if run.injected_at().is_none() && early.is_none() {
+            // a fault before the injection would read as its detection
+            if let Some(f) = run.servo().faults().first() {
+                early = Some(f.fault.kind.name().to_string());
+            }
+        }
         if let (Some(inj), None) = (run.injected_at(), &detect) {
             if let Some(f) = run.servo().faults().first() {
                 // the servo's period counter runs one ahead of the run's
@@ -149,7 +216,11 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
                 off = Some(k - inj);
             }
         }
-        let from = if study.drift_from_injection {
+        if let (Some(p0), None) = (p_inject, p_detect) {
+            blind = blind.max((p - p0).norm());
+        }
+        // undetected: everything since the injection is overrun
+        let from = if study.drift_from_injection || detect.is_none() {
             p_inject
         } else {
             p_detect
@@ -167,6 +238,23 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
         k += 1;
     }
     let mut why = Vec::new();
+    if let Some(kind) = &early {
+        why.push(format!("{kind} latched before the injection"));
+    }
+    let bound_off = study.bound_off_periods.unwrap_or(study.bound_periods);
+    match off {
+        Some(o) if o > bound_off => {
+            why.push(format!("outputs off after {o} periods > {bound_off}"))
+        }
+        _ => {}
+    }
+    if let Some(b) = study.bound_blind_mm {
+        if !(blind <= b) {
+            why.push(format!(
+                "travelled {blind:.3} mm before the detection > {b} mm"
+            ));
+        }
+    }
     match &detect {
         None => why.push("not detected".to_string()),
         Some((kind, periods)) => {
@@ -224,7 +312,11 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
         detect_periods: detect.map(|d| d.1),
         outputs_off_periods: off,
         overrun_mm: overrun,
+        blind_mm: blind,
+        speed_mm_s: study.speed_mm_s,
         bound_periods: study.bound_periods,
+        bound_off_periods: bound_off,
+        bound_blind_mm: study.bound_blind_mm,
         bound_overrun_mm: study.bound_overrun_mm,
         reset_refused,
         check_drift_mm: check_drift,
@@ -233,9 +325,125 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
     })
 }
 
+/// The fault of `inj` moved onto `axis` (the kinds without an axis stay as they are).
+fn on_axis(inj: Injection, axis: Axis) -> Injection {
+    match inj {
+        Injection::Limit { high, .. } => Injection::Limit { axis, high },
+        Injection::AmplifierFault { .. } => Injection::AmplifierFault { axis },
+        Injection::EncoderStuck { .. } => Injection::EncoderStuck { axis },
+        Injection::EncoderJump { counts, .. } => Injection::EncoderJump { axis, counts },
+        Injection::EncoderReversed { .. } => Injection::EncoderReversed { axis },
+        Injection::ExternalAccel {
+            accel_mm_s2, for_s, ..
+        } => Injection::ExternalAccel {
+            axis,
+            accel_mm_s2,
+            for_s,
+        },
+        Injection::ExtraFriction { mnm, .. } => Injection::ExtraFriction { axis, mnm },
+        Injection::CorruptState { .. } => Injection::CorruptState { axis },
+        other => other,
+    }
+}
+
+/// Every case with a `grid` becomes one run per speed, axis and direction.
+fn expand_grids(file: &str, runs: Vec<Run>) -> Result<Vec<Run>> {
+    let mut out = Vec::new();
+    for r in runs {
+        let Some(toml::Value::Table(table)) = r.scenario.study.clone() else {
+            out.push(r);
+            continue;
+        };
+        let Some(grid) = table.get("grid").cloned() else {
+            out.push(r);
+            continue;
+        };
+        let grid: Grid = grid
+            .try_into()
+            .with_context(|| format!("{file}: case {}: invalid grid", r.name))?;
+        let bad = |m: String| anyhow!("{file}: case {}: grid: {m}", r.name);
+        if grid.speeds_mm_s.is_empty() || grid.axes.is_empty() || grid.directions.is_empty() {
+            return Err(bad(
+                "speeds_mm_s, axes and directions must not be empty".into()
+            ));
+        }
+        if let Some(v) = grid
+            .speeds_mm_s
+            .iter()
+            .find(|v| !(v.is_finite() && **v > 0.0))
+        {
+            return Err(bad(format!(
+                "speed {v} mm/s is not a positive finite number"
+            )));
+        }
+        if let Some(d) = grid.directions.iter().find(|d| !matches!(d, 1 | -1)) {
+            return Err(bad(format!("direction {d} is not 1 or -1")));
+        }
+        if let Some(b) = &grid.bound_overrun_mm {
+            if b.len() != grid.speeds_mm_s.len() {
+                return Err(bad(format!(
+                    "bound_overrun_mm has {} values for {} speeds",
+                    b.len(),
+                    grid.speeds_mm_s.len()
+                )));
+            }
+            if let Some(v) = b.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+                return Err(bad(format!(
+                    "bound_overrun_mm {v} is not a finite distance"
+                )));
+            }
+        }
+        let fault = r
+            .scenario
+            .fault
+            .ok_or_else(|| bad("the case injects no fault".into()))?;
+        for &axis in &grid.axes {
+            for &dir in &grid.directions {
+                for (j, &speed) in grid.speeds_mm_s.iter().enumerate() {
+                    let mut g = r.clone();
+                    let mut vel = [0.0; 3];
+                    vel[axis.index()] = f64::from(dir) * speed;
+                    let start = match g.scenario.path {
+                        PathConfig::Line { start, .. } => start,
+                        _ => [0.0; 3],
+                    };
+                    g.scenario.path = PathConfig::Line { start, vel };
+                    g.scenario.fault = Some(TimedInjection {
+                        at_s: fault.at_s,
+                        fault: on_axis(fault.fault, axis),
+                    });
+                    let sign = if dir > 0 { '+' } else { '-' };
+                    g.name = format!("{}_{}{sign}_{speed}", r.name, axis.name());
+                    g.case = Some(g.name.clone());
+                    let mut t = table.clone();
+                    t.remove("grid");
+                    t.insert("axis".into(), toml::Value::String(axis.name().into()));
+                    t.insert("speed_mm_s".into(), toml::Value::Float(speed));
+                    if let Some(b) = &grid.bound_overrun_mm {
+                        t.insert("bound_overrun_mm".into(), toml::Value::Float(b[j]));
+                    }
+                    let state = t
+                        .get("state")
+                        .and_then(|v| v.as_str())
+                        .unwrap_or("moving")
+                        .to_string();
+                    t.insert(
+                        "state".into(),
+                        toml::Value::String(format!("{state} {sign}{speed} mm/s")),
+                    );
+                    g.scenario.study = Some(toml::Value::Table(t));
+                    out.push(g);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Run the matrix of `file` (default: the built-in `faults.toml`).
 pub fn run_matrix(file: Option<&std::path::Path>) -> Result<Matrix> {
-    let f = builtin::load_or("faults.toml", file)?;
+    let mut f = builtin::load_or("faults.toml", file)?;
+    f.runs = expand_grids(&f.file, std::mem::take(&mut f.runs))?;
     let runs = resolve_all(&f)?;
     if runs.is_empty() {
         bail!("{}: no cases", f.file);
@@ -247,22 +455,63 @@ pub fn run_matrix(file: Option<&std::path::Path>) -> Result<Matrix> {
     Ok(Matrix { cases, passed })
 }
 
+/// The grid rows by case and speed, worst over the axes and directions.
+pub fn grid_summary(m: &Matrix) -> String {
+    let mut groups: Vec<(String, f64, Vec<&CaseResult>)> = Vec::new();
+    for c in &m.cases {
+        let Some(v) = c.speed_mm_s else { continue };
+        // `<case>_<axis><sign>_<speed>`
+        let case = c.case.rsplitn(3, '_').nth(2).unwrap_or(&c.case).to_string();
+        match groups.iter_mut().find(|g| g.0 == case && g.1 == v) {
+            Some(g) => g.2.push(c),
+            None => groups.push((case, v, vec![c])),
+        }
+    }
+    if groups.is_empty() {
+        return String::new();
+    }
+    let mut s = String::from(
+        "\n| grid | speed mm/s | rows | detected as | worst detect periods | worst blind mm | worst overrun mm | passed |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for (case, v, rows) in &groups {
+        let mut kinds: Vec<&str> = rows.iter().filter_map(|c| c.detected.as_deref()).collect();
+        kinds.sort_unstable();
+        kinds.dedup();
+        let det = rows
+            .iter()
+            .map(|c| c.detect_periods.map_or("-".to_string(), |p| p.to_string()))
+            .max_by_key(|p| p.parse::<u32>().unwrap_or(u32::MAX))
+            .unwrap_or_default();
+        let blind = rows.iter().map(|c| c.blind_mm).fold(0.0, f64::max);
+        let over = rows.iter().map(|c| c.overrun_mm).fold(0.0, f64::max);
+        let passed = rows.iter().filter(|c| c.passed).count();
+        let _ = writeln!(
+            s,
+            "| {case} | {v} | {} | {} | {det} | {blind:.4} | {over:.3} | {passed}/{} |",
+            rows.len(),
+            kinds.join(", "),
+            rows.len()
+        );
+    }
+    s
+}
+
 /// The terminal table.
 pub fn table(m: &Matrix) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| case | class | axis | state | injected at s | detected as | detect periods | outputs off periods | overrun mm | bound | result |"
+        "| case | class | axis | state | injected at s | detected as | detect periods | outputs off periods | blind mm | overrun mm | bound | result |"
     );
     let _ = writeln!(
         s,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for c in &m.cases {
         let opt = |v: Option<u32>| v.map_or("-".to_string(), |v| v.to_string());
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.3} | {} | {} | {} | {:.3} | {} periods, {} mm | {} |",
+            "| {} | {} | {} | {} | {:.3} | {} | {} | {} | {:.4} | {:.3} | {} periods, off {}, {}{} mm | {} |",
             c.case,
             c.fault,
             c.axis,
@@ -271,8 +520,12 @@ pub fn table(m: &Matrix) -> String {
             c.detected.as_deref().unwrap_or("-"),
             opt(c.detect_periods),
             opt(c.outputs_off_periods),
+            c.blind_mm,
             c.overrun_mm,
             c.bound_periods,
+            c.bound_off_periods,
+            c.bound_blind_mm
+                .map_or(String::new(), |b| format!("blind {b} mm, ")),
             c.bound_overrun_mm,
             if c.passed {
                 "pass".to_string()
@@ -281,6 +534,7 @@ pub fn table(m: &Matrix) -> String {
             }
         );
     }
+    s.push_str(&grid_summary(m));
     let _ = writeln!(
         s,
         "\n{}",
