@@ -23,7 +23,7 @@
 //! run by `.ci/run` (`cargo test -p host-sim --release --test gantry_e2e -- --ignored`).
 
 use controller_core::link::RealtimeRequest;
-use controller_core::machine::messages::{MachineState, Outcome, Request};
+use controller_core::machine::messages::{MachineState, Outcome, ProgramEnd, Request};
 use controller_core::machine::scope::{ScopeConfig, Signal, Trigger};
 use controller_core::motion::planner::Segment;
 use host_sim::cli::client::{expect_done, Client};
@@ -211,7 +211,9 @@ fn scenario<T: Transport + EstopPanel>(mut c: Client<T>, tag: &str) -> Figures {
         s.state != MachineState::Idle || s.vel_mm_s[0].abs() > 0.5
     })
     .unwrap();
-    assert!(s.program_done, "{s:?}");
+    // stopped by the host: not done, and the status says so
+    assert!(!s.program_done, "{s:?}");
+    assert_eq!(s.program.end, ProgramEnd::HostStop, "{s:?}");
     assert!(s.fault_bits == (0, [0; 3]), "{s:?}");
     assert!(s.pos_mm[0] < start[0] + 50.0, "{s:?}");
     assert!(

@@ -53,6 +53,8 @@ pub struct Run {
     pub name: String,
     pub case: Option<String>,
     pub variant: Option<String>,
+    /// The machine file the run's `machine` table included (`machine.file`), if any.
+    pub machine_file: Option<String>,
     pub scenario: Scenario,
 }
 
@@ -189,8 +191,9 @@ pub fn load_str_with(
     let mut over: Table = overrides
         .parse()
         .map_err(|e: toml::de::Error| err(None, format!("invalid overrides: {e}")))?;
-    include_machine(&mut base, includes).map_err(|m| err(None, m))?;
-    include_machine(&mut over, includes).map_err(|m| err(None, m))?;
+    let base_machine = include_machine(&mut base, includes).map_err(|m| err(None, m))?;
+    let over_machine = include_machine(&mut over, includes).map_err(|m| err(None, m))?;
+    let base_machine = over_machine.or(base_machine);
     merge(&mut base, over);
     let cases = take_array(&mut base, "case").map_err(|m| err(None, m))?;
     let variants = take_array(&mut base, "variant").map_err(|m| err(None, m))?;
@@ -252,10 +255,15 @@ pub fn load_str_with(
             };
             let mut t = base.clone();
             let mut co = case_over.clone();
-            include_machine(&mut co, includes).map_err(|m| err(Some(&name), m))?;
+            let case_machine =
+                include_machine(&mut co, includes).map_err(|m| err(Some(&name), m))?;
             merge(&mut t, co);
             let mut vo = var_over;
-            include_machine(&mut vo, includes).map_err(|m| err(Some(&name), m))?;
+            let variant_machine =
+                include_machine(&mut vo, includes).map_err(|m| err(Some(&name), m))?;
+            let machine_file = variant_machine
+                .or(case_machine)
+                .or_else(|| base_machine.clone());
             merge(&mut t, vo);
             expand_all(&mut t);
             let scenario: Scenario =
@@ -268,6 +276,7 @@ pub fn load_str_with(
                 name,
                 case: case_name.clone(),
                 variant: variant_name,
+                machine_file,
                 scenario,
             });
         }
@@ -337,13 +346,13 @@ fn entry_name(t: &mut Table, what: &str) -> Result<String, String> {
 }
 
 /// Replace `machine = { file = "...", <overrides> }` by the file's table with the
-/// overrides merged in.
-fn include_machine(t: &mut Table, includes: &dyn Includes) -> Result<(), String> {
+/// overrides merged in; the file's path, when there was one.
+fn include_machine(t: &mut Table, includes: &dyn Includes) -> Result<Option<String>, String> {
     let Some(Value::Table(m)) = t.get_mut("machine") else {
-        return Ok(());
+        return Ok(None);
     };
     let Some(file) = m.remove("file") else {
-        return Ok(());
+        return Ok(None);
     };
     let Value::String(rel) = file else {
         return Err("`machine.file` must be a path (a string)".into());
@@ -363,7 +372,7 @@ fn include_machine(t: &mut Table, includes: &dyn Includes) -> Result<(), String>
     let overrides = std::mem::take(m);
     merge(&mut included, overrides);
     *m = included;
-    Ok(())
+    Ok(Some(rel))
 }
 
 /// Merge `over` into `base` (see the module docs).

@@ -15,12 +15,15 @@
 //! - [`file`]: reading files (size cap, includes, cases and variants, `all` merging), with
 //!   errors that name the file, the run and the key;
 //! - [`schema`]: the file's types;
+//! - [`machine`]: the machine's values checked as the settings check them (and the
+//!   physical ranges of those no setting holds);
 //! - [`resolve`]: turning one run into the core's configurations (servo, world, figures).
 
 // `!(x <= cap)` is deliberate: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod file;
+pub mod machine;
 pub mod resolve;
 pub mod schema;
 

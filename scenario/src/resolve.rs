@@ -43,6 +43,13 @@ impl Resolved {
     /// Resolve one run of file `file`.
     pub fn new(file: &str, run: &Run) -> Result<Self, ScenarioError> {
         let err = |m: String| ScenarioError::new(file, Some(&run.name), m);
+        // the machine first, checked as the settings are (crate::machine)
+        crate::machine::check(&run.scenario.machine).map_err(|m| {
+            err(match &run.machine_file {
+                Some(f) => format!("machine file {f} (with this file's overrides): {m}"),
+                None => format!("machine: {m}"),
+            })
+        })?;
         resolve(&run.scenario)
             .map_err(err)
             .map(|(cfg, reference)| Self {

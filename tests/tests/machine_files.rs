@@ -49,3 +49,166 @@ fn paper_machine_file_is_the_papers_axis() {
         assert_eq!(p.disturbance_accel, 0.0);
     }
 }
+
+// ---- machine files checked as the settings are (issue 20, item 8) ----
+
+use gantry_scenario::file::{load, load_str_with, DirIncludes};
+use gantry_scenario::Resolved;
+use std::path::{Path, PathBuf};
+
+fn host_sim() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim")
+}
+
+/// The error of the gantry machine file with `field = value` replaced in it (its first
+/// occurrence: the X axis), through a scenario that includes it as `gcode.toml` does.
+fn refusal(field: &str, old: &str, new: &str) -> String {
+    let text = std::fs::read_to_string(host_sim().join("machines/gantry.toml")).unwrap();
+    let from = format!("{field} = {old}");
+    assert!(text.contains(&from), "{from} not in gantry.toml");
+    let bad = text.replacen(&from, &format!("{field} = {new}"), 1);
+    let dir = std::env::temp_dir().join(format!("machine_check_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join(format!("bad_{}.toml", field));
+    std::fs::write(&file, bad).unwrap();
+    let scenario = format!(
+        r#"
+name = "machine_check"
+horizon_s = 0.01
+path = {{ step = {{ target = [0.0, 0.0, 0.0] }} }}
+estimator = {{ axes.all = {{ pll = {{ bandwidth_rad_s = 1000.0 }} }} }}
+controller = {{ coupling = "none", laws.all = {{ tuned = "dsmc" }} }}
+machine = {{ file = "{}" }}
+"#,
+        file.display()
+    );
+    let f = load_str_with("check.toml", &scenario, &DirIncludes(dir.clone()), "").unwrap();
+    let e = Resolved::new(&f.file, &f.runs[0]).expect_err("a bad machine must be refused");
+    let _ = std::fs::remove_file(&file);
+    let text = e.to_string();
+    // the error names the scenario, the machine file and the field
+    assert!(
+        text.starts_with("check.toml: run `machine_check`: machine file "),
+        "{text}"
+    );
+    assert!(text.contains(&file.display().to_string()), "{text}");
+    text
+}
+
+#[test]
+fn the_audits_four_machine_values_are_refused_with_the_field_and_the_range() {
+    // following error below its at-rest value: the settings' cross-field rule
+    let e = refusal("ferror_mm", "1.0", "0.05");
+    assert!(e.contains("`machine.axes.x`"), "{e}");
+    assert!(e.contains("safety.ferror_mm (>= min_ferror_mm)"), "{e}");
+    // overspeed effectively off: the setting's range
+    let e = refusal("vel_max_mm_s", "250.0", "1e30");
+    assert!(
+        e.contains("`machine.axes.x.safety.vel_max_mm_s` = 1000000000000000000000000000000 is outside the allowed range [0.1, 10000] mm/s (the range of the setting axis.x.vel_max_mm_s)"),
+        "{e}"
+    );
+    // the plant: physical ranges
+    let e = refusal("inertia", "0.064", "1e-30");
+    assert!(
+        e.contains("`machine.axes.x.plant.physical.inertia` = 0.000000000000000000000000000001")
+            && e.contains("outside its physical range [0.0001, 100] mN·m/(mm/s²)"),
+        "{e}"
+    );
+    let e = refusal("resolution_bits", "12", "1");
+    assert!(
+        e.contains("`machine.axes.x.amplifier.resolution_bits` = 1 is outside its physical range [8, 24] bits"),
+        "{e}"
+    );
+}
+
+#[test]
+fn nan_infinite_and_negative_machine_values_are_refused_with_the_field() {
+    for (field, old, new, path) in [
+        (
+            "min_ferror_mm",
+            "0.1",
+            "nan",
+            "machine.axes.x.safety.min_ferror_mm` = NaN",
+        ),
+        (
+            "vel_max_mm_s",
+            "250.0",
+            "inf",
+            "machine.axes.x.safety.vel_max_mm_s` = inf",
+        ),
+        (
+            "counts_per_mm",
+            "1600.0",
+            "-1600.0",
+            "machine.axes.x.encoder.counts_per_mm` = -1600",
+        ),
+        (
+            "full_scale",
+            "1000.0",
+            "-1000.0",
+            "machine.axes.x.amplifier.full_scale` = -1000",
+        ),
+        (
+            "stop_decel_mm_s2",
+            "2000.0",
+            "0.0",
+            "machine.axes.x.safety.stop_decel_mm_s2` = 0",
+        ),
+        (
+            "inertia",
+            "0.064",
+            "inf",
+            "machine.axes.x.plant.physical.inertia` = inf",
+        ),
+        (
+            "viscous",
+            "0.25",
+            "-0.25",
+            "machine.axes.x.plant.physical.viscous` = -0.25",
+        ),
+        (
+            "torque_max_mnm",
+            "1000.0",
+            "nan",
+            "machine.axes.x.plant.physical.torque_max_mnm` = NaN",
+        ),
+        ("rate_hz", "10000", "10", "machine.rate_hz` = 10"),
+    ] {
+        let e = refusal(field, old, new);
+        assert!(e.contains(path), "{field} = {new}: {e}");
+        assert!(e.contains("range ["), "{field} = {new}: no range in {e}");
+    }
+}
+
+/// Every scenario file under `dir`, recursively.
+fn scenario_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            scenario_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "toml") {
+            out.push(p);
+        }
+    }
+}
+
+#[test]
+fn every_shipped_scenario_and_machine_file_loads_and_resolves() {
+    let mut files = Vec::new();
+    scenario_files(&host_sim().join("scenarios"), &mut files);
+    assert!(files.len() >= 19, "{} scenario files", files.len());
+    let mut runs = 0;
+    for f in &files {
+        let loaded = load(f).unwrap_or_else(|e| panic!("{e}"));
+        for r in &loaded.runs {
+            Resolved::new(&loaded.file, r).unwrap_or_else(|e| panic!("{e}"));
+            runs += 1;
+        }
+    }
+    assert!(runs >= files.len());
+    // and each machine file through the minimal scenario above
+    for m in std::fs::read_dir(host_sim().join("machines")).unwrap() {
+        let name = m.unwrap().file_name().to_string_lossy().into_owned();
+        machine(&name);
+    }
+}

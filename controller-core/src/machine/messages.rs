@@ -161,6 +161,48 @@ impl FaultCode {
     }
 }
 
+/// How the latest program ended, or that it is still running. An abort names its cause,
+/// so that a host never takes a program stopped by a fault, its own stop or a lost link
+/// for one that completed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum ProgramEnd {
+    /// No program ran since boot.
+    None,
+    /// A program is running (`Run` executed, the end not reached).
+    Running,
+    /// Every segment executed after `EndProgram`, and the machine stopped at the end.
+    Completed,
+    /// A fault latched while it ran (the first fault: kind and axis).
+    Fault(FaultCode),
+    /// The host's real-time stop.
+    HostStop,
+    /// The link's watchdog expired (the host went silent).
+    LinkLost,
+    /// The planner refused one of its segments.
+    SegmentRefused,
+    /// The servo left its run state without a fault (a disarm).
+    Stopped,
+}
+
+impl ProgramEnd {
+    /// The program stopped before its end.
+    pub const fn aborted(self) -> bool {
+        !matches!(self, Self::None | Self::Running | Self::Completed)
+    }
+}
+
+/// Where the machine is in the latest program: how it ended (or that it runs) and the tag
+/// of the segment its executor is on (the last one it was on once the program ended).
+/// Tags are the host's: it knows which of its segments come before a tag, so it counts
+/// the executed segments and their length from what the machine executed, not from what
+/// it sent. (No distance along the segment: the largest status must fit a 256-byte
+/// payload, and it had 9 bytes to spare.)
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct ProgramProgress {
+    pub end: ProgramEnd,
+    pub tag: u32,
+}
+
 /// Answer to every real-time request.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
 pub struct Status {
@@ -185,8 +227,11 @@ pub struct Status {
     /// Free slots in the planner's segment queue and requests waiting to be executed.
     pub planner_free: u16,
     pub queued: u16,
-    /// The program's segments are all executed and the machine is at rest.
+    /// No program runs, nothing is queued, and the latest program (if any) completed:
+    /// false after an abort (`program.end` says why).
     pub program_done: bool,
+    /// The latest program's end and the executor's place in it.
+    pub program: ProgramProgress,
     /// Homing / identification progress, 0-1.
     pub progress: f32,
     pub identify: Option<IdentifyMsg>,
@@ -257,6 +302,10 @@ mod tests {
             planner_free: u16::MAX,
             queued: u16::MAX,
             program_done: true,
+            program: ProgramProgress {
+                end: ProgramEnd::Fault(FaultCode(u8::MAX)),
+                tag: u32::MAX,
+            },
             progress: f32::MAX,
             identify: Some(IdentifyMsg {
                 axis: u8::MAX,

@@ -23,8 +23,8 @@ use core::ops::DerefMut;
 use heapless::{Deque, String};
 
 use super::messages::{
-    FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, Request, Status, Telemetry,
-    TELEMETRY_SIGNALS, VALUE_MAX,
+    FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, ProgramEnd, ProgramProgress, Request,
+    Status, Telemetry, TELEMETRY_SIGNALS, VALUE_MAX,
 };
 use super::port::{ControlSide, Down, Up};
 use super::scope::{Scope, Signal};
@@ -111,6 +111,10 @@ where
     /// A program is running (after `Run`), and its end was announced.
     program: bool,
     program_ended: bool,
+    /// How the latest program ended (or that it runs) and the tag of the segment the
+    /// executor is on (the status reports them: what executed).
+    program_end: ProgramEnd,
+    program_tag: u32,
     identify: Option<IdentifyMsg>,
     /// A servo command of the supervisor's own (stop at program end, link loss).
     pending: heapless::Vec<Command, 2>,
@@ -232,6 +236,8 @@ where
             last_telemetry_period: 0,
             program: false,
             program_ended: false,
+            program_end: ProgramEnd::None,
+            program_tag: 0,
             identify: None,
             pending: heapless::Vec::new(),
             sample,
@@ -278,7 +284,7 @@ where
     /// Latch a board fault found outside the servo step (the crystal, the settings store)
     /// and stop driving now.
     pub fn latch_board_fault(&mut self, kind: crate::servo::faults::FaultKind) {
-        self.stop_program(None);
+        self.stop_program(None, ProgramEnd::Fault(FaultCode::new(kind, None)));
         self.servo.latch_board_fault(kind);
     }
 
@@ -316,7 +322,7 @@ where
                     self.held = false;
                 }
             }
-            RealtimeRequest::Stop => self.stop_program(Some(Command::Stop)),
+            RealtimeRequest::Stop => self.stop_program(Some(Command::Stop), ProgramEnd::HostStop),
             RealtimeRequest::Status => {}
         }
     }
@@ -324,7 +330,7 @@ where
     /// The link's watchdog expired: controlled stop and a `LinkLost` fault.
     pub fn link_lost(&mut self) {
         self.save_lock = None;
-        self.stop_program(Some(Command::LinkLost));
+        self.stop_program(Some(Command::LinkLost), ProgramEnd::LinkLost);
     }
 
     /// Flush the request queue (counted as retired for the link's credit).
@@ -405,12 +411,14 @@ where
         Some(self.telemetry())
     }
 
-    fn stop_program(&mut self, cmd: Option<Command>) {
+    /// Stop the program (if one runs) for `why`, with the servo command `cmd`.
+    fn stop_program(&mut self, cmd: Option<Command>, why: ProgramEnd) {
         self.retire_queue();
         self.sample.vel_mm_s = crate::Vec3::zero();
         self.sample.acc_mm_s2 = crate::Vec3::zero();
         if self.program {
             self.mem.planner.abort();
+            self.program_end = why;
         }
         self.program = false;
         self.program_ended = false;
@@ -460,6 +468,8 @@ where
         if self.program {
             self.sample = self.mem.planner.tick();
             self.servo.set_planner_reference(&self.sample);
+            // the executor's place in the program, for the status
+            self.program_tag = self.sample.tag;
         }
         let s = *self.servo.period(io, &cmds);
         self.mem.scope.record(&s, &self.sample);
@@ -477,10 +487,17 @@ where
                         self.pend(Command::Stop);
                         self.program = false;
                         self.program_ended = false;
+                        self.program_end = ProgramEnd::Completed;
                     }
                 }
                 // a fault, a stop or a disarm ended the program
-                _ => self.stop_program(None),
+                _ => {
+                    let why = match s.fault {
+                        Some(f) => ProgramEnd::Fault(FaultCode::new(f.fault.kind, f.fault.axis)),
+                        None => ProgramEnd::Stopped,
+                    };
+                    self.stop_program(None, why)
+                }
             }
         }
         if let Some(o) = self.servo.identify_outcome() {
@@ -558,6 +575,8 @@ where
                 }
                 self.program = true;
                 self.program_ended = false;
+                self.program_end = ProgramEnd::Running;
+                self.program_tag = 0;
                 self.held = false;
                 servo(Command::Run)
             }
@@ -570,7 +589,7 @@ where
                     Offer::Later => Step::Wait,
                     Offer::Refused(e) => {
                         // a program with a bad segment cannot go on: stop on the path
-                        self.stop_program(Some(Command::Stop));
+                        self.stop_program(Some(Command::Stop), ProgramEnd::SegmentRefused);
                         Step::Done(refused(segment_refusal(&e)))
                     }
                 }
@@ -695,7 +714,14 @@ where
             vel_mm_s: s.vel,
             planner_free: self.mem.planner.free_slots() as u16,
             queued: self.queue.len() as u16,
-            program_done: !self.program && self.queue.is_empty() && self.pending.is_empty(),
+            program_done: !self.program
+                && self.queue.is_empty()
+                && self.pending.is_empty()
+                && !self.program_end.aborted(),
+            program: ProgramProgress {
+                end: self.program_end,
+                tag: self.program_tag,
+            },
             progress: s.progress,
             identify: self.identify,
             scope: self.mem.scope.state(),

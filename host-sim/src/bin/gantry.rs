@@ -452,11 +452,19 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             if let Some(j) = json {
                 write_json(&j, &r)?;
             }
-            return Ok(match r.status.as_str() {
-                "completed" => ExitCode::SUCCESS,
-                "rejected" => ExitCode::from(2),
-                _ => ExitCode::FAILURE,
-            });
+            if !r.completed() {
+                // the reason on stderr too: a script that reads only the exit status
+                // still leaves the operator a line saying why
+                eprintln!(
+                    "{}: not completed: {} (program_end {}, {} of {} segments executed)",
+                    file.display(),
+                    r.status,
+                    r.program_end,
+                    r.segments,
+                    r.segments_planned
+                );
+            }
+            return Ok(ExitCode::from(cli::run_exit_code(&r)));
         }
         Cmd::Identify {
             axis,

@@ -15,6 +15,7 @@ pub mod scope;
 pub mod sim;
 
 use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
+use crate::studies::gcode::distance;
 use crate::studies::gcode::{
     load_program_with, machine_and_planner, segments, ComputeJson, GcodeReport, LimitsJson,
     MetricSample, PathMetrics,
@@ -23,7 +24,7 @@ use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
 use controller_core::link::RealtimeRequest;
 use controller_core::machine::messages::{
-    IdentifyMsg, MachineState, Outcome, Request, Status, Telemetry,
+    IdentifyMsg, MachineState, Outcome, ProgramEnd, Request, Status, Telemetry,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -65,6 +66,33 @@ pub fn wait_while<T: Transport>(
             bail!("the machine is still busy after {} s", LONG_WAIT_MS / 1000);
         }
         c.sleep_ms(POLL_MS)?;
+    }
+}
+
+/// `gantry run`'s exit status: 0 completed, 2 rejected (nothing ran), 1 anything else
+/// (a fault, an abort: the program did not complete).
+pub fn run_exit_code(r: &GcodeReport) -> u8 {
+    match r.status.as_str() {
+        "completed" if r.program_done => 0,
+        "rejected" => 2,
+        _ => 1,
+    }
+}
+
+/// How a program ended, as `gantry run`'s JSON names it (`program_end`).
+pub fn program_end_name(end: ProgramEnd) -> String {
+    match end {
+        ProgramEnd::None => "not_started".into(),
+        ProgramEnd::Running => "running".into(),
+        ProgramEnd::Completed => "completed".into(),
+        ProgramEnd::Fault(code) => format!(
+            "aborted_by_fault({})",
+            code.kind().map_or("unknown", |k| k.name())
+        ),
+        ProgramEnd::HostStop => "aborted_by_host".into(),
+        ProgramEnd::LinkLost => "aborted_by_link_loss".into(),
+        ProgramEnd::SegmentRefused => "aborted_segment_refused".into(),
+        ProgramEnd::Stopped => "aborted_stopped".into(),
     }
 }
 
@@ -408,8 +436,12 @@ pub fn run_program<T: Transport>(
             bail!("{name}: the machine refused a segment: {why}");
         }
         let waiting = hold.is_some() && !resumed && !aborted;
+        // over: at rest after its end or after an abort (the machine says which), or in
+        // fault
         if s.state == MachineState::Fault
-            || (s.program_done && s.state == MachineState::Idle && !waiting)
+            || (s.state == MachineState::Idle
+                && !waiting
+                && (s.program_done || s.program.end.aborted()))
         {
             break s;
         }
@@ -424,14 +456,36 @@ pub fn run_program<T: Transport>(
     } else {
         0.0
     };
-    let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
+    // what executed, from the machine's status: every segment when it completed, else
+    // those before the one its executor was on when it stopped
+    let completed = end.program.end == ProgramEnd::Completed;
+    let executed = if completed {
+        segs.len()
+    } else {
+        segs.iter()
+            .take_while(|g| g.seg.tag < end.program.tag)
+            .count()
+    };
+    let length = |g: &crate::studies::gcode::PlanSegment| -> f64 {
+        program
+            .moves
+            .get(g.moves.clone())
+            .map_or(0.0, |m| m.iter().map(distance::length).sum())
+    };
+    let mut report = metrics.report(&program, executed, duration_s, limits, fault, realtime);
+    report.segments_planned = segs.len();
+    if !completed {
+        report.path_length_mm = segs.iter().take(executed).map(length).sum();
+    }
+    report.program_done = end.program_done;
+    report.program_end = program_end_name(end.program.end);
     report.compression = compression;
     report.compute = ComputeJson {
         parse_s,
         compress_s,
         run_s: compute_s,
     };
-    if aborted && report.status == "completed" {
+    if !completed && report.status == "completed" {
         report.status = "aborted".into();
     }
     // LinuxCNC keeps a program's G10 changes: written back (set, not saved) once it
@@ -480,10 +534,17 @@ pub fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<S
     expect_done("move", c.exec(Request::Segment(seg))?)?;
     expect_done("move (end)", c.exec(Request::EndProgram)?)?;
     let s = wait_while(c, |s| {
-        !(s.program_done && s.state == MachineState::Idle) && s.state != MachineState::Fault
+        !((s.program_done || s.program.end.aborted()) && s.state == MachineState::Idle)
+            && s.state != MachineState::Fault
     })?;
     if s.state == MachineState::Fault {
         bail!("move: the machine stopped on a fault ({})", fault_text(&s));
+    }
+    if !s.program_done {
+        bail!(
+            "move: the machine did not complete it ({})",
+            program_end_name(s.program.end)
+        );
     }
     Ok(s)
 }

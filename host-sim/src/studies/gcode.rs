@@ -79,12 +79,26 @@ pub struct LimitsJson {
 #[derive(Clone, Debug, Serialize)]
 pub struct GcodeReport {
     pub program: String,
-    /// `completed`, `rejected` (nothing ran) or `fault` (the machine stopped on a fault).
+    /// `completed`, `rejected` (nothing ran), `fault` (the machine stopped on a fault) or,
+    /// from `gantry run`, `aborted` (stopped by the host, a lost link, a refused segment or
+    /// a disarm: `program_end` says which).
     pub status: String,
     pub error: Option<ErrorJson>,
-    /// Segments given to the planner (moves, arcs, dwells and the primitives runs of short
-    /// moves were merged into).
+    /// Segments executed: the planner's segments (moves, arcs, dwells and the primitives
+    /// runs of short moves were merged into) the machine ran to their end. In `gantry run`
+    /// from the machine's status (the segment its executor was on when the program ended,
+    /// and whether it completed); equal to `segments_planned` when the program completed.
     pub segments: usize,
+    /// Segments the program gave the planner (what `segments` counted before it counted
+    /// what executed).
+    pub segments_planned: usize,
+    /// The machine reported the program done (every segment executed, machine at rest):
+    /// false after an abort.
+    pub program_done: bool,
+    /// How the program ended, as the machine reports it: `completed`, `not_started`
+    /// (rejected), `aborted_by_fault(<kind>)`, `aborted_by_host`, `aborted_by_link_loss`,
+    /// `aborted_segment_refused`, `aborted_stopped` (a disarm).
+    pub program_end: String,
     /// The program's moves (those that move or wait): the segments without compression.
     pub moves: usize,
     /// What the path compressor did (`gcode::compress`): chords considered, primitives
@@ -95,8 +109,12 @@ pub struct GcodeReport {
     pub compute: ComputeJson,
     /// Machine time from `Run` until the planner is idle again, s.
     pub duration_s: f64,
-    /// Length of the programmed path, mm.
+    /// Length of the path executed, mm: the programmed length of the segments in
+    /// `segments` (the one in progress when a program stopped is not counted); the
+    /// programmed path's length when the program completed.
     pub path_length_mm: f64,
+    /// Length of the programmed path, mm.
+    pub path_length_planned_mm: f64,
     /// Largest distance of the executed reference (the executor's sample each period) from
     /// the programmed path, mm.
     pub corner_deviation_max_mm: f64,
@@ -179,11 +197,15 @@ impl GcodeReport {
                 message: e.to_string(),
             }),
             segments: 0,
+            segments_planned: 0,
+            program_done: false,
+            program_end: "not_started".into(),
             moves: 0,
             compression: compress::Stats::default(),
             compute: ComputeJson::default(),
             duration_s: 0.0,
             path_length_mm: 0.0,
+            path_length_planned_mm: 0.0,
             corner_deviation_max_mm: 0.0,
             contour_max_mm: 0.0,
             contour_rms_mm: 0.0,

@@ -88,6 +88,10 @@ impl LinkEncode {
             planner_free: 3,
             queued: 12,
             program_done: false,
+            program: controller_core::machine::messages::ProgramProgress {
+                end: controller_core::machine::messages::ProgramEnd::Running,
+                tag: 4_321,
+            },
             progress: 0.0,
             identify: None,
             scope: controller_core::machine::scope::ScopeState::Off,

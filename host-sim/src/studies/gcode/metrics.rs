@@ -239,6 +239,12 @@ impl<'a> PathMetrics<'a> {
             .into(),
             error: None,
             segments,
+            segments_planned: segments,
+            program_done: fault.is_none(),
+            program_end: match &fault {
+                None => "completed".into(),
+                Some(f) => format!("aborted_by_fault({f})"),
+            },
             moves: program
                 .moves
                 .iter()
@@ -248,6 +254,7 @@ impl<'a> PathMetrics<'a> {
             compute: Default::default(),
             duration_s,
             path_length_mm: program.moves.iter().map(distance::length).sum(),
+            path_length_planned_mm: program.moves.iter().map(distance::length).sum(),
             corner_deviation_max_mm: self.dev_max,
             contour_max_mm: self.c_max,
             contour_rms_mm: if self.c_n > 0 {
