@@ -190,8 +190,8 @@ impl<const WORD: usize, const PAGE: usize> NorFlash for CutFlash<WORD, PAGE> {
             if !self.spend() {
                 if self.program_cut == ProgramCut::Bits {
                     let word_end = (i / WORD + 1) * WORD;
-                    for j in i..word_end {
-                        let clear = !bytes[j] & self.random() as u8;
+                    for (j, b) in bytes.iter().enumerate().take(word_end).skip(i) {
+                        let clear = !b & self.random() as u8;
                         self.data[at - i + j] &= !clear;
                     }
                 }

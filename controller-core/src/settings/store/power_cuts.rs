@@ -8,14 +8,14 @@
 //! after power-on, a load must give the new tree or the previous one (for the first save:
 //! the new tree, or nothing), and a save of another tree and its load must work.
 //!
-//! Counts (every cut tested, none sampled): 4-byte words, 12 saves: 6 496 programmed
-//! bytes + 2 erases × 2 048 = 10 592 cuts per model; 1-byte words (the STM32F4's): 6 472
-//! + 4 096 = 10 568. Four models (erase: undefined page or prefix; program: partial bits
-//! or untouched) for 4-byte words, two for 1-byte words: 63 504 cuts, 0 losses of the
-//! previous record, 0 refused later saves. Of the cuts, 10 034 load the previous record,
-//! 534 (in the first save) nothing, and 24 with 4-byte words the new one: the cuts in a
-//! record's two bytes of padding, which have nothing left to program. About 9 s in the
-//! test profile.
+//! Counts (every cut tested, none sampled): with 4-byte words the 12 saves program 6 496
+//! bytes and erase 2 pages of 2 048: 10 592 cuts per model; with 1-byte words (the
+//! STM32F4's) 6 472 and 4 096: 10 568. Four models (erase: undefined page or prefix;
+//! program: partial bits or untouched) for 4-byte words, two for 1-byte words: 63 504
+//! cuts, 0 losses of the previous record, 0 refused later saves. Of the cuts of a model,
+//! 10 034 load the previous record, 534 (in the first save) nothing, and with 4-byte
+//! words 24 the new one: the cuts in a record's two bytes of padding, which have nothing
+//! left to program. About 9 s in the test profile.
 
 extern crate std;
 
