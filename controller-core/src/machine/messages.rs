@@ -76,6 +76,20 @@ pub enum Request {
     /// Read a complete capture from value `offset`: the chunk is in [`Status::last`]
     /// ([`Outcome::Scope`]).
     ScopeRead { offset: u16 },
+    /// Open a settings transaction (an open one is dropped): the [`Request::SettingSet`]s
+    /// and [`Request::SettingsDefaults`] until [`Request::SettingsCommit`] change a
+    /// candidate tree (each value type- and range-checked as it comes), not the machine.
+    /// A new session or a lost link drops it.
+    SettingsBegin,
+    /// Validate the transaction's tree whole (the servo's own checks) and swap it in at a
+    /// period boundary, all of it or, refused, nothing (the refusal names the key and
+    /// why). Refused when a change of the transaction was refused.
+    SettingsCommit,
+    /// Drop the open transaction (nothing changes).
+    SettingsAbort,
+    /// Erase the settings store and write the settings the machine runs into it (like
+    /// [`Request::SettingsSave`]: only with the outputs off, nothing arms until done).
+    SettingsRepair,
 }
 
 /// How the last executed request ended.

@@ -19,9 +19,11 @@ mod settings_agent;
 mod supervisor;
 
 pub use endpoint::Endpoint;
-pub use port::{Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort, Up};
+pub use port::{
+    Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort, SaveJob, Up,
+};
 #[cfg(feature = "store")]
-pub use save::{save_blocking, save_due_into};
+pub use save::{save_blocking, save_due_into, write_blocking};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{
     Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, MACHINE_SEGMENTS,

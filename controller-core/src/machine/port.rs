@@ -23,7 +23,9 @@
 //! machine, with its outputs off, locks them off and says so ([`Echo::Save`]); the link
 //! task writes the flash ([`LinkSide::save_due`]) and hands the result down
 //! ([`LinkSide::save_finished`], [`Down::SaveDone`]), which releases the lock. A new
-//! session or a lost link cancels a save on both sides.
+//! session or a lost link cancels a save on both sides. A repair
+//! ([`Request::SettingsRepair`]: erase the store, write the settings) takes the same path;
+//! [`LinkSide::save_due`] says which ([`SaveJob`]).
 //!
 //! `gantry --sim` uses the very same queues in one thread (split per call).
 //!
@@ -69,7 +71,7 @@ pub enum Down {
     /// A settings save reached the front, everything before it executed: with the
     /// outputs off, hold them off until [`Down::SaveDone`] with the same `token`, and
     /// answer with [`Echo::Save`] (in the request's place).
-    SaveLock { token: u32 },
+    SaveLock { token: u32, repair: bool },
     /// The link side finished the save `token` (written or failed: `outcome`, the
     /// request's outcome); the outputs may be armed again.
     SaveDone { token: u32, outcome: Outcome },
@@ -85,6 +87,15 @@ pub enum Echo {
     /// The save `token`: `locked` (outputs off and held off: write the flash now), or
     /// refused (the outputs are on; the refusal is the request's outcome).
     Save { token: u32, locked: bool },
+}
+
+/// What the link task writes to flash when a save is due ([`LinkSide::save_due`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SaveJob {
+    /// The settings the machine runs.
+    pub settings: Settings,
+    /// Erase the store first ([`Request::SettingsRepair`]), rather than append a record.
+    pub repair: bool,
 }
 
 /// Where the link side's save is.
@@ -205,6 +216,8 @@ pub struct LinkState {
     passed: u32,
     save: SavePhase,
     save_token: u32,
+    /// The save under way is a repair.
+    save_repair: bool,
 }
 
 impl LinkState {
@@ -218,6 +231,7 @@ impl LinkState {
             passed: 0,
             save: SavePhase::Idle,
             save_token: 0,
+            save_repair: false,
         }
     }
 
@@ -253,10 +267,13 @@ impl<'a, 's> LinkSide<'a, 's> {
         self.state.rate_hz()
     }
 
-    /// The settings to write to flash now, when a save is due: the machine holds its
-    /// outputs off until [`Self::save_finished`].
-    pub fn save_due(&self) -> Option<Settings> {
-        matches!(self.state.save, SavePhase::Ready(_)).then(|| *self.state.agent.settings())
+    /// What to write to flash now, when a save (or a repair) is due: the machine holds
+    /// its outputs off until [`Self::save_finished`].
+    pub fn save_due(&self) -> Option<SaveJob> {
+        matches!(self.state.save, SavePhase::Ready(_)).then(|| SaveJob {
+            settings: *self.state.agent.settings(),
+            repair: self.state.save_repair,
+        })
     }
 
     /// The save [`Self::save_due`] asked for is over (`outcome`: done, or why not); the
@@ -303,13 +320,14 @@ impl<'a, 's> LinkSide<'a, 's> {
                 break;
             }
             let mut lock = None;
-            let d = if matches!(r, Request::SettingsSave) {
+            let d = if matches!(r, Request::SettingsSave | Request::SettingsRepair) {
                 if self.state.passed != retired {
                     break;
                 }
                 let token = self.state.save_token.wrapping_add(1);
-                lock = Some(token);
-                Down::SaveLock { token }
+                let repair = matches!(r, Request::SettingsRepair);
+                lock = Some((token, repair));
+                Down::SaveLock { token, repair }
             } else if SettingsAgent::handles(r) {
                 if self.state.passed != retired {
                     break;
@@ -324,8 +342,9 @@ impl<'a, 's> LinkSide<'a, 's> {
             if self.ends.down.enqueue(d).is_err() {
                 break;
             }
-            if let Some(token) = lock {
+            if let Some((token, repair)) = lock {
                 self.state.save_token = token;
+                self.state.save_repair = repair;
                 self.state.save = SavePhase::Locking(token);
             }
             self.state.held.pop_front();
@@ -361,10 +380,12 @@ impl MachinePort for LinkSide<'_, '_> {
                 self.state.dropped = self.state.dropped.wrapping_add(n);
                 // (the machine drops its lock at the same event)
                 self.state.save = SavePhase::Idle;
+                self.state.agent.session_ended();
                 let _ = self.ends.down.enqueue(Down::SessionStarted);
             }
             Down::LinkLost => {
                 self.state.save = SavePhase::Idle;
+                self.state.agent.session_ended();
                 let _ = self.ends.down.enqueue(Down::LinkLost);
             }
             // real-time traffic skips the queue; a full queue drops it (the host repeats

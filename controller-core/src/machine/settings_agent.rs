@@ -8,6 +8,13 @@
 //! A settings request reads the settings the machine runs; so it is resolved only once
 //! every request before it was executed (a barrier), with the settings the machine
 //! echoed back after its last change ([`SettingsAgent::machine_took`]).
+//!
+//! Transactions (`gantry settings import`, `settings set` of several keys): between
+//! [`Request::SettingsBegin`] and [`Request::SettingsCommit`] the changes go into a
+//! candidate tree here, each checked for its type and range; the commit validates the
+//! candidate whole ([`Settings::validate_change`], the servo configuration built from it)
+//! and hands it down as one tree, which the machine swaps in at a period boundary or
+//! refuses whole. A refusal at any step changes nothing on the machine.
 
 use core::fmt::Write;
 
@@ -39,6 +46,17 @@ pub struct SettingsAgent {
     shadow: Settings,
     rate_hz: u32,
     identify: Option<IdentifyMsg>,
+    txn: Option<Transaction>,
+}
+
+/// An open settings transaction.
+#[derive(Clone, Debug)]
+struct Transaction {
+    /// The machine's settings when it began, and the tree its changes build.
+    base: Settings,
+    candidate: Settings,
+    /// A change was refused: the commit is too.
+    refused: bool,
 }
 
 fn refused<E: core::fmt::Display>(e: E) -> Resolution {
@@ -65,7 +83,18 @@ impl SettingsAgent {
             shadow: *settings,
             rate_hz,
             identify: None,
+            txn: None,
         }
+    }
+
+    /// A new session, or the link was lost: an open transaction is dropped.
+    pub fn session_ended(&mut self) {
+        self.txn = None;
+    }
+
+    /// A settings transaction is open.
+    pub fn in_transaction(&self) -> bool {
+        self.txn.is_some()
     }
 
     /// The machine took `settings` (it echoes every change it applied).
@@ -98,12 +127,68 @@ impl SettingsAgent {
                 | Request::SettingSet { .. }
                 | Request::SettingsDefaults
                 | Request::AcceptIdentified { .. }
+                | Request::SettingsBegin
+                | Request::SettingsCommit
+                | Request::SettingsAbort
         )
     }
 
     /// Resolve a settings request (see [`Self::handles`]); any other request is refused.
-    pub fn resolve(&self, r: &Request) -> Resolution {
+    pub fn resolve(&mut self, r: &Request) -> Resolution {
+        if let Some(t) = self.txn.as_mut() {
+            match r {
+                Request::SettingSet { key, value } => {
+                    return match t.candidate.stage_text(key, value) {
+                        Ok(()) => Resolution::Outcome(Outcome::Done),
+                        Err(e) => {
+                            t.refused = true;
+                            refused(e)
+                        }
+                    };
+                }
+                Request::SettingsDefaults => {
+                    t.candidate = FACTORY;
+                    return Resolution::Outcome(Outcome::Done);
+                }
+                Request::AcceptIdentified { .. } => {
+                    return refused_text(
+                        "accept: a settings transaction is open (commit or abort it first)",
+                    )
+                }
+                _ => {}
+            }
+        }
         match r {
+            Request::SettingsBegin => {
+                self.txn = Some(Transaction {
+                    base: self.shadow,
+                    candidate: self.shadow,
+                    refused: false,
+                });
+                Resolution::Outcome(Outcome::Done)
+            }
+            Request::SettingsAbort => {
+                self.txn = None;
+                Resolution::Outcome(Outcome::Done)
+            }
+            Request::SettingsCommit => match self.txn.take() {
+                None => refused_text("commit: no settings transaction is open (begin first)"),
+                Some(t) if t.refused => refused_text(
+                    "commit refused: a change of the transaction was refused; nothing changed",
+                ),
+                // (only this agent changes the settings, and not while a transaction is
+                // open: a defensive check)
+                Some(t) if t.base != self.shadow => refused_text(
+                    "commit refused: the settings changed since begin; nothing changed",
+                ),
+                Some(t) => match t.candidate.validate_change(&t.base, self.rate_hz) {
+                    Ok(()) => Resolution::Apply {
+                        settings: t.candidate,
+                        class: self.shadow.change_class(&t.candidate),
+                    },
+                    Err(e) => refused(e),
+                },
+            },
             Request::SettingGet { key } => match self.shadow.get(key) {
                 Ok(v) => {
                     let mut t: String<VALUE_MAX> = String::new();

@@ -153,8 +153,11 @@ enum Queued {
         settings: Settings,
         class: Option<Apply>,
     },
-    /// A settings save (`Down::SaveLock`).
-    SaveLock(u32),
+    /// A settings save or repair (`Down::SaveLock`).
+    SaveLock {
+        token: u32,
+        repair: bool,
+    },
 }
 
 /// Why a segment was refused, without formatting (the control interrupt never formats).
@@ -375,7 +378,9 @@ where
                     status: self.status(),
                 }),
                 Down::LinkLost => self.link_lost(),
-                Down::SaveLock { token } => self.enqueue(Queued::SaveLock(token)),
+                Down::SaveLock { token, repair } => {
+                    self.enqueue(Queued::SaveLock { token, repair })
+                }
                 Down::SaveDone { token, outcome } => {
                     if self.save_lock == Some(token) {
                         self.save_lock = None;
@@ -528,7 +533,7 @@ where
             Queued::Request(r) => r,
             Queued::Resolved(o) => return Step::Done(o.clone()),
             Queued::Apply { settings, class } => return Step::Done(self.apply(*settings, *class)),
-            Queued::SaveLock(token) => return self.lock_for_save(*token, cmds),
+            Queued::SaveLock { token, repair } => return self.lock_for_save(*token, *repair, cmds),
         };
         let mut servo = |c: Command| {
             let _ = cmds.push(c);
@@ -627,7 +632,11 @@ where
             | Request::SettingSet { .. }
             | Request::SettingsDefaults
             | Request::SettingsSave
-            | Request::AcceptIdentified { .. } => Step::Done(refused(
+            | Request::AcceptIdentified { .. }
+            | Request::SettingsBegin
+            | Request::SettingsCommit
+            | Request::SettingsAbort
+            | Request::SettingsRepair => Step::Done(refused(
                 "settings requests reach the machine through its link (machine::port)",
             )),
         }
@@ -635,15 +644,22 @@ where
 
     /// A save's turn: lock the outputs off while the link side writes the flash, or refuse
     /// while they are on. Waits a period when a command of this one could still arm.
-    fn lock_for_save(&mut self, token: u32, cmds: &heapless::Vec<Command, 4>) -> Step {
+    fn lock_for_save(
+        &mut self,
+        token: u32,
+        repair: bool,
+        cmds: &heapless::Vec<Command, 4>,
+    ) -> Step {
         if !cmds.is_empty() {
             return Step::Wait;
         }
         if self.servo.state().drives() {
             self.save_echo = Some((token, false));
-            return Step::Done(refused(
-                "save: the outputs are on; disarm first (writing flash stalls the control loop)",
-            ));
+            return Step::Done(refused(if repair {
+                "repair: the outputs are on; disarm first (erasing flash stalls the control loop)"
+            } else {
+                "save: the outputs are on; disarm first (writing flash stalls the control loop)"
+            }));
         }
         self.save_lock = Some(token);
         self.save_echo = Some((token, true));

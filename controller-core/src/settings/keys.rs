@@ -1137,6 +1137,64 @@ impl Settings {
         })
     }
 
+    /// Set `key` from the CLI's text, type- and range-checked but without the whole-tree
+    /// check: one change of a transaction, whose tree is validated whole at its commit
+    /// ([`Self::validate_change`]). On an error nothing changes.
+    pub fn stage_text(&mut self, key: &str, text: &str) -> Result<(), SettingError> {
+        let k = find(key)?;
+        let value = k.parse(text)?;
+        self.put_checked(&k, value)
+    }
+
+    /// Whole validation of `self`, a change of `base` (a transaction's tree), at
+    /// `rate_hz`. A whole-tree rejection names a key, the first changed one (in key order)
+    /// that is found to be a cause: first one whose old value alone makes the tree valid
+    /// again; else one whose new value alone makes `base` invalid (when several changes
+    /// break rules, or one key was changed twice); else the last changed key.
+    pub fn validate_change(&self, base: &Settings, rate_hz: u32) -> Result<(), SettingError> {
+        if let Some(e) = self.out_of_range() {
+            return Err(e);
+        }
+        let Err(error) = self.servo_config(rate_hz) else {
+            return Ok(());
+        };
+        let changed = || {
+            keys().filter_map(|k| match (k.get(self), k.get(base)) {
+                (Some(now), old) if old.is_none_or(|o| !o.same(&now)) => Some((k, now, old)),
+                _ => None,
+            })
+        };
+        for (k, value, old) in changed() {
+            let Some(old) = old else { continue };
+            let mut t = *self;
+            if t.put_checked(&k, old).is_ok() && t.servo_config(rate_hz).is_ok() {
+                return Err(SettingError::Rejected {
+                    key: k.name,
+                    value,
+                    error,
+                });
+            }
+        }
+        for (k, value, _) in changed() {
+            let mut t = *base;
+            if t.put_checked(&k, value).is_ok() && t.servo_config(rate_hz).is_err() {
+                return Err(SettingError::Rejected {
+                    key: k.name,
+                    value,
+                    error,
+                });
+            }
+        }
+        Err(match changed().last() {
+            Some((k, value, _)) => SettingError::Rejected {
+                key: k.name,
+                value,
+                error,
+            },
+            None => SettingError::Tree(error),
+        })
+    }
+
     /// [`Self::set`] from the CLI's text (`"1.5"`, `"true"`, `"dsmc"`).
     pub fn set_text(&mut self, key: &str, text: &str, rate_hz: u32) -> Result<(), SettingError> {
         let value = find(key)?.parse(text)?;

@@ -1,9 +1,9 @@
 //! The settings store's flash: the STM32F407's last two 128 KiB sectors (10 and 11,
 //! `0x080C_0000..0x0810_0000`), which `memory.x` keeps out of the program's FLASH region.
 //!
-//! Two sectors, not one: sequential-storage's map needs at least two erase pages (it
-//! keeps the page holding the current record until the next one is complete, which is
-//! what makes a save power-fail safe), and the F407's upper sectors are 128 KiB each.
+//! Two sectors, not one: the store needs at least two erase pages (it keeps the page
+//! holding the current record until the next one is complete elsewhere, which is what
+//! makes a save power-fail safe), and the F407's upper sectors are 128 KiB each.
 //!
 //! [`InternalFlash`] is the HAL's flash (`LockedFlash`, unlocked for each erase or write
 //! and locked again) as a blocking `NorFlash`; the core's
@@ -20,20 +20,19 @@
 //!
 //! - save only while the outputs are off (`ServoState::drives()` false), as the servo
 //!   refuses `reconfigure` otherwise;
-//! - a save erases a sector whenever the map wraps onto its other sector (about every
-//!   370-420 saves): the independent watchdog (a few ms) must be stretched above
-//!   [`SECTOR_ERASE_MAX_MS`] around every save and restored after, or the board resets
-//!   mid-erase (sequential-storage repairs that at the next load, but the save is lost);
-//! - load at boot before the watchdog starts (a load may repair an interrupted erase by
-//!   erasing again).
+//! - a save erases a sector whenever the store moves onto its other sector (about every
+//!   230-250 saves), a repair erases both: the independent watchdog (a few ms) must be
+//!   stretched above [`SECTOR_ERASE_MAX_MS`] around every save and restored after, or the
+//!   board resets mid-erase (the previous record survives, the save is lost);
+//! - load at boot before the watchdog starts (a load reads only, but scans both sectors).
 //!
 //! [`load_settings`] runs in `init` (before the watchdog) and hands the store to the link
-//! task's [`BoardSaver`], which writes a save over the link once the machine holds its
-//! outputs off (`controller_core::machine::save`), with the watchdog stretched to
+//! task's [`BoardSaver`], which writes a save or repair over the link once the machine
+//! holds its outputs off (`controller_core::machine::save`), with the watchdog stretched to
 //! [`firmware::watchdog::SAVE_TIMEOUT_US`] around it.
 
 use controller_core::machine::messages::Outcome;
-use controller_core::machine::{save_blocking, LinkSide};
+use controller_core::machine::{write_blocking, LinkSide};
 use controller_core::settings::store::{block_on, BlockingFlash, SettingsStore, StoreError};
 use embedded_storage::nor_flash::{ErrorType, MultiwriteNorFlash, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::flash::{self, FlashExt, LockedFlash};
@@ -135,7 +134,7 @@ impl MultiwriteNorFlash for InternalFlash {}
 pub type SettingsFlash = BlockingFlash<InternalFlash>;
 
 /// Why the store could not be opened (a part with less than 1 MiB of flash, or a layout
-/// sequential-storage refuses).
+/// the store refuses).
 #[derive(Debug)]
 pub enum OpenError {
     Window(controller_core::settings::store::WindowError),
@@ -206,9 +205,9 @@ impl BoardSaver {
         Self { store, watchdog }
     }
 
-    /// Write a save that is due on `port` (the machine holds its outputs off).
+    /// Write a save or repair that is due on `port` (the machine holds its outputs off).
     pub fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
-        let Some(settings) = port.save_due() else {
+        let Some(job) = port.save_due() else {
             return;
         };
         let Some(store) = self.store.as_mut() else {
@@ -221,7 +220,7 @@ impl BoardSaver {
             port.save_finished(refused("save failed: the watchdog could not be stretched"));
             return;
         }
-        let outcome = save_blocking(store, &settings, port.rate_hz());
+        let outcome = write_blocking(store, &job, port.rate_hz());
         let outcome = if self.watchdog.restore() {
             outcome
         } else {

@@ -156,7 +156,8 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
-    /// Settings: list, get KEY, set KEY VALUE, defaults, save, export FILE, import FILE.
+    /// Settings: list, get KEY, set KEY VALUE | set KEY=VALUE..., defaults, save, repair,
+    /// export FILE, import FILE.
     Settings {
         #[command(subcommand)]
         op: SettingsOp,
@@ -169,14 +170,19 @@ enum SettingsOp {
     Get {
         key: String,
     },
+    /// `set KEY VALUE`, or `set KEY=VALUE KEY=VALUE ...`: several keys applied as one
+    /// change, all or nothing (for keys only valid together).
     Set {
-        key: String,
-        value: String,
+        #[arg(required = true, num_args = 1.., allow_hyphen_values = true)]
+        args: Vec<String>,
     },
     Defaults,
     /// Store the settings the machine runs in its flash, for the next boot (outputs off:
     /// disarm first).
     Save,
+    /// Erase the machine's settings store and write the settings it runs into it (outputs
+    /// off: disarm first).
+    Repair,
     /// Write every setting to a TOML file (dotted keys).
     Export {
         file: PathBuf,
@@ -508,9 +514,18 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 }
             }
             SettingsOp::Get { key } => println!("{}", cli::get(&mut c, &key)?),
-            SettingsOp::Set { key, value } => {
-                cli::set(&mut c, &key, &value)?;
-                println!("{key} = {}", cli::get(&mut c, &key)?);
+            SettingsOp::Set { args } => {
+                let changes = cli::parse_set_args(&args)?;
+                if let [(key, value)] = &changes[..] {
+                    cli::set(&mut c, key, value)?;
+                } else {
+                    cli::apply_settings(&mut c, &changes).map_err(|e| {
+                        anyhow::anyhow!("settings set rejected, nothing changed: {e}")
+                    })?;
+                }
+                for (key, _) in &changes {
+                    println!("{key} = {}", cli::get(&mut c, key)?);
+                }
             }
             SettingsOp::Defaults => {
                 expect_done("settings defaults", c.exec(Request::SettingsDefaults)?)?;
@@ -519,6 +534,10 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             SettingsOp::Save => {
                 expect_done("settings save", c.exec(Request::SettingsSave)?)?;
                 println!("settings saved to the machine's flash (loaded at its next boot)");
+            }
+            SettingsOp::Repair => {
+                expect_done("settings repair", c.exec(Request::SettingsRepair)?)?;
+                println!("settings store erased and rewritten with the settings the machine runs");
             }
             SettingsOp::Export { file } => {
                 let all = cli::read_settings(&mut c)?;

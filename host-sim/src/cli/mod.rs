@@ -796,10 +796,67 @@ pub fn parse_settings_toml(name: &str, text: &str) -> Result<Vec<(String, String
     Ok(out)
 }
 
+/// The changes of `gantry settings set`: `KEY VALUE`, or any number of `KEY=VALUE`.
+pub fn parse_set_args(args: &[String]) -> Result<Vec<(String, String)>> {
+    if let [key, value] = args {
+        if !key.contains('=') {
+            return Ok(vec![(key.clone(), value.clone())]);
+        }
+    }
+    args.iter()
+        .map(|a| match a.split_once('=') {
+            Some((k, v)) if !k.is_empty() => Ok((k.trim().to_string(), v.trim().to_string())),
+            _ => bail!("settings set: expected KEY VALUE or KEY=VALUE ..., got `{a}`"),
+        })
+        .collect()
+}
+
+/// Apply `changes` (key, value text) as one transaction: `SettingsBegin`, a `SettingSet`
+/// each (type and range checked by the machine's link side as they come), `SettingsCommit`
+/// (the tree validated whole and swapped in at a period boundary). All or nothing: on a
+/// refusal the transaction is aborted and the machine's settings are as before; the error
+/// is the machine's, naming the key and why.
+pub fn apply_settings<T: Transport>(c: &mut Client<T>, changes: &[(String, String)]) -> Result<()> {
+    expect_done("settings begin", c.exec(Request::SettingsBegin)?)?;
+    for (k, v) in changes {
+        let sent = heapless::String::try_from(k.as_str())
+            .map_err(|_| anyhow::anyhow!("key too long: {k}"))
+            .and_then(|key| {
+                let value = heapless::String::try_from(v.as_str())
+                    .map_err(|_| anyhow::anyhow!("{k}: value too long: {v}"))?;
+                Ok(Request::SettingSet { key, value })
+            });
+        let outcome = match sent {
+            Ok(r) => c.exec(r)?,
+            Err(e) => {
+                expect_done("settings abort", c.exec(Request::SettingsAbort)?)?;
+                return Err(e);
+            }
+        };
+        match outcome {
+            Outcome::Done => {}
+            Outcome::Refused(why) => {
+                expect_done("settings abort", c.exec(Request::SettingsAbort)?)?;
+                bail!("{why}");
+            }
+            other => {
+                expect_done("settings abort", c.exec(Request::SettingsAbort)?)?;
+                bail!("unexpected answer to settings set {k}: {other:?}");
+            }
+        }
+    }
+    match c.exec(Request::SettingsCommit)? {
+        Outcome::Done => Ok(()),
+        Outcome::Refused(why) => bail!("{why}"),
+        other => bail!("unexpected answer to settings commit: {other:?}"),
+    }
+}
+
 /// `gantry settings import FILE`: every value of the file is checked against the
 /// machine's current settings first, together (types, ranges, the whole tree at the
-/// machine's rate), so a bad file changes nothing; then the changed keys are sent.
-/// Returns the keys changed.
+/// machine's rate), so a bad file is reported before anything is sent; then the changed
+/// keys are applied as one transaction ([`apply_settings`]), which the machine checks
+/// again and takes all or nothing. Returns the keys changed.
 pub fn import_settings<T: Transport>(
     c: &mut Client<T>,
     changes: &[(String, String)],
@@ -824,23 +881,24 @@ pub fn import_settings<T: Transport>(
     tree.set_all(&parsed, rate_hz)
         .map_err(|e| anyhow::anyhow!("the machine's own settings do not validate: {e}"))?;
     let before = tree;
-    let mut wanted = Vec::new();
     for (k, v) in changes {
-        let key = find(k).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let value = key.parse(v).map_err(|e| anyhow::anyhow!("{e}"))?;
-        wanted.push((key.name, value));
+        tree.stage_text(k, v)
+            .map_err(|e| anyhow::anyhow!("import rejected, nothing changed: {e}"))?;
     }
-    tree.set_all(&wanted, rate_hz)
+    tree.validate_change(&before, rate_hz)
         .map_err(|e| anyhow::anyhow!("import rejected, nothing changed: {e}"))?;
-    let mut changed = Vec::new();
-    for (k, v) in changes {
-        let old = before.get(k).ok().map(|x| x.to_string());
-        let new = tree.get(k).ok().map(|x| x.to_string());
-        if old != new {
-            set(c, k, v)
-                .with_context(|| format!("after {} of the changes were applied", changed.len()))?;
-            changed.push(k.clone());
-        }
+    let changed: Vec<(String, String)> = changes
+        .iter()
+        .filter(|(k, _)| {
+            let old = before.get(k).ok().map(|x| x.to_string());
+            let new = tree.get(k).ok().map(|x| x.to_string());
+            old != new
+        })
+        .cloned()
+        .collect();
+    if !changed.is_empty() {
+        apply_settings(c, &changed)
+            .map_err(|e| anyhow::anyhow!("import rejected by the machine, nothing changed: {e}"))?;
     }
-    Ok(changed)
+    Ok(changed.into_iter().map(|(k, _)| k).collect())
 }
