@@ -206,6 +206,7 @@ pub struct SafetyTimings {
     pub stuck_decel_mm_s2: f32,
     pub estop_category: u8,
     pub estop_stop_time_s: f32,
+    pub encoder_noise_counts: f32,
 }
 
 impl Default for SafetyTimings {
@@ -224,6 +225,7 @@ impl Default for SafetyTimings {
             stuck_decel_mm_s2: d.stuck_decel_mm_s2,
             estop_category: d.estop_category,
             estop_stop_time_s: d.estop_stop_time_s,
+            encoder_noise_counts: d.encoder_noise_counts,
         }
     }
 }
@@ -245,6 +247,7 @@ impl SafetyTimings {
             stuck_decel_mm_s2: self.stuck_decel_mm_s2,
             estop_category: self.estop_category,
             estop_stop_time_s: self.estop_stop_time_s,
+            encoder_noise_counts: self.encoder_noise_counts,
         }
     }
 }

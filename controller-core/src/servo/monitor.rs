@@ -119,7 +119,19 @@ pub struct SafetyConfig {
     /// Longest a category-1 e-stop keeps the outputs on, s.
     #[cfg_attr(feature = "serde", serde(default = "d_estop_time"))]
     pub estop_stop_time_s: f32,
+    /// Edge noise the encoders show, counts peak to peak: a reading may sit up to half of
+    /// it either side of where the position puts it (edge jitter, an encoder resting on an
+    /// edge, phase errors of the two channels). The jump check widens by twice it and
+    /// the counts-due check reads the counts through a dead band of half of it, so noise
+    /// of this size never trips them (docs/safety.md, "Edge noise"). 0 to
+    /// [`MAX_ENCODER_NOISE_COUNTS`].
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub encoder_noise_counts: f32,
 }
+
+/// Largest `encoder_noise_counts`: beyond 16 counts of noise the encoder or its wiring is
+/// the fault, not something to tolerate.
+pub const MAX_ENCODER_NOISE_COUNTS: f32 = 16.0;
 
 /// Defaults, with their reasoning (docs/safety.md).
 pub mod defaults {
@@ -217,6 +229,7 @@ impl SafetyConfig {
             stuck_decel_mm_s2: defaults::STUCK_DECEL_MM_S2,
             estop_category: 0,
             estop_stop_time_s: defaults::ESTOP_STOP_TIME_S,
+            encoder_noise_counts: 0.0,
         }
     }
 
@@ -270,6 +283,10 @@ struct AxisLimits {
     vel_counts: f32,
     /// mm/s² to counts/period².
     acc_counts: f32,
+    /// `encoder_noise_counts`: the counts-due check's claims give up this much travel.
+    noise_counts: f32,
+    /// Half-width of the counts-due check's dead band, counts (`ceil(noise / 2)`).
+    noise_band: i32,
 }
 
 /// Per-axis memory of the checks. The count history is the previous step: a step between
@@ -305,7 +322,23 @@ struct CountsDue {
     travel: f32,
     /// Effort applied when it happened.
     u_at: f32,
+    /// The reading less the dead band's output, within `±noise_band`.
+    resid: i32,
+    /// Counts along `dir` since the run of changes this way began (at its first change).
+    run_counts: f32,
+    /// Periods since then.
+    run_periods: u32,
+    /// Sum of the decelerations the run may have had, each times the periods into the run
+    /// it came, counts.
+    run_decel: f32,
+    /// Effort applied when the run began.
+    run_u: f32,
 }
+
+/// A run of count changes one way is restarted (its claim begins again from the next
+/// change) after this many periods: the run's deceleration allowance only grows, and a
+/// speed from long ago says little about the speed now.
+pub const RUN_MAX_PERIODS: u32 = 64;
 
 /// Travel beyond the last count change, in counts, after which the next change is overdue:
 /// the next edge is at most one count away, plus half a count for the edges' spacing
@@ -372,12 +405,22 @@ impl Monitor {
             due_decel_per_effort: 0.0,
             vel_counts: 0.0,
             acc_counts: 0.0,
+            noise_counts: 0.0,
+            noise_band: 0,
         }; AXES];
         let stuck_decel = positive(cfg.stuck_decel_mm_s2, "safety.stuck_decel_mm_s2")?;
         let ratio = positive(cfg.overspeed_ratio, "safety.overspeed_ratio")?;
         if ratio < 1.0 {
             return Err(ConfigError::OutOfRange("safety.overspeed_ratio (>= 1)"));
         }
+        let noise = cfg.encoder_noise_counts;
+        if !(0.0..=MAX_ENCODER_NOISE_COUNTS).contains(&noise) {
+            return Err(ConfigError::OutOfRange(
+                "safety.encoder_noise_counts (0 to 16)",
+            ));
+        }
+        // `noise` is in 0..=16: the cast is exact
+        let noise_band = libm::ceilf(0.5 * noise) as i32;
         let t2 = (period_s * period_s) as f32;
         for (((l, a), counts), fs) in lim
             .iter_mut()
@@ -411,7 +454,8 @@ impl Monitor {
                 } else {
                     a.stuck_effort_change
                 },
-                jump_counts: accel * t2 * counts + JUMP_QUANTISATION_COUNTS,
+                // each of the three readings may be off by `noise / 2` more
+                jump_counts: accel * t2 * counts + JUMP_QUANTISATION_COUNTS + 2.0 * noise,
                 runaway_speed: 0.02 * vel_max,
                 due_on: a.stuck_effort_change.is_finite() && stuck_decel.is_finite(),
                 due_decel: stuck_decel * t2 * counts,
@@ -422,6 +466,8 @@ impl Monitor {
                 },
                 vel_counts: period_s as f32 * counts,
                 acc_counts: t2 * counts,
+                noise_counts: noise,
+                noise_band,
             };
         }
         let window = periods(
@@ -578,18 +624,44 @@ impl Monitor {
         if !l.due_on {
             return None;
         }
-        if step != 0 {
-            let dir: i8 = if step > 0 { 1 } else { -1 };
-            let gap = d.since.saturating_add(1) as f32;
-            let s = f32::from(dir);
-            // the average speed over the interval, less what the interval's deceleration
-            // may have taken off by its end; a first change or a reversal claims nothing
-            let avg = if d.dir == dir {
-                step.unsigned_abs() as f32 / (gap + 1.0)
+        // the dead band (backlash) of `noise_band` counts: its output moves only when the
+        // reading leaves the band around it, so noise within `noise_counts` never turns
+        // it back while the axis moves one way (a reversal of it is a reversal of the
+        // axis); without noise it is the reading itself
+        let step = if l.noise_band == 0 {
+            step
+        } else {
+            let r = d.resid.saturating_add(step);
+            let h = l.noise_band;
+            if r > h {
+                d.resid = h;
+                r - h
+            } else if r < -h {
+                d.resid = -h;
+                r + h
+            } else {
+                d.resid = r;
+                0
+            }
+        };
+        // the deceleration this period may bring along the claimed direction, since the
+        // last change (`decel`) and since the run began (`run_step`): the effort's drop
+        // counts from when each began
+        let s_old = f32::from(d.dir);
+        let outside = l.due_decel + (-s_old * a_ref * l.acc_counts).max(0.0);
+        let by_effort = |since: f32| {
+            let dropped = -s_old * (effort - since);
+            if dropped > 0.0 {
+                dropped * l.due_decel_per_effort
             } else {
                 0.0
-            };
-            let decel = l.due_decel + (-s * a_ref * l.acc_counts).max(0.0);
+            }
+        };
+        let decel = outside + by_effort(d.u_at);
+        let run_step = outside + by_effort(d.run_u);
+        if step != 0 {
+            let dir: i8 = if step > 0 { 1 } else { -1 };
+            let s = f32::from(dir);
             if d.dir == -dir && d.v_lb > 0.0 {
                 // counts the wrong way while the axis must still be moving the other:
                 // physically impossible (swapped A/B, a reversed counter)
@@ -597,36 +669,65 @@ impl Monitor {
                 d.dir = 0;
                 return Some((Fault::on(FaultKind::EncoderJump, Axis::ALL[i]), -s * v_lb));
             }
-            // speed falls at most `decel`, so the interval's average exceeds its end's
-            // speed by at most `decel × length / 2`
-            let v = (avg - 0.5 * decel * (gap + 1.0)).min(s * v_ref * l.vel_counts);
-            *d = CountsDue {
-                dir,
-                since: 0,
-                v_lb: if v > 0.0 { v } else { 0.0 },
-                travel: 0.0,
-                u_at: effort,
+            let c = step.unsigned_abs() as f32;
+            let gap = d.since.saturating_add(1) as f32;
+            let v = if d.dir == dir {
+                // the average speed over the interval, less what the interval's
+                // deceleration may have taken off by its end (speed falls at most
+                // `decel`, so the average exceeds the end's speed by at most
+                // `decel × length / 2`); the noise may have made up `noise_counts` of
+                // the change
+                let interval = (c - l.noise_counts) / (gap + 1.0) - 0.5 * decel * (gap + 1.0);
+                // ... the same over the run of changes this way (the noise costs its
+                // `noise_counts` once, not at every change), less every deceleration
+                // the run may have had
+                let run_c = d.run_counts + c;
+                let run_p = d.run_periods as f32 + gap;
+                // the average exceeds the end's speed by at most the decelerations
+                // weighted by how far into the run they came (`∫ t a(t) dt / L`)
+                let run_decel = d.run_decel + run_p * run_step;
+                let run = (run_c - l.noise_counts - run_decel) / (run_p + 1.0);
+                let restart = d.run_periods >= RUN_MAX_PERIODS;
+                d.run_counts = if restart { 0.0 } else { run_c };
+                d.run_periods = if restart { 0 } else { run_p as u32 };
+                d.run_decel = if restart { 0.0 } else { run_decel };
+                if restart {
+                    d.run_u = effort;
+                }
+                // (not the bound carried from before the change: an axis that started
+                // with its load unbalanced, as after arming, decelerates harder than the
+                // model allows until the controller catches up, and a claim carried on
+                // from then reads a healthy axis as stuck)
+                interval.max(run)
+            } else {
+                // a first change or a reversal claims nothing, and starts a run
+                d.run_counts = 0.0;
+                d.run_periods = 0;
+                d.run_decel = 0.0;
+                d.run_u = effort;
+                0.0
             };
+            // never below the reference's speed along the motion (NaN ends the claim)
+            let v = v.min(s * v_ref * l.vel_counts);
+            d.dir = dir;
+            d.since = 0;
+            d.v_lb = if v > 0.0 { v } else { 0.0 };
+            d.travel = 0.0;
+            d.u_at = effort;
             return None;
         }
         d.since = d.since.saturating_add(1);
+        let elapsed = d.run_periods.saturating_add(d.since) as f32;
+        d.run_decel += elapsed * run_step;
         if d.dir == 0 || d.v_lb <= 0.0 {
             return None;
         }
-        let s = f32::from(d.dir);
-        let dropped = -s * (effort - d.u_at);
-        let decel = l.due_decel
-            + (-s * a_ref * l.acc_counts).max(0.0)
-            + if dropped > 0.0 {
-                dropped * l.due_decel_per_effort
-            } else {
-                0.0
-            };
-        // NaN anywhere ends the claim (`!(v > 0)`)
-        let v = (d.v_lb - decel).min(s * v_ref * l.vel_counts);
+        let v = (d.v_lb - decel).min(s_old * v_ref * l.vel_counts);
         d.v_lb = if v > 0.0 { v } else { 0.0 };
         d.travel += d.v_lb;
-        if d.travel > COUNTS_DUE_TRAVEL {
+        // the band's output moves once the reading is past it: at most `noise_counts`
+        // further (the reading at its last move may have been that much ahead)
+        if d.travel > COUNTS_DUE_TRAVEL + l.noise_counts {
             let travel = d.travel;
             // one report per stall: the claim restarts at the next change
             d.dir = 0;
