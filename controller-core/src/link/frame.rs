@@ -120,6 +120,38 @@ pub fn encode<T: Serialize + ?Sized>(msg: &T, out: &mut [u8]) -> Result<usize, E
     Ok(n + 1)
 }
 
+/// COBS-decode `buf` in place: the decoded length, or `None` if it is not valid COBS.
+/// The algorithm of `cobs::decode_in_place` (0.3), result for result (a code byte that
+/// points past the end, or an empty frame, is invalid; decoding stops at a 0x00), but
+/// with checked reads and writes: the crate's indexing kept two bounds-check panics in
+/// the link task that the optimiser could not remove (`dst <= src < src_end <= len`
+/// holds, so the checks never fail).
+fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
+    if buf.is_empty() {
+        return None;
+    }
+    let src_end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    let (mut src, mut dst) = (0usize, 0usize);
+    while src < src_end {
+        let code = usize::from(*buf.get(src)?);
+        if src + code > src_end && code != 1 {
+            return None;
+        }
+        src += 1;
+        for _ in 1..code {
+            let b = *buf.get(src)?;
+            *buf.get_mut(dst)? = b;
+            src += 1;
+            dst += 1;
+        }
+        if code != 0xFF && src < src_end {
+            *buf.get_mut(dst)? = 0;
+            dst += 1;
+        }
+    }
+    Some(dst)
+}
+
 /// Why a received frame was dropped. Every case is also counted in [`DecodeStats`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrameError {
@@ -354,7 +386,11 @@ impl FrameDecoder {
         let end = self.len.saturating_add(chunk.len());
         match self.buf.get_mut(self.len..end) {
             Some(dst) => {
-                dst.copy_from_slice(chunk);
+                // (`copy_from_slice` would keep a length-mismatch panic the optimiser
+                // cannot remove: `end` saturates)
+                for (d, s) in dst.iter_mut().zip(chunk) {
+                    *d = *s;
+                }
                 self.len = end;
                 self.peak_len = self.peak_len.max(end);
             }
@@ -368,7 +404,7 @@ impl FrameDecoder {
     /// COBS-decode the collected frame in place and verify its CRC.
     fn check(&mut self) -> Result<usize, FrameError> {
         let frame = self.buf.get_mut(..self.len).ok_or(FrameError::Oversized)?;
-        let n = cobs::decode_in_place(frame).map_err(|_| FrameError::Cobs)?;
+        let n = cobs_decode_in_place(frame).ok_or(FrameError::Cobs)?;
         let payload_len = n.checked_sub(CRC_LEN).ok_or(FrameError::TooShort)?;
         if payload_len == 0 {
             return Err(FrameError::TooShort);

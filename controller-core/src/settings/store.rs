@@ -501,7 +501,8 @@ impl<F: NorFlash> SettingsStore<F> {
                 if s.takes(slot, self.page) {
                     (p, s.tail)
                 } else {
-                    let next = (p + 1) % self.pages;
+                    // (`new` refuses a range without two pages: no division by zero)
+                    let next = (p + 1).checked_rem(self.pages).unwrap_or(0);
                     self.prepare(next).await?;
                     (next, 0)
                 }
@@ -598,7 +599,7 @@ impl<F: NorFlash> SettingsStore<F> {
         self.slot_of(Payload::Tree(settings))?;
         let newest = self.scan().await.map_err(StoreError::Flash)?.0;
         let seq = newest.map_or(1, |(_, f)| f.seq.wrapping_add(1));
-        let target = newest.map_or(0, |(p, _)| (p + 1) % self.pages);
+        let target = newest.map_or(0, |(p, _)| (p + 1).checked_rem(self.pages).unwrap_or(0));
         // erased even when it reads erased: a clean start
         self.erase_page(target).await?;
         self.write_record(target, 0, seq, Payload::Tree(settings))

@@ -323,3 +323,55 @@ proptest! {
         }
     }
 }
+
+/// The frame decoder's own COBS decoding (no panic path) gives the crate's result for
+/// every input: all buffers of up to 3 bytes over an alphabet with the interesting code
+/// bytes, and pseudo-random ones up to 300 bytes (codes past the end, 0xFF runs, 0x00).
+#[test]
+fn own_cobs_decode_matches_the_crate() {
+    fn both(input: &[u8]) {
+        let mut ours = input.to_vec();
+        let mut theirs = input.to_vec();
+        let a = cobs_decode_in_place(&mut ours);
+        let b = cobs::decode_in_place(&mut theirs).ok();
+        assert_eq!(a, b, "input {input:02x?}");
+        if let Some(n) = a {
+            assert_eq!(ours[..n], theirs[..n], "input {input:02x?}");
+        }
+    }
+    let alphabet = [0x00, 0x01, 0x02, 0x03, 0x05, 0x7F, 0xFE, 0xFF];
+    both(&[]);
+    for &a in &alphabet {
+        both(&[a]);
+        for &b in &alphabet {
+            both(&[a, b]);
+            for &c in &alphabet {
+                both(&[a, b, c]);
+            }
+        }
+    }
+    let mut x: u32 = 0x1234_5678;
+    for len in 1..300 {
+        for _ in 0..20 {
+            let buf: Vec<u8> = (0..len)
+                .map(|_| {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    // mostly small codes, some long runs and delimiters
+                    match x % 8 {
+                        0 => 0xFF,
+                        1 => 0,
+                        _ => (x >> 8) as u8 % 12,
+                    }
+                })
+                .collect();
+            both(&buf);
+        }
+    }
+    // real frames round-trip
+    let mut enc = [0u8; 300];
+    let raw: Vec<u8> = (0..=255).chain(0..40).map(|i| i as u8).collect();
+    let n = cobs::encode(&raw, &mut enc);
+    both(&enc[..n]);
+}
