@@ -316,7 +316,7 @@ impl QemuMachine {
         let t0 = Instant::now();
         loop {
             self.tick_clock()?;
-            while let Some((b, period)) = self.panel_acks.pop_front() {
+            if let Some((b, period)) = self.panel_acks.pop_front() {
                 if b == byte {
                     return Ok(period);
                 }
