@@ -18,6 +18,12 @@
 //! `QemuMachine` puts on a second TCP socket; `SimMachine` sets the same input of the
 //! simulated world directly.
 //!
+//! The QEMU transport's clock is the machine's (host-sim/src/cli/qemu.rs): QEMU stopped
+//! (SIGSTOP) for four times the link watchdog's timeout and continued, the session goes
+//! on with no fault and little machine time passed; stopped for good, the host reports
+//! the link lost once the machine's clock stood still for the wall-clock backstop; killed,
+//! at once.
+//!
 //! The QEMU half needs `qemu-system-arm` and the firmware's QEMU build (`cargo
 //! fw-qemu-build`, or `GANTRY_QEMU_ELF`): it is `#[ignore]`d in a plain `cargo test` and
 //! run by `.ci/run` (`cargo test -p host-sim --release --test gantry_e2e -- --ignored`).
@@ -27,16 +33,37 @@ use controller_core::machine::messages::{MachineState, Outcome, ProgramEnd, Requ
 use controller_core::machine::scope::{ScopeConfig, Signal, Trigger};
 use controller_core::motion::planner::Segment;
 use host_sim::cli::client::{expect_done, Client};
-use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
+use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF, MACHINE_CLOCK_STALL_LIMIT};
 use host_sim::cli::sim::{SimMachine, SimModels};
 use host_sim::cli::{self, Hold, Transport};
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
 /// 1 kHz telemetry at 10 kHz.
 const DECIMATION: u32 = 10;
 const TELEMETRY_PERIOD_S: f64 = 1e-3;
 /// The device's link watchdog (controller-core `DEFAULT_WATCHDOG_CONFIG`), in periods.
 const WATCHDOG_PERIODS: u32 = 5_000;
+/// The same, ms: the host's watchdog too.
+const WATCHDOG_MS: u32 = 500;
+
+/// Machine time without telemetry after which the silent host concludes the machine ended
+/// the session: twice its watchdog's timeout (the samples come every millisecond until
+/// then). Machine time: in QEMU about 5 wall-seconds per machine-second.
+const QUIET_MS: u32 = 2 * WATCHDOG_MS;
+
+/// How long QEMU is stopped and continued: four link watchdog timeouts, and longer than
+/// the host's retransmissions of a status request (30 × 50 ms, host-sim
+/// `cli::client::MAX_RETRIES`) — on the wall clock the session would be lost twice over.
+const QEMU_STOP: Duration = Duration::from_secs(2);
+/// Wall time a report of a stopped machine may come before the backstop from the stop:
+/// the backstop counts from the clock's last advance, a question's round trip before.
+const BACKSTOP_EARLY: Duration = Duration::from_millis(500);
+/// Wall time a report of a stopped machine may take beyond the backstop itself (a wait's
+/// millisecond, a loaded host's scheduling).
+const BACKSTOP_SLACK: Duration = Duration::from_secs(2);
+/// Wall time the host may take to report a killed QEMU.
+const KILLED_REPORT_LIMIT: Duration = Duration::from_secs(1);
 
 /// A 20 mm square at 50 mm/s around where the machine stands, sharp corners.
 const SMALL_SQUARE: &str = "G21 G90 G61\nG1 X10 F3000\nY10\nX-10\nY-10\nX10\nY0\nX0\nM2\n";
@@ -226,7 +253,7 @@ fn scenario<T: Transport + EstopPanel>(mut c: Client<T>, tag: &str) -> Figures {
     let heard = c.status().unwrap().period;
     let mut last_sample = heard;
     let mut quiet_since = c.transport.now_ms();
-    while c.transport.now_ms().wrapping_sub(quiet_since) < 3_000 {
+    while c.transport.now_ms().wrapping_sub(quiet_since) < QUIET_MS {
         c.transport.wait().unwrap();
         c.receive().unwrap();
         for t in c.take_telemetry() {
@@ -356,17 +383,113 @@ fn the_scenario_against_the_simulated_machine() {
     println!("--sim: {}", f.line());
 }
 
-#[test]
-#[ignore = "needs qemu-system-arm and `cargo fw-qemu-build`; .ci/run runs it"]
-fn the_scenario_against_the_firmware_in_qemu() {
-    let elf = std::env::var_os("GANTRY_QEMU_ELF")
+fn qemu_elf() -> PathBuf {
+    std::env::var_os("GANTRY_QEMU_ELF")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
             PathBuf::from(env!("CARGO_MANIFEST_DIR"))
                 .join("..")
                 .join(DEFAULT_ELF)
-        });
-    let m = QemuMachine::boot(&elf).unwrap();
+        })
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu-build`; .ci/run runs it"]
+fn the_scenario_against_the_firmware_in_qemu() {
+    let m = QemuMachine::boot(&qemu_elf()).unwrap();
     let f = scenario(Client::connect_session(m, 7).unwrap(), "qemu");
     println!("--qemu: {}", f.line());
+}
+
+/// Send `sig` (`STOP`, `CONT`, `KILL`) to process `pid`.
+fn signal(pid: u32, sig: &str) {
+    let ok = std::process::Command::new("kill")
+        .arg(format!("-{sig}"))
+        .arg(pid.to_string())
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "kill -{sig} {pid}");
+}
+
+#[test]
+#[ignore = "needs qemu-system-arm and `cargo fw-qemu-build`; .ci/run runs it"]
+fn a_stopped_emulator_is_waited_for_and_a_dead_one_reported() {
+    // stopped for four watchdog timeouts while the host waits for a status, continued:
+    // the same session goes on
+    let m = QemuMachine::boot(&qemu_elf()).unwrap();
+    let pid = m.pid();
+    let mut c = Client::connect_session(m, 11).unwrap();
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    let before = c.status().unwrap();
+    assert_eq!(before.state, MachineState::Idle, "{before:?}");
+    signal(pid, "STOP");
+    let t0 = Instant::now();
+    let cont = std::thread::spawn(move || {
+        std::thread::sleep(QEMU_STOP);
+        signal(pid, "CONT");
+    });
+    let m0 = c.transport.machine_ms();
+    let s = c.status().unwrap();
+    let stopped = t0.elapsed();
+    let machine_ms = c.transport.machine_ms().wrapping_sub(m0);
+    cont.join().unwrap();
+    assert!(stopped >= QEMU_STOP, "answered after {stopped:?}");
+    assert!(
+        machine_ms < WATCHDOG_MS,
+        "{machine_ms} ms of machine time across the stop"
+    );
+    assert_eq!(s.state, MachineState::Idle, "{s:?}");
+    assert_eq!(s.first_fault, None, "{s:?}");
+    // idle on heartbeats, then a request: still the session the stop interrupted
+    let t1 = Instant::now();
+    c.sleep_ms(4 * WATCHDOG_MS).unwrap();
+    let idle_wall = t1.elapsed();
+    let s = c.status().unwrap();
+    assert_eq!(s.state, MachineState::Idle, "{s:?}");
+    assert_eq!(s.first_fault, None, "{s:?}");
+    expect_done("disarm", c.exec(Request::Disarm).unwrap()).unwrap();
+    assert_eq!(c.status().unwrap().state, MachineState::Disabled);
+
+    // stopped for good: the wall-clock backstop ends the session
+    signal(pid, "STOP");
+    let t2 = Instant::now();
+    let e = c.status().unwrap_err().to_string();
+    let backstop = t2.elapsed();
+    assert!(
+        e.contains("the link to the firmware in QEMU is lost"),
+        "{e}"
+    );
+    assert!(
+        backstop >= MACHINE_CLOCK_STALL_LIMIT - BACKSTOP_EARLY
+            && backstop <= MACHINE_CLOCK_STALL_LIMIT + BACKSTOP_SLACK,
+        "reported after {backstop:?}: {e}"
+    );
+    drop(c);
+
+    // killed: reported at once
+    let m = QemuMachine::boot(&qemu_elf()).unwrap();
+    let pid = m.pid();
+    let mut c = Client::connect_session(m, 13).unwrap();
+    c.status().unwrap();
+    signal(pid, "KILL");
+    let t3 = Instant::now();
+    let e2 = c.status().unwrap_err().to_string();
+    let killed = t3.elapsed();
+    assert!(e2.contains("QEMU"), "{e2}");
+    assert!(
+        killed <= KILLED_REPORT_LIMIT,
+        "reported after {killed:?}: {e2}"
+    );
+    println!(
+        "--qemu clock: stopped {:.2} s (answered after {:.2} s wall, {machine_ms} ms of \
+         machine time); {} ms of machine time idle in {:.2} s wall; stopped for good: \
+         reported after {:.2} s ({e}); killed: reported after {:.3} s ({e2})",
+        QEMU_STOP.as_secs_f64(),
+        stopped.as_secs_f64(),
+        4 * WATCHDOG_MS,
+        idle_wall.as_secs_f64(),
+        backstop.as_secs_f64(),
+        killed.as_secs_f64()
+    );
 }

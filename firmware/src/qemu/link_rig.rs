@@ -8,7 +8,8 @@
 //! The simulated machine's e-stop is pressed and released on its operator panel, USART1
 //! ([`super::panel`]): each period, before the servo step, what the panel received sets
 //! the world's e-stop input ([`World::set_estop`], as `gantry --sim`'s `SimMachine`
-//! does).
+//! does). The panel also answers the host's clock question with the link's clock
+//! ([`LINK_CLOCK_MS`]): `gantry --qemu` counts its link timeouts in it.
 
 use core::sync::atomic::Ordering;
 
@@ -131,7 +132,9 @@ impl LinkRig {
     pub fn control(&mut self) -> &Snapshot {
         // (the servo counts the period at the start of its step: this one is the next)
         let period = self.machine.servo().snapshot().period.wrapping_add(1);
-        if let Some(pressed) = self.panel.poll(period) {
+        // (the link's clock as the link task reads it: the periods finished so far)
+        let link_ms = LINK_CLOCK_MS.load(Ordering::Acquire);
+        if let Some(pressed) = self.panel.poll(period, link_ms) {
             self.world.set_estop(pressed);
         }
         self.machine

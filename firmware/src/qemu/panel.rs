@@ -2,7 +2,7 @@
 //! netduinoplus2 models USARTs but no GPIO, so the e-stop a host presses arrives as a
 //! byte on USART1 (`-serial` 0) instead of a level on PB12. The bytes are
 //! `firmware::panel`'s (`E` press, `e` release, each acknowledged with the period it
-//! takes effect in; others ignored).
+//! takes effect in; `T` answered with the machine's link clock; others ignored).
 //!
 //! [`Panel::poll`] runs in the control interrupt: a status register read, and only when
 //! a byte waits, at most [`BYTES_PER_PERIOD`] data register reads and acknowledgements
@@ -10,7 +10,7 @@
 //! period boundary either way, and the control interrupt's work stays bounded. The board
 //! build has no panel (its e-stop is the pin, `board::inputs`).
 
-use firmware::panel::{ack, estop_command, ACK_LEN, BYTES_PER_PERIOD};
+use firmware::panel::{ack, clock, estop_command, ACK_LEN, BYTES_PER_PERIOD, CLOCK_QUERY};
 use stm32f4xx_hal::pac::USART1;
 
 /// USART1 as the operator panel.
@@ -31,9 +31,10 @@ impl Panel {
 
     /// The e-stop state the bytes received since the last call command (the last one
     /// wins), if any; each command byte is acknowledged as applied for the servo step of
-    /// `period` (the caller sets the state before that step).
+    /// `period` (the caller sets the state before that step), and a clock query is
+    /// answered with `link_ms`, the link's clock now.
     #[inline]
-    pub fn poll(&mut self, period: u32) -> Option<bool> {
+    pub fn poll(&mut self, period: u32, link_ms: u32) -> Option<bool> {
         let mut estop = None;
         for _ in 0..BYTES_PER_PERIOD {
             let sr = self.usart.sr().read();
@@ -45,6 +46,8 @@ impl Panel {
             if let Some(pressed) = estop_command(byte) {
                 estop = Some(pressed);
                 self.send(&ack(byte, period));
+            } else if byte == CLOCK_QUERY {
+                self.send(&clock(link_ms));
             }
         }
         estop

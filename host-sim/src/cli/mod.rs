@@ -37,9 +37,12 @@ pub trait Transport {
     fn send(&mut self, bytes: &[u8]) -> Result<()>;
     /// Append what arrived.
     fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()>;
-    /// The link's millisecond clock (device time for the simulated machine).
+    /// The link's millisecond clock, which every host timeout counts (the link's
+    /// watchdog, heartbeats and retransmissions, the replies' timeouts): the machine's
+    /// own clock for the simulated machine and for QEMU (a starved emulator is then slow,
+    /// never lost: [`qemu`]), the wall clock for a board (it runs in real time).
     fn now_ms(&self) -> u32;
-    /// Let time pass (about a millisecond).
+    /// Let time pass (about a millisecond); fails when the machine is gone.
     fn wait(&mut self) -> Result<()>;
 }
 

@@ -11,14 +11,30 @@
 //! waiting for a client (`wait=off`), so the boot never depends on it; the host connects
 //! right after the link.
 //!
+//! # The clock: the machine's, not the wall's
+//!
 //! QEMU runs with `-icount shift=0,sleep=off` (1 ns of emulated time per instruction,
 //! idle time skipped) and the firmware's link clock is the machine's control clock, so
-//! the device's timeouts count control periods however fast the host emulates; the
-//! host's clock here is the wall clock. The firmware's own log (defmt over semihosting,
-//! raw) goes to a file next to the ELF.
+//! the device's timeouts count control periods however fast or slow the host emulates.
+//! The host's timeouts here count the same clock: [`Transport::now_ms`] is the machine's
+//! link clock (`firmware::panel::CLOCK_QUERY`: the host asks on the panel line, one
+//! question at a time, and the control interrupt answers with the link clock in ms).
+//! While QEMU is starved of CPU or stopped, neither end's clock moves, so neither end's
+//! watchdog, retransmission limit or reply timeout runs out: a slow emulator is never a
+//! lost link. The host's reading lags the machine by one round trip on the panel line
+//! (a control period of emulated time and the socket's latency).
+//!
+//! A machine whose clock stops for good (QEMU stopped or hung, the firmware's control
+//! interrupt dead) would then never time out, so the wall clock stays as a backstop:
+//! when the machine's clock has not advanced for [`MACHINE_CLOCK_STALL_LIMIT`] of wall
+//! time, every [`Transport::wait`] fails and names it. A QEMU that exits or closes the
+//! socket is reported at once. `--port` stays on the wall clock (a board runs in real
+//! time). The firmware's own log (defmt over semihosting, raw) goes to a file next to
+//! the ELF.
 
 use super::Transport;
 use anyhow::{anyhow, bail, Context, Result};
+use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
@@ -32,23 +48,52 @@ pub const DEFAULT_ELF: &str = "target/qemu/thumbv7em-none-eabihf/release/firmwar
 /// Longest wait for QEMU to open its socket.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
 
-/// The operator panel's bytes (the firmware's `firmware::panel::ESTOP_PRESS` and
-/// `ESTOP_RELEASE`, firmware/src/panel.rs).
+/// The operator panel's bytes (the firmware's `firmware::panel::ESTOP_PRESS`,
+/// `ESTOP_RELEASE` and `CLOCK_QUERY`, firmware/src/panel.rs).
 const PANEL_ESTOP_PRESS: u8 = b'E';
 const PANEL_ESTOP_RELEASE: u8 = b'e';
-/// Bytes of the rig's acknowledgement (`firmware::panel::ACK_LEN`).
+const PANEL_CLOCK_QUERY: u8 = b'T';
+/// Bytes of the rig's acknowledgement or clock answer (`firmware::panel::ACK_LEN`).
 const PANEL_ACK_LEN: usize = 5;
 /// Longest wait for the rig's acknowledgement of a panel byte (wall time; the rig reads
 /// the panel every control period, a fraction of a millisecond of wall time in QEMU).
 const PANEL_ACK_TIMEOUT: Duration = Duration::from_secs(10);
 
+/// Wall time the machine's clock may stand still before the host gives the machine up
+/// (the backstop of the machine-clock timeouts, see the module doc): 20 times the link
+/// watchdog's 500 ms (controller-core `DEFAULT_WATCHDOG_CONFIG`), so that an emulator
+/// starved of CPU for seconds on a loaded host is waited for, while a stopped or hung one
+/// is still reported within seconds. The control interrupt advances the clock every
+/// period while QEMU runs at all, so only a stopped machine stands still this long.
+pub const MACHINE_CLOCK_STALL_LIMIT: Duration = Duration::from_secs(10);
+
+/// How often the clock question is asked again while the firmware boots (wall time): its
+/// USART1 takes bytes only once the rig has enabled it, a few milliseconds of wall time
+/// after the link connects.
+const FIRST_CLOCK_REASK: Duration = Duration::from_millis(20);
+
+/// The machine's link clock as the host last read it on the panel line.
+struct MachineClock {
+    /// The newest answer, ms of the machine's link clock.
+    ms: u32,
+    /// The question out (wall time sent), if any: one at a time, so that the panel line
+    /// carries at most one answer per question and never piles up.
+    asked_at: Option<Instant>,
+    /// Wall time the clock was last seen advancing (the connection, at first).
+    advanced_at: Instant,
+}
+
 /// The firmware in QEMU, connected.
 pub struct QemuMachine {
     child: Child,
     stream: TcpStream,
-    /// The operator panel (USART1).
+    /// The operator panel (USART1): e-stop presses and the machine's clock.
     panel: TcpStream,
-    t0: Instant,
+    /// Panel bytes received and not yet parsed into a whole answer.
+    panel_rx: Vec<u8>,
+    /// E-stop acknowledgements received and not yet taken (byte, period).
+    panel_acks: VecDeque<(u8, u32)>,
+    clock: MachineClock,
     log: PathBuf,
 }
 
@@ -117,16 +162,142 @@ impl QemuMachine {
             child,
             stream,
             panel,
-            t0: Instant::now(),
+            panel_rx: Vec::new(),
+            panel_acks: VecDeque::new(),
+            clock: MachineClock {
+                ms: 0,
+                asked_at: None,
+                advanced_at: Instant::now(),
+            },
             log,
         };
         m.stream.set_nodelay(true)?;
         m.stream.set_nonblocking(true)?;
         m.panel.set_nodelay(true)?;
-        // (blocking reads with a short timeout: `press_estop` waits for the acknowledgement)
-        m.panel.set_read_timeout(Some(Duration::from_millis(100)))?;
+        m.panel.set_nonblocking(true)?;
         m.alive()?;
+        m.first_clock_reading()?;
         Ok(m)
+    }
+
+    /// The operating system's id of the QEMU process (tests stop and continue it).
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// The machine's link clock, ms, as last read (what [`Transport::now_ms`] returns).
+    pub fn machine_ms(&self) -> u32 {
+        self.clock.ms
+    }
+
+    /// Wait for the first answer to a clock question: the machine runs and its firmware
+    /// knows the question (an ELF from before it never answers).
+    /// Until the firmware has set USART1 up, QEMU drops what arrives on it: the question
+    /// is asked again every [`FIRST_CLOCK_REASK`] until the first answer (extra answers
+    /// are harmless: each carries the clock).
+    fn first_clock_reading(&mut self) -> Result<()> {
+        let t0 = Instant::now();
+        self.tick_clock()?;
+        loop {
+            std::thread::sleep(Duration::from_millis(1));
+            self.panel_read()?;
+            match self.clock.asked_at {
+                None => return Ok(()),
+                Some(t) if t.elapsed() > FIRST_CLOCK_REASK => {
+                    self.panel_send(PANEL_CLOCK_QUERY)?;
+                    self.clock.asked_at = Some(Instant::now());
+                }
+                Some(_) => {}
+            }
+            self.alive()?;
+            if t0.elapsed() > CONNECT_TIMEOUT {
+                bail!(
+                    "the firmware in QEMU does not answer the clock question on its operator \
+                     panel within {CONNECT_TIMEOUT:?}: rebuild it (cargo fw-qemu-build)"
+                );
+            }
+        }
+    }
+
+    /// Send one panel byte (the socket does not block: a full send buffer is waited out,
+    /// within [`PANEL_ACK_TIMEOUT`]).
+    fn panel_send(&mut self, byte: u8) -> Result<()> {
+        let t0 = Instant::now();
+        loop {
+            match self.panel.write(&[byte]) {
+                Ok(1) => return Ok(()),
+                Ok(_) => bail!("QEMU closed the operator panel's serial line"),
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                    if t0.elapsed() > PANEL_ACK_TIMEOUT {
+                        bail!("QEMU's operator panel takes no byte within {PANEL_ACK_TIMEOUT:?}");
+                    }
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+                Err(e) => {
+                    // (a dead QEMU is the likely cause: named first)
+                    self.alive()?;
+                    return Err(e).context("QEMU's operator panel line");
+                }
+            }
+        }
+    }
+
+    /// Read what the panel sent: clock answers update the clock, e-stop acknowledgements
+    /// are queued for [`QemuMachine::press_estop`].
+    fn panel_read(&mut self) -> Result<()> {
+        let mut chunk = [0u8; 256];
+        loop {
+            match self.panel.read(&mut chunk) {
+                Ok(0) => bail!("QEMU closed the operator panel's serial line"),
+                Ok(n) => self.panel_rx.extend_from_slice(&chunk[..n]),
+                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
+                Err(e) => {
+                    // (a dead QEMU is the likely cause: named first)
+                    self.alive()?;
+                    return Err(e).context("QEMU's operator panel line");
+                }
+            }
+        }
+        let whole = self.panel_rx.len() / PANEL_ACK_LEN * PANEL_ACK_LEN;
+        let answers: Vec<u8> = self.panel_rx.drain(..whole).collect();
+        for a in answers.chunks_exact(PANEL_ACK_LEN) {
+            let value = u32::from_le_bytes([a[1], a[2], a[3], a[4]]);
+            match a[0] {
+                PANEL_CLOCK_QUERY => {
+                    if value != self.clock.ms {
+                        self.clock.advanced_at = Instant::now();
+                    }
+                    self.clock.ms = value;
+                    self.clock.asked_at = None;
+                }
+                PANEL_ESTOP_PRESS | PANEL_ESTOP_RELEASE => self.panel_acks.push_back((a[0], value)),
+                _ => {
+                    bail!("the operator panel sent {a:?}: neither an acknowledgement nor the clock")
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Take the clock's answer if it came, ask again if none is out, and apply the
+    /// wall-clock backstop ([`MACHINE_CLOCK_STALL_LIMIT`]).
+    fn tick_clock(&mut self) -> Result<()> {
+        self.panel_read()?;
+        if self.clock.asked_at.is_none() {
+            self.panel_send(PANEL_CLOCK_QUERY)?;
+            self.clock.asked_at = Some(Instant::now());
+        }
+        let still = self.clock.advanced_at.elapsed();
+        if still > MACHINE_CLOCK_STALL_LIMIT {
+            bail!(
+                "the link to the firmware in QEMU is lost: the machine's clock stood at {} ms \
+                 for {:.1} s of wall time (limit {:?}): QEMU or its firmware stopped",
+                self.clock.ms,
+                still.as_secs_f64(),
+                MACHINE_CLOCK_STALL_LIMIT
+            );
+        }
+        Ok(())
     }
 
     /// Press (`true`) or release the simulated machine's e-stop on its operator panel
@@ -139,31 +310,21 @@ impl QemuMachine {
         } else {
             PANEL_ESTOP_RELEASE
         };
-        self.panel
-            .write_all(&[byte])
-            .context("QEMU's operator panel line")?;
-        // the acknowledgement: the byte, then the period (u32, little-endian); one byte
-        // is sent at a time, so nothing else is on the line
+        self.panel_send(byte)?;
+        // the acknowledgement: the byte, then the period (u32, little-endian), among the
+        // clock's answers
         let t0 = Instant::now();
-        let mut ack = [0u8; PANEL_ACK_LEN];
-        let mut got = 0;
         loop {
-            match self.panel.read(&mut ack[got..]) {
-                Ok(0) => bail!("QEMU closed the operator panel's serial line"),
-                Ok(n) => {
-                    got += n;
-                    if got == PANEL_ACK_LEN {
-                        if ack[0] != byte {
-                            bail!(
-                                "the operator panel answered {ack:?} to `{}`",
-                                char::from(byte)
-                            );
-                        }
-                        return Ok(u32::from_le_bytes([ack[1], ack[2], ack[3], ack[4]]));
-                    }
+            self.tick_clock()?;
+            if let Some((b, period)) = self.panel_acks.pop_front() {
+                if b == byte {
+                    return Ok(period);
                 }
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-                Err(e) => return Err(e.into()),
+                bail!(
+                    "the operator panel acknowledged `{}` to `{}`",
+                    char::from(b),
+                    char::from(byte)
+                );
             }
             self.alive()?;
             if t0.elapsed() > PANEL_ACK_TIMEOUT {
@@ -173,6 +334,7 @@ impl QemuMachine {
                     PANEL_ACK_TIMEOUT
                 );
             }
+            std::thread::sleep(Duration::from_micros(200));
         }
     }
 
@@ -261,12 +423,18 @@ impl Transport for QemuMachine {
         }
     }
 
+    /// The machine's link clock (module doc): stands still while QEMU does.
     fn now_ms(&self) -> u32 {
-        self.t0.elapsed().as_millis() as u32
+        self.clock.ms
     }
 
+    /// A millisecond of wall time, the machine's clock read before and after (so that
+    /// each call sees it advance by what the machine ran meanwhile); fails when QEMU has
+    /// exited or the clock stood still for [`MACHINE_CLOCK_STALL_LIMIT`].
     fn wait(&mut self) -> Result<()> {
+        self.tick_clock()?;
         std::thread::sleep(Duration::from_millis(1));
-        self.alive()
+        self.alive()?;
+        self.tick_clock()
     }
 }
