@@ -78,7 +78,10 @@ fn stuck_and_swapped_encoders_are_found_at_every_speed_of_the_grid() {
             .filter(|c| c.case.starts_with(prefix) && c.speed_mm_s.is_some())
             .collect()
     };
-    let stuck = grid("stuck_grid_");
+    let stuck: Vec<_> = grid("stuck_grid_")
+        .into_iter()
+        .filter(|c| !c.case.starts_with("stuck_grid_noise2"))
+        .collect();
     let swapped = grid("reversed_grid_");
     // 8 speeds × 3 axes × 2 directions
     assert_eq!((stuck.len(), swapped.len()), (48, 48));
@@ -93,6 +96,21 @@ fn stuck_and_swapped_encoders_are_found_at_every_speed_of_the_grid() {
     }
     let speeds: Vec<f64> = stuck.iter().filter_map(|c| c.speed_mm_s).collect();
     assert!(speeds.contains(&1.0) && speeds.contains(&225.0));
+
+    // under 2 counts of edge noise (the checks told so): from 10 mm/s up as without it,
+    // below within 35 ms and 0.6 mm (docs/safety.md, "Edge noise")
+    let noisy = grid("stuck_grid_noise2_");
+    assert_eq!(noisy.len(), 48);
+    for c in &noisy {
+        assert_eq!(c.detected.as_deref(), Some("encoder_stuck"), "{}", c.case);
+        let (periods, blind) = if c.speed_mm_s.unwrap() >= 10.0 {
+            (20, 0.005)
+        } else {
+            (400, 0.6)
+        };
+        assert!(c.detect_periods.unwrap() <= periods, "{}", c.case);
+        assert!(c.blind_mm <= blind, "{}: {}", c.case, c.blind_mm);
+    }
 }
 
 /// The e-stop's categories from Y at 250 mm/s: category 0 coasts 46 mm on friction,
