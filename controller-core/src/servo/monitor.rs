@@ -930,6 +930,25 @@ mod tests {
     }
 
     #[test]
+    fn an_edge_noise_allowance_out_of_its_range_is_refused_by_name() {
+        let full_scale = GANTRY_AMPLIFIERS.map(|a| a.full_scale);
+        for bad in [-1.0, 16.5, f32::NAN, f32::INFINITY] {
+            let mut cfg = SafetyConfig::with_axes(GANTRY_SAFETY);
+            cfg.encoder_noise_counts = bad;
+            assert_eq!(
+                Monitor::new(&cfg, [1600.0; AXES], full_scale, 1.0e-4),
+                Err(ConfigError::OutOfRange(
+                    "safety.encoder_noise_counts (0 to 16)"
+                )),
+                "{bad}"
+            );
+        }
+        let mut cfg = SafetyConfig::with_axes(GANTRY_SAFETY);
+        cfg.encoder_noise_counts = 16.0;
+        assert!(Monitor::new(&cfg, [1600.0; AXES], full_scale, 1.0e-4).is_ok());
+    }
+
+    #[test]
     fn a_jump_and_a_stop_are_found_in_the_period_they_happen() {
         let full_scale = GANTRY_AMPLIFIERS.map(|a| a.full_scale);
         let mut m = Monitor::new(
