@@ -170,7 +170,15 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
         plants: m.axes.each_ref().map(|a| a.plant),
         plant_substeps: m.plant_substeps,
         initial,
-        switches: m.axes.each_ref().map(|a| a.switches),
+        // the simulated encoders give the index pulses the controller is told of, unless
+        // the machine file gives the simulated machine its own (a misconfiguration study)
+        switches: m.axes.each_ref().map(|a| {
+            let mut sw = a.switches;
+            if sw.index_period_counts == 0 {
+                sw.index_period_counts = a.encoder.index_period_counts;
+            }
+            sw
+        }),
         imperfections: m.imperfections,
     };
     let steps = match sc.mode {

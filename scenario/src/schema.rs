@@ -207,6 +207,7 @@ pub struct SafetyTimings {
     pub estop_category: u8,
     pub estop_stop_time_s: f32,
     pub encoder_noise_counts: f32,
+    pub index_max_correction_counts: u32,
 }
 
 impl Default for SafetyTimings {
@@ -226,6 +227,7 @@ impl Default for SafetyTimings {
             estop_category: d.estop_category,
             estop_stop_time_s: d.estop_stop_time_s,
             encoder_noise_counts: d.encoder_noise_counts,
+            index_max_correction_counts: d.index_max_correction_counts,
         }
     }
 }
@@ -248,6 +250,7 @@ impl SafetyTimings {
             estop_category: self.estop_category,
             estop_stop_time_s: self.estop_stop_time_s,
             encoder_noise_counts: self.encoder_noise_counts,
+            index_max_correction_counts: self.index_max_correction_counts,
         }
     }
 }

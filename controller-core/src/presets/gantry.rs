@@ -94,20 +94,26 @@ pub const GANTRY_COUNTS_PER_MM: f32 = 1600.0;
 /// 168 MHz, about 14 bits), so the simulated quantisation is on the safe side.
 pub const GANTRY_AMPLIFIER_BITS: u8 = 12;
 
+/// The gantry's encoders give an index pulse once per revolution: 2000 lines read × 4.
+pub const GANTRY_INDEX_PERIOD_COUNTS: u32 = 8000;
+
 /// The gantry's encoders: X and Y on 32-bit timers (TIM2, TIM5), Z on a 16-bit one
 /// (TIM3).
 pub const GANTRY_ENCODERS: [EncoderConfig; 3] = [
     EncoderConfig {
         counts_per_mm: GANTRY_COUNTS_PER_MM,
         counter: CounterWidth::Bits32,
+        index_period_counts: GANTRY_INDEX_PERIOD_COUNTS,
     },
     EncoderConfig {
         counts_per_mm: GANTRY_COUNTS_PER_MM,
         counter: CounterWidth::Bits32,
+        index_period_counts: GANTRY_INDEX_PERIOD_COUNTS,
     },
     EncoderConfig {
         counts_per_mm: GANTRY_COUNTS_PER_MM,
         counter: CounterWidth::Bits16,
+        index_period_counts: GANTRY_INDEX_PERIOD_COUNTS,
     },
 ];
 

@@ -5,7 +5,7 @@
 //!
 //! | category | kinds | what happens |
 //! | --- | --- | --- |
-//! | immediate | e-stop, hard limit, amplifier fault, encoder stuck / jump / runaway, non-finite controller state, invalid configuration, clock fault, corrupt settings store (at boot, outputs already off) | every output off in the period of detection |
+//! | immediate | e-stop, hard limit, amplifier fault, encoder stuck / jump / runaway / index, non-finite controller state, invalid configuration, clock fault, corrupt settings store (at boot, outputs already off) | every output off in the period of detection |
 //! | controlled | following error, overspeed, deadline overrun, link lost, soft limit, homing failed | the reference decelerates to rest along its direction at the axes' stop deceleration, the controller keeps tracking it, then every output goes off |
 //!
 //! A controlled stop is used only where the position is still trustworthy (the encoders
@@ -58,6 +58,10 @@ pub enum FaultKind {
     HomingFailed = 15,
     /// The settings store was unreadable at boot: factory defaults are in use.
     SettingsCorrupt = 16,
+    /// The count at an index pulse is further from the index's place than glitches
+    /// explain (`safety.index_max_correction_counts`): counts lost or gained in bulk (a
+    /// slipping coupling, a damaged disk, a wrong `index_period_counts`).
+    EncoderIndex = 17,
 }
 
 /// How the machine stops on a fault.
@@ -74,7 +78,7 @@ pub enum StopCategory {
 
 impl FaultKind {
     /// Every kind, in code order.
-    pub const ALL: [FaultKind; 17] = [
+    pub const ALL: [FaultKind; 18] = [
         Self::EStop,
         Self::LimitMin,
         Self::LimitMax,
@@ -92,6 +96,7 @@ impl FaultKind {
         Self::SoftLimit,
         Self::HomingFailed,
         Self::SettingsCorrupt,
+        Self::EncoderIndex,
     ];
 
     pub const fn stop(self) -> StopCategory {
@@ -111,7 +116,7 @@ impl FaultKind {
     pub const fn is_encoder(self) -> bool {
         matches!(
             self,
-            Self::EncoderStuck | Self::EncoderJump | Self::EncoderRunaway
+            Self::EncoderStuck | Self::EncoderJump | Self::EncoderRunaway | Self::EncoderIndex
         )
     }
 
@@ -135,6 +140,7 @@ impl FaultKind {
             Self::SoftLimit => "soft_limit",
             Self::HomingFailed => "homing_failed",
             Self::SettingsCorrupt => "settings_corrupt",
+            Self::EncoderIndex => "encoder_index",
         }
     }
 

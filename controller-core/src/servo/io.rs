@@ -83,6 +83,12 @@ pub struct EncoderConfig {
     pub counts_per_mm: f32,
     /// Width of the hardware counter (TIM2/TIM5: 32 bits, TIM3: 16 bits).
     pub counter: CounterWidth,
+    /// Counts between two index pulses (one revolution of the encoder: 2000 lines × 4 =
+    /// 8000), 0 where the encoder has no index or the board does not capture it. With
+    /// it, counts lost or gained between index passes are corrected or faulted
+    /// (`servo::index_check`).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub index_period_counts: u32,
 }
 
 impl EncoderConfig {

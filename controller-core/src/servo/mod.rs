@@ -40,6 +40,7 @@ pub mod commands;
 pub mod faults;
 pub mod homing;
 pub mod identify;
+pub mod index_check;
 pub mod io;
 pub mod jog;
 pub mod monitor;
@@ -63,6 +64,7 @@ pub use commands::{Command, Refusal};
 use faults::{Fault, FaultKind, FaultLog, FaultRecord, StopCategory};
 use homing::{Homing, HomingConfig, HomingEvent, HomingInputs};
 use identify::{IdentifyOutcome, IdentifyRun};
+use index_check::{IndexCheck, IndexVerdict};
 use io::{AmplifierConfig, EncoderConfig, Inputs, ServoIo};
 use jog::{Jog, JogConfig};
 use monitor::{Monitor, SafetyConfig};
@@ -206,6 +208,8 @@ pub struct Servo<R> {
     estimators: EstimatorBank<R>,
     controller: Controller3<R>,
     monitor: Monitor,
+    /// Counts lost or gained between index pulses: corrected or faulted.
+    index: IndexCheck,
     faults: FaultLog,
     state: ServoState,
     /// The state a controlled stop ends in (Fault, Disabled after a disarm, Idle after a
@@ -328,6 +332,11 @@ impl<R: Real> Servo<R> {
                 full_scale.to_array().map(Real::to_f32),
                 period_s,
             )?,
+            index: IndexCheck::new(
+                core::array::from_fn(|i| cfg.encoders[i].index_period_counts),
+                s.encoder_noise_counts,
+                s.index_max_correction_counts,
+            )?,
             faults: FaultLog::new(),
             state: ServoState::Disabled,
             stop_then: ServoState::Fault,
@@ -393,6 +402,10 @@ impl<R: Real> Servo<R> {
         if next.counts_per_mm == self.counts_per_mm && next.homing_cfg == self.homing_cfg {
             // the same encoders and switches: the origins still hold
             next.homed = self.homed;
+        }
+        if next.counts_per_mm == self.counts_per_mm {
+            // the same count frame: the index references still hold
+            next.index.carry_over(&self.index);
         }
         next.faults = self.faults;
         next.link_down = self.link_down;
@@ -833,6 +846,7 @@ impl<R: Real> Servo<R> {
                         let target = libm::roundf(at_mm * self.counts_per_mm[axis]) as i64;
                         let shift = latched_counts - target;
                         self.counters[axis].rebase(shift);
+                        self.index.rebased(axis, shift);
                         counts[axis] = self.counters[axis].count();
                         let delta_mm = -(shift as f32) * self.count_len_f32[axis];
                         run.rebased(run.ramp.pos_mm + delta_mm);
@@ -861,6 +875,29 @@ impl<R: Real> Servo<R> {
             _ => {}
         }
         self.publish_faults();
+    }
+
+    /// The index pulses captured this period: a count off from its index's place is
+    /// corrected (the counter re-based, this period's count with it) or, beyond what
+    /// glitches explain, the `EncoderIndex` fault.
+    fn check_index(&mut self, index: &[Option<u32>; AXES], counts: &mut [i64; AXES]) {
+        for axis in 0..AXES {
+            let Some(raw) = index[axis] else { continue };
+            let captured = self.counters[axis].extend(raw);
+            match self.index.capture(axis, captured) {
+                IndexVerdict::Agrees => {}
+                IndexVerdict::Correct(shift) => {
+                    self.counters[axis].rebase(shift);
+                    counts[axis] = self.counters[axis].count();
+                }
+                IndexVerdict::Fault(off) => {
+                    let r = motion::sample(&self.motion, None, &self.clock).0;
+                    let a = Axis::ALL[axis];
+                    self.trip(Fault::on(FaultKind::EncoderIndex, a), off as f32, Some(&r));
+                }
+            }
+        }
+        self.snapshot.index_corrected_counts = self.index.corrected_counts();
     }
 
     /// One control period. See the module documentation for the sequence. Commands that
@@ -930,10 +967,24 @@ impl<R: Real> Servo<R> {
             io.disable_outputs();
         }
 
+        // the index pulses: glitches corrected (or faulted) before anything uses the counts
+        let index = if self.index.any() {
+            let index = io.read_index();
+            self.index.moved(&steps);
+            self.check_index(&index, &mut counts);
+            index
+        } else {
+            [None; AXES]
+        };
+
         // 3. Reference.
         if matches!(self.state, ServoState::Jog | ServoState::Homing) {
             let index = if matches!(self.motion, Motion::Homing { .. }) {
-                io.read_index()
+                if self.index.any() {
+                    index
+                } else {
+                    io.read_index()
+                }
             } else {
                 [None; AXES]
             };

@@ -127,6 +127,11 @@ pub struct SafetyConfig {
     /// [`MAX_ENCODER_NOISE_COUNTS`].
     #[cfg_attr(feature = "serde", serde(default))]
     pub encoder_noise_counts: f32,
+    /// Largest phase error at an index pulse that is corrected (counts lost or gained by
+    /// glitches since the last pass); beyond it the fault `encoder_index`. 0 to
+    /// [`crate::servo::index_check::MAX_INDEX_CORRECTION_COUNTS`] (`servo::index_check`).
+    #[cfg_attr(feature = "serde", serde(default = "d_index_correction"))]
+    pub index_max_correction_counts: u32,
 }
 
 /// Largest `encoder_noise_counts`: beyond 16 counts of noise the encoder or its wiring is
@@ -165,6 +170,10 @@ pub mod defaults {
     /// 0.3 s: from the gantry's 250 mm/s at the slowest stop deceleration (Y, 1500
     /// mm/s²) the stop takes 0.167 s, plus the 20 ms settle, with 50 % margin.
     pub const ESTOP_STOP_TIME_S: f32 = 0.3;
+    /// 16 counts (10 µm at 1600 counts/mm) per index pass: several glitches of a few
+    /// counts each, each too small for the jump check (3.5 counts per period² on X); a
+    /// larger loss within one revolution is a mechanical or wiring fault, not noise.
+    pub const INDEX_MAX_CORRECTION_COUNTS: u32 = 16;
 }
 
 #[cfg(feature = "serde")]
@@ -208,6 +217,10 @@ fn d_estop_time() -> f32 {
     defaults::ESTOP_STOP_TIME_S
 }
 #[cfg(feature = "serde")]
+fn d_index_correction() -> u32 {
+    defaults::INDEX_MAX_CORRECTION_COUNTS
+}
+#[cfg(feature = "serde")]
 fn d_stuck_decel() -> f32 {
     defaults::STUCK_DECEL_MM_S2
 }
@@ -230,6 +243,7 @@ impl SafetyConfig {
             estop_category: 0,
             estop_stop_time_s: defaults::ESTOP_STOP_TIME_S,
             encoder_noise_counts: 0.0,
+            index_max_correction_counts: defaults::INDEX_MAX_CORRECTION_COUNTS,
         }
     }
 

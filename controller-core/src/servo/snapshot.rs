@@ -49,6 +49,9 @@ pub struct Snapshot {
     pub counts: [i64; AXES],
     /// The outputs were driven this period.
     pub outputs_on: bool,
+    /// Counts the index check corrected so far per axis (the net of the glitches it
+    /// found; `servo::index_check`).
+    pub index_corrected_counts: [i32; AXES],
 }
 
 impl Snapshot {
@@ -79,6 +82,7 @@ impl Snapshot {
             effort: [0.0; AXES],
             counts: [0; AXES],
             outputs_on: false,
+            index_corrected_counts: [0; AXES],
         }
     }
 

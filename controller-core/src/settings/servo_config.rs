@@ -101,7 +101,7 @@ impl Settings {
     /// finite) and `Servo::new` itself, so a configuration returned here is one the servo
     /// accepts.
     ///
-    /// This builds a `Servo<f32>` on the stack to validate (3.3 KiB on a 64-bit host,
+    /// This builds a `Servo<f32>` on the stack to validate (3.5 KiB on a 64-bit host,
     /// less on the MCU).
     pub fn servo_config(&self, rate_hz: u32) -> Result<ServoConfig, SettingsError> {
         let mut c = factory_config(rate_hz);
@@ -277,6 +277,6 @@ mod tests {
     fn validating_servo_fits_the_documented_stack_budget() {
         // servo_config's doc states the stack the validation takes
         let size = core::mem::size_of::<Servo<f32>>();
-        assert!(size <= 3400, "Servo<f32> is {size} bytes");
+        assert!(size <= 3600, "Servo<f32> is {size} bytes");
     }
 }

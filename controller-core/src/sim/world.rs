@@ -393,7 +393,10 @@ impl World {
                 } else {
                     None
                 };
-                self.index[i] = crossed.map(|m| (m as u32) & self.counter_mask[i]);
+                // the counter captures what it holds as the index passes: the true
+                // count there with the jitter and whatever counts the faults lost
+                self.index[i] =
+                    crossed.map(|m| (self.report(i, m as f64) as u32) & self.counter_mask[i]);
             }
         }
         self.last_counts = counts;
@@ -440,19 +443,24 @@ impl World {
     pub fn reported_counts(&self) -> [i64; AXES] {
         let mut c = [0; AXES];
         for (i, n) in c.iter_mut().enumerate() {
-            *n = libm::round(self.state[i].pos / self.count_len[i] + self.noise[i]) as i64;
-        }
-        let f = &self.faults;
-        for (i, n) in c.iter_mut().enumerate() {
-            if let Some(pivot) = f.reversed[i] {
-                *n = pivot.saturating_mul(2).saturating_sub(*n);
-            }
-            *n = n.saturating_add(f.offset[i]);
-            if let Some(frozen) = f.frozen[i] {
-                *n = frozen;
-            }
+            *n = self.report(i, self.state[i].pos / self.count_len[i]);
         }
         c
+    }
+
+    /// What axis `i`'s counter holds when its true position is `counts` (fractional): the
+    /// edge jitter, then the injected faults.
+    fn report(&self, i: usize, counts: f64) -> i64 {
+        let mut n = libm::round(counts + self.noise[i]) as i64;
+        let f = &self.faults;
+        if let Some(pivot) = f.reversed[i] {
+            n = pivot.saturating_mul(2).saturating_sub(n);
+        }
+        n = n.saturating_add(f.offset[i]);
+        if let Some(frozen) = f.frozen[i] {
+            n = frozen;
+        }
+        n
     }
 
     /// The counter registers as the board's timers would read them.

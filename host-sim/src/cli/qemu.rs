@@ -71,6 +71,9 @@ pub const MACHINE_CLOCK_STALL_LIMIT: Duration = Duration::from_secs(10);
 /// USART1 takes bytes only once the rig has enabled it, a few milliseconds of wall time
 /// after the link connects.
 const FIRST_CLOCK_REASK: Duration = Duration::from_millis(20);
+/// How long a failed socket waits for QEMU's process to be seen exited before the
+/// socket's own error is reported (the kernel closes the socket as the process dies).
+const EXIT_REAP_WAIT: Duration = Duration::from_millis(200);
 
 /// The machine's link clock as the host last read it on the panel line.
 struct MachineClock {
@@ -233,11 +236,7 @@ impl QemuMachine {
                     }
                     std::thread::sleep(Duration::from_micros(200));
                 }
-                Err(e) => {
-                    // (a dead QEMU is the likely cause: named first)
-                    self.alive()?;
-                    return Err(e).context("QEMU's operator panel line");
-                }
+                Err(e) => return Err(self.line_failed("QEMU's operator panel line", e)),
             }
         }
     }
@@ -251,11 +250,7 @@ impl QemuMachine {
                 Ok(0) => bail!("QEMU closed the operator panel's serial line"),
                 Ok(n) => self.panel_rx.extend_from_slice(&chunk[..n]),
                 Err(e) if e.kind() == ErrorKind::WouldBlock => break,
-                Err(e) => {
-                    // (a dead QEMU is the likely cause: named first)
-                    self.alive()?;
-                    return Err(e).context("QEMU's operator panel line");
-                }
+                Err(e) => return Err(self.line_failed("QEMU's operator panel line", e)),
             }
         }
         let whole = self.panel_rx.len() / PANEL_ACK_LEN * PANEL_ACK_LEN;
@@ -355,6 +350,21 @@ impl QemuMachine {
         Ok(())
     }
 
+    /// The error for a failed read or write on one of QEMU's sockets. A QEMU that dies with
+    /// bytes unread in its socket resets the connection instead of closing it: the
+    /// error names QEMU's exit when it has exited (waiting a moment for the process to be
+    /// reaped: the socket closes as it dies), the socket's error otherwise.
+    fn line_failed(&mut self, line: &str, e: std::io::Error) -> anyhow::Error {
+        let t0 = Instant::now();
+        while t0.elapsed() < EXIT_REAP_WAIT {
+            if let Err(exited) = self.alive() {
+                return exited;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        anyhow!("{line} failed: {e}")
+    }
+
     fn alive(&mut self) -> Result<()> {
         if let Some(status) = self.child.try_wait()? {
             let mut err = String::new();
@@ -405,7 +415,7 @@ impl Transport for QemuMachine {
                 Err(e) if e.kind() == ErrorKind::WouldBlock => {
                     std::thread::sleep(Duration::from_micros(200))
                 }
-                Err(e) => return Err(e.into()),
+                Err(e) => return Err(self.line_failed("the serial line to QEMU", e)),
             }
         }
         Ok(())
@@ -418,7 +428,7 @@ impl Transport for QemuMachine {
                 Ok(0) => bail!("QEMU closed the serial line"),
                 Ok(n) => buf.extend_from_slice(&chunk[..n]),
                 Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
-                Err(e) => return Err(e.into()),
+                Err(e) => return Err(self.line_failed("the serial line to QEMU", e)),
             }
         }
     }
