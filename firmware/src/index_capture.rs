@@ -221,7 +221,9 @@ mod tests {
     fn the_capture_count_wraps() {
         let m = IndexMailbox::new();
         m.published.store(u32::MAX - 1, Ordering::Relaxed);
-        let mut r = IndexReader { taken: u32::MAX - 1 };
+        let mut r = IndexReader {
+            taken: u32::MAX - 1,
+        };
         for v in 0..4 {
             m.publish(v);
             assert_eq!(r.take(&m), Some(v));
