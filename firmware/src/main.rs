@@ -80,6 +80,7 @@ mod app {
 
     // (RTIC names the types of every local resource, cfg'd ones too.)
     use controller_core::servo::Command;
+    use firmware::index_capture::StormGuard;
     use heapless::spsc::Producer;
     #[cfg(not(feature = "qemu"))]
     use {
@@ -88,7 +89,6 @@ mod app {
         controller_core::servo::faults::FaultKind,
         firmware::button::{press_commands, Debounce},
         firmware::config::{ARM_BUTTON_HOLD_SAMPLES, BUTTON_POLL_MS},
-        firmware::index_capture::StormGuard,
         firmware::watchdog::iwdg_setting,
     };
 
