@@ -21,7 +21,7 @@
 //! CCR3 clears it. Two captures between reads: CCR3 holds the newer one (CC3OF is set
 //! and left so: nothing needs it).
 //!
-//! **Y.** TIM5's channels 3 and 4 are on PA2/PA3 (the host link's USART2) or PH10-PH12
+//! **Y.** TIM5's channels 3 and 4 are on PA2/PA3 (the host link's USART2) or PH12
 //! and PI0 (not on the LQFP100 package), and TIM5 has no ETR input; so the capture is
 //! done in software: PB1's rising edge (EXTI line 1, SYSCFG_EXTICR1 EXTI1 = port B; no
 //! other pin uses line 1 as an interrupt, and PB1's timer functions TIM1_CH3N, TIM3_CH4,

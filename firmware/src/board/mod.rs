@@ -8,7 +8,7 @@
 //! | Y encoder A/B | PA0 / PA1 | TIM5 CH1/CH2, AF2 | 32-bit counter, encoder mode 3 (x4) |
 //! | Z encoder A/B | PA6 / PA7 | TIM3 CH1/CH2, AF2 | 16-bit counter, extended in software |
 //! | X encoder index | PB10 | TIM2 CH3, AF1, pull-down | input capture of TI3 (CCR3 latches CNT), rising edge, A/B's filter |
-//! | Y encoder index | PB1 | EXTI1, pull-down | rising edge: the highest-priority task reads TIM5_CNT (TIM5's CH3/CH4 pins are USART2's, PH10-PH12 not on LQFP100) |
+//! | Y encoder index | PB1 | EXTI1, pull-down | rising edge: the highest-priority task reads TIM5_CNT (TIM5's CH3/CH4 pins are USART2's, PH12/PI0 not on LQFP100) |
 //! | Z encoder index | PB0 | TIM3 CH3, AF2, pull-down | input capture of TI3 (CCR3 latches CNT), rising edge, A/B's filter |
 //! | X/Y/Z servo PWM | PE9 / PE11 / PE13 | TIM1 CH1/CH2/CH3, AF1 | 20 kHz, ARR 8399 (8400 steps) |
 //! | X/Y/Z direction | PE10 / PE12 / PE14 | GPIO push-pull | high = negative direction |
