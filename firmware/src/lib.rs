@@ -12,7 +12,9 @@
 //! - [`panel`] (feature `qemu`): the bytes of the QEMU link rig's operator panel (e-stop
 //!   press and release on USART1);
 //! - [`watchdog`]: the independent watchdog's timeout for the control rate;
-//! - [`encoder_filter`]: the encoder timers' input filter and the count rate it passes.
+//! - [`encoder_filter`]: the encoder timers' input filter and the count rate it passes;
+//! - [`index_capture`]: an encoder index capture handed from its interrupt to the control
+//!   period (the board's Y axis), and the guard against a noisy index line.
 #![cfg_attr(not(test), no_std)]
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which must give no output.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -21,6 +23,7 @@ pub mod button;
 pub mod config;
 pub mod drive;
 pub mod encoder_filter;
+pub mod index_capture;
 #[cfg(feature = "qemu")]
 pub mod panel;
 #[cfg(feature = "qemu")]

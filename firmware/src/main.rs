@@ -4,6 +4,7 @@
 //!
 //! | task | priority | trigger | does |
 //! | --- | --- | --- | --- |
+//! | `y_index` | 6 (hardware) | EXTI1 (PB1 rising: Y's encoder index) | reads TIM5_CNT as Y's index capture, hands it to `control` (lock-free, `board::index`); not in the QEMU build |
 //! | `host_uart` | 5 (hardware) | USART2 | moves bytes between the UART and the link's byte queues |
 //! | `control` | 4 (hardware) | TIM4 update, 10 kHz | button commands, the core's machine (link requests, supervisor, the planner's executor, servo step), snapshot |
 //! | `plan` | 3 (software) | spawned by `control` every period | the planner's planning half: segments in, look-ahead, spans and steps out (controller-core `motion::planner::split`) |
@@ -79,6 +80,7 @@ mod app {
 
     // (RTIC names the types of every local resource, cfg'd ones too.)
     use controller_core::servo::Command;
+    use firmware::index_capture::StormGuard;
     use heapless::spsc::Producer;
     #[cfg(not(feature = "qemu"))]
     use {
@@ -154,7 +156,8 @@ mod app {
             // interrupted erase), the factory ones and a fault if the store is corrupt
             let (settings, load, store) =
                 crate::board::flash::load_settings(board.flash, CONTROL_RATE_HZ);
-            let io = board::io::BoardIo::new(board.encoders, board.servo, board.safety);
+            let io =
+                board::io::BoardIo::new(board.encoders, board.index, board.servo, board.safety);
             let machine = match machine_slot::build(
                 machine,
                 &settings,
@@ -357,6 +360,18 @@ mod app {
                 }
             }
         }
+    }
+
+    /// Y's encoder index (PB1, EXTI1): TIM5 has no free capture channel, so this task reads
+    /// TIM5_CNT at the edge (`board::index`: latency about 0.2 µs, under 0.1 count at top
+    /// speed). The highest priority, above the host UART, so nothing but SysTick and a
+    /// critical section delays the capture; a few dozen cycles per index pulse (one per
+    /// encoder revolution, 20 ms apart at top speed), and it masks its line if it is noise
+    /// (`StormGuard`).
+    #[cfg(not(feature = "qemu"))]
+    #[task(binds = EXTI1, priority = 6, local = [guard: StormGuard = StormGuard::new(SYSCLK_HZ)])]
+    fn y_index(cx: y_index::Context) {
+        board::index::on_y_index(cx.local.guard);
     }
 
     /// The host link's UART (`board::serial`): above the control interrupt, so that no

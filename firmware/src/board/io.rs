@@ -1,4 +1,5 @@
-//! The core's [`ServoIo`] for the board: encoder timer registers in, e-stop, limit and
+//! The core's [`ServoIo`] for the board: encoder timer registers and index captures
+//! ([`super::index`]) in, e-stop, limit and
 //! amplifier-fault pins and the control timer's overrun flag in, TIM1 PWM + direction +
 //! drive enables out (through [`DriveCommand`]: full duty is
 //! the amplifier's `full_scale` of the servo configuration).
@@ -8,12 +9,15 @@ use controller_core::servo::io::{Inputs, ServoIo};
 use firmware::drive::DriveCommand;
 
 use super::encoders::Encoders;
+use super::index::IndexInputs;
 use super::inputs::SafetyPins;
 use super::pwm::ServoOutputs;
 
 /// The machine as the servo step sees it.
 pub struct BoardIo {
     encoders: Encoders,
+    /// The encoders' index captures.
+    index: IndexInputs,
     servo: ServoOutputs,
     safety: SafetyPins,
     /// Effort that maps to 100 % duty, per axis.
@@ -25,9 +29,15 @@ pub struct BoardIo {
 impl BoardIo {
     /// The board's IO; no output until the first period (full scale from the settings
     /// then, [`Self::set_full_scale`]).
-    pub fn new(encoders: Encoders, servo: ServoOutputs, safety: SafetyPins) -> Self {
+    pub fn new(
+        encoders: Encoders,
+        index: IndexInputs,
+        servo: ServoOutputs,
+        safety: SafetyPins,
+    ) -> Self {
         Self {
             encoders,
+            index,
             servo,
             safety,
             full_scale: [f32::INFINITY; AXES],
@@ -66,6 +76,13 @@ impl ServoIo<f32> for BoardIo {
     #[inline]
     fn read_counters(&mut self) -> [u32; AXES] {
         self.encoders.read_raw()
+    }
+
+    /// X and Z from their timers' channel 3 capture (CC3IF, CCR3), Y from the EXTI1
+    /// task's capture of TIM5_CNT; each `Some` once per capture.
+    #[inline]
+    fn read_index(&mut self) -> [Option<u32>; AXES] {
+        self.index.read()
     }
 
     #[inline]

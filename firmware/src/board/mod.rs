@@ -7,6 +7,9 @@
 //! | X encoder A/B | PA15 / PB3 | TIM2 CH1/CH2, AF1 | 32-bit counter, encoder mode 3 (x4) |
 //! | Y encoder A/B | PA0 / PA1 | TIM5 CH1/CH2, AF2 | 32-bit counter, encoder mode 3 (x4) |
 //! | Z encoder A/B | PA6 / PA7 | TIM3 CH1/CH2, AF2 | 16-bit counter, extended in software |
+//! | X encoder index | PB10 | TIM2 CH3, AF1, pull-down | input capture of TI3 (CCR3 latches CNT), rising edge, A/B's filter |
+//! | Y encoder index | PB1 | EXTI1, pull-down | rising edge: the highest-priority task reads TIM5_CNT (TIM5's CH3/CH4 pins are USART2's, PH12/PI0 not on LQFP100) |
+//! | Z encoder index | PB0 | TIM3 CH3, AF2, pull-down | input capture of TI3 (CCR3 latches CNT), rising edge, A/B's filter |
 //! | X/Y/Z servo PWM | PE9 / PE11 / PE13 | TIM1 CH1/CH2/CH3, AF1 | 20 kHz, ARR 8399 (8400 steps) |
 //! | X/Y/Z direction | PE10 / PE12 / PE14 | GPIO push-pull | high = negative direction |
 //! | X/Y/Z drive enable | PD0 / PD1 / PD2 | GPIO push-pull | high = enabled, low at reset |
@@ -32,9 +35,14 @@
 //! the clock setup (the pins float from reset until then: the drives need pull-downs on
 //! their enable inputs for that first microsecond); then the crystal with a start-up
 //! timeout and the HSI fallback ([`clock`]); then TIM1 with its break input and locked
-//! idle configuration before the PWM pins are handed to it; encoder input filters on.
+//! idle configuration before the PWM pins are handed to it; encoder input filters on;
+//! the index captures (after the encoder setup, which writes the timers' CCER whole).
 //!
-//! Submodules, one per kind of hardware: [`encoders`], [`pwm`] (servo outputs),
+//! Encoder wiring: each differential encoder's A/B and Z (index) pairs go through the
+//! line receiver to the pins above.
+//!
+//! Submodules, one per kind of hardware: [`encoders`], [`index`] (the encoders' index
+//! captures), [`pwm`] (servo outputs),
 //! [`inputs`] (safety inputs, arm button), [`leds`], [`tick`] (control timer),
 //! [`cycles`] (execution-time counter), [`io`] (the core's `ServoIo` for the board),
 //! [`clock`] (clock tree, crystal timeout, clock security system), [`shutdown`] (outputs
@@ -46,6 +54,8 @@ pub mod cycles;
 pub mod encoders;
 #[cfg(not(feature = "qemu"))]
 pub mod flash;
+#[cfg(not(feature = "qemu"))]
+pub mod index;
 pub mod inputs;
 #[cfg(not(feature = "qemu"))]
 pub mod io;
@@ -73,6 +83,9 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// Everything `init` hands to the RTIC tasks.
 pub struct Board {
     pub encoders: Encoders,
+    /// The encoders' index inputs, capturing (not in QEMU: no GPIO or EXTI model).
+    #[cfg(not(feature = "qemu"))]
+    pub index: index::IndexInputs,
     pub servo: ServoOutputs,
     pub safety: SafetyPins,
     pub arm: ArmButton,
@@ -180,6 +193,15 @@ pub fn init(dp: pac::Peripherals) -> Board {
     };
     encoders.enable_input_filters();
 
+    // The index captures (after the encoder-mode setup above, which writes CCER whole).
+    #[cfg(not(feature = "qemu"))]
+    let index = {
+        use stm32f4xx_hal::syscfg::SysCfgExt;
+        let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
+        let mut exti = dp.EXTI;
+        index::IndexInputs::new(gpiob.pb10, gpiob.pb1, gpiob.pb0, &mut syscfg, &mut exti)
+    };
+
     let safety = SafetyPins {
         // TIM1_BKIN: the e-stop line is TIM1's break input (active high)
         estop: gpiob.pb12.into_alternate::<1>().internal_pull_up(true),
@@ -234,6 +256,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
 
     Board {
         encoders,
+        #[cfg(not(feature = "qemu"))]
+        index,
         servo,
         safety,
         arm,
