@@ -173,6 +173,14 @@ impl IndexCheck {
         }
     }
 
+    /// Drop `axis`' references (its counts were found off by more than a correction: the
+    /// next passes learn new ones).
+    pub fn forget(&mut self, axis: usize) {
+        if let Some(a) = self.axes.get_mut(axis) {
+            a.reference = [None; 2];
+        }
+    }
+
     /// Take over `old`'s references and corrections where an axis' index period is
     /// unchanged (a reconfiguration that keeps the count frame).
     pub fn carry_over(&mut self, old: &IndexCheck) {

@@ -879,8 +879,13 @@ impl<R: Real> Servo<R> {
 
     /// The index pulses captured this period: a count off from its index's place is
     /// corrected (the counter re-based, this period's count with it) or, beyond what
-    /// glitches explain, the `EncoderIndex` fault.
-    fn check_index(&mut self, index: &[Option<u32>; AXES], counts: &mut [i64; AXES]) {
+    /// glitches explain, the `EncoderIndex` fault (returned, with the error in counts).
+    fn check_index(
+        &mut self,
+        index: &[Option<u32>; AXES],
+        counts: &mut [i64; AXES],
+    ) -> Option<(Fault, f32)> {
+        let mut fault = None;
         for axis in 0..AXES {
             let Some(raw) = index[axis] else { continue };
             let captured = self.counters[axis].extend(raw);
@@ -891,13 +896,15 @@ impl<R: Real> Servo<R> {
                     counts[axis] = self.counters[axis].count();
                 }
                 IndexVerdict::Fault(off) => {
-                    let r = motion::sample(&self.motion, None, &self.clock).0;
-                    let a = Axis::ALL[axis];
-                    self.trip(Fault::on(FaultKind::EncoderIndex, a), off as f32, Some(&r));
+                    // the count frame is lost (home again): the next pass is a new reference
+                    self.index.forget(axis);
+                    let f = Fault::on(FaultKind::EncoderIndex, Axis::ALL[axis]);
+                    fault = fault.or(Some((f, off as f32)));
                 }
             }
         }
         self.snapshot.index_corrected_counts = self.index.corrected_counts();
+        fault
     }
 
     /// One control period. See the module documentation for the sequence. Commands that
@@ -968,10 +975,13 @@ impl<R: Real> Servo<R> {
         }
 
         // the index pulses: glitches corrected (or faulted) before anything uses the counts
+        // (a fault waits for the encoder checks: a jump that lands on an index pass is
+        // reported as the jump it is)
+        let mut index_fault = None;
         let index = if self.index.any() {
             let index = io.read_index();
             self.index.moved(&steps);
-            self.check_index(&index, &mut counts);
+            index_fault = self.check_index(&index, &mut counts);
             index
         } else {
             [None; AXES]
@@ -1016,6 +1026,9 @@ impl<R: Real> Servo<R> {
                 let v_ref = reference.vel.to_array().map(Real::to_f32);
                 let a_ref = reference.acc.to_array().map(Real::to_f32);
                 if let Some((f, v)) = self.monitor.check_counts_due(&steps, &v_ref, &a_ref, &prev) {
+                    self.trip(f, v, Some(&reference));
+                }
+                if let Some((f, v)) = index_fault.take() {
                     self.trip(f, v, Some(&reference));
                 }
                 if let Some((f, v)) = self
@@ -1089,6 +1102,9 @@ impl<R: Real> Servo<R> {
                 evaluated = true;
             }
             ServoState::EncoderCheck => {
+                if let Some((f, v)) = index_fault.take() {
+                    self.trip(f, v, None);
+                }
                 applied = self.encoder_check(&counts);
                 if self.state.drives() {
                     io.write_outputs(&applied.to_array());
@@ -1097,7 +1113,11 @@ impl<R: Real> Servo<R> {
                     io.disable_outputs();
                 }
             }
-            ServoState::Disabled | ServoState::Fault => {}
+            ServoState::Disabled | ServoState::Fault => {
+                if let Some((f, v)) = index_fault.take() {
+                    self.trip(f, v, None);
+                }
+            }
         }
         self.applied = applied;
         self.estimators.applied(applied);

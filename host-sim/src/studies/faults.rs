@@ -81,6 +81,12 @@ struct Grid {
     /// (the stop distance grows with the speed); default: the case's one bound.
     #[serde(default)]
     bound_overrun_mm: Option<Vec<f64>>,
+    /// The rows start at rest and accelerate, as a machine does: the path is
+    /// `start + A (1 - cos ωt)` along the axis, reaching the row's speed at the injection
+    /// (ω = π / (2 t_injection), A = speed / ω). Default: the rows start on a line at
+    /// their speed (the servo arming with the axis already moving).
+    #[serde(default)]
+    from_rest: bool,
 }
 
 /// One row of the matrix (JSON keys are public interface).
@@ -397,6 +403,11 @@ fn expand_grids(file: &str, runs: Vec<Run>) -> Result<Vec<Run>> {
             .scenario
             .fault
             .ok_or_else(|| bad("the case injects no fault".into()))?;
+        if grid.from_rest && !(fault.at_s > 0.0 && fault.at_s.is_finite()) {
+            return Err(bad(
+                "from_rest needs the fault injected at a positive time".into()
+            ));
+        }
         for &axis in &grid.axes {
             for &dir in &grid.directions {
                 for (j, &speed) in grid.speeds_mm_s.iter().enumerate() {
@@ -407,7 +418,19 @@ fn expand_grids(file: &str, runs: Vec<Run>) -> Result<Vec<Run>> {
                         PathConfig::Line { start, .. } => start,
                         _ => [0.0; 3],
                     };
-                    g.scenario.path = PathConfig::Line { start, vel };
+                    g.scenario.path = if grid.from_rest {
+                        // (at_s > 0: checked above)
+                        let omega = core::f64::consts::FRAC_PI_2 / f64::from(fault.at_s);
+                        let amp = vel.map(|v| v / omega);
+                        PathConfig::Sine {
+                            amp,
+                            omega,
+                            phase: [-core::f64::consts::FRAC_PI_2; 3],
+                            offset: [0, 1, 2].map(|i| start[i] + amp[i]),
+                        }
+                    } else {
+                        PathConfig::Line { start, vel }
+                    };
                     g.scenario.fault = Some(TimedInjection {
                         at_s: fault.at_s,
                         fault: on_axis(fault.fault, axis),
