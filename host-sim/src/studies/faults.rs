@@ -420,7 +420,7 @@ fn expand_grids(file: &str, runs: Vec<Run>) -> Result<Vec<Run>> {
                     };
                     g.scenario.path = if grid.from_rest {
                         // (at_s > 0: checked above)
-                        let omega = core::f64::consts::FRAC_PI_2 / f64::from(fault.at_s);
+                        let omega = core::f64::consts::FRAC_PI_2 / fault.at_s;
                         let amp = vel.map(|v| v / omega);
                         PathConfig::Sine {
                             amp,
