@@ -42,8 +42,9 @@ struct AxisIndex {
     period: i64,
     /// The first capture moving up and moving down, in the current count frame.
     reference: [Option<i64>; 2],
-    /// The last direction the count moved: 0 up, 1 down.
-    dir: u8,
+    /// The last direction the count moved was down (the reference index: 0 up, 1 down;
+    /// a `bool`, so that indexing by it needs no bounds check in the control interrupt).
+    down: bool,
     /// Sum of the corrections applied, counts (what the glitches lost or gained).
     corrected: i32,
 }
@@ -115,10 +116,8 @@ impl IndexCheck {
     /// axis last moved from).
     pub fn moved(&mut self, steps: &[i32; AXES]) {
         for (a, &s) in self.axes.iter_mut().zip(steps) {
-            if s > 0 {
-                a.dir = 0;
-            } else if s < 0 {
-                a.dir = 1;
+            if s != 0 {
+                a.down = s < 0;
             }
         }
     }
@@ -132,8 +131,8 @@ impl IndexCheck {
         if a.period <= 0 {
             return IndexVerdict::Agrees;
         }
-        let dir = usize::from(a.dir);
-        let (r, tolerance) = match (a.reference[dir], a.reference[1 - dir]) {
+        let (dir, other) = (usize::from(a.down), usize::from(!a.down));
+        let (r, tolerance) = match (a.reference[dir], a.reference[other]) {
             (Some(r), _) => (r, self.noise_counts),
             // the first pass this way: measured against the other way's reference, which
             // its edge may lie a count from (a glitch since must not become the reference)
@@ -187,7 +186,7 @@ impl IndexCheck {
         for (a, o) in self.axes.iter_mut().zip(&old.axes) {
             if a.period == o.period {
                 a.reference = o.reference;
-                a.dir = o.dir;
+                a.down = o.down;
                 a.corrected = o.corrected;
             }
         }
