@@ -185,5 +185,18 @@ fn the_matrix_cannot_pass_falsely() {
     );
     let e = run_matrix(Some(&inf)).unwrap_err();
     assert!(format!("{e:#}").contains("bound_overrun_mm"), "{e:#}");
+    // a grid from rest needs a positive injection time (the speed is reached then)
+    let rest = write(
+        "rest.toml",
+        "[[case]]\nname = \"rest\"\nfault = { at_s = 0.0, fault = { encoder_stuck = { axis = \"x\" } } }\n\
+         study = { expect = [\"encoder_stuck\"], axis = \"x\", state = \"from rest to\", bound_periods = 20, bound_overrun_mm = 100.0, grid = { speeds_mm_s = [250.0], axes = [\"x\"], directions = [1], from_rest = true } }\n",
+    );
+    let e = run_matrix(Some(&rest)).unwrap_err();
+    assert!(
+        format!("{e:#}").contains(
+            "rest.toml: case rest: grid: from_rest needs the fault injected at a positive time"
+        ),
+        "{e:#}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
