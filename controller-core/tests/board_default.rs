@@ -27,6 +27,7 @@ fn default_configuration_follows_the_demo_path_without_saturating() {
             initial: [InitialState::default(); 3],
             switches: [SwitchConfig::NONE; 3],
             imperfections: ImperfectionConfig::default(),
+            brakes: Default::default(),
         },
         truth: TruthSpec::default(),
         periods,

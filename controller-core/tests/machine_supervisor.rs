@@ -36,6 +36,7 @@ fn machine() -> (M, World) {
         initial: [InitialState::default(); 3],
         switches: [SwitchConfig::NONE; 3],
         imperfections: ImperfectionConfig::default(),
+        brakes: Default::default(),
     };
     let world = World::new(&wcfg, &s.servo_config(RATE_HZ).unwrap()).unwrap();
     let m = Machine::new(
@@ -486,7 +487,8 @@ mod save {
         assert_eq!(block_on(s.load(RATE_HZ)).1, LoadOutcome::Empty);
         // the link side is not stuck: the next request goes through
         send(&mut ch, &mut st, Request::Disarm);
-        for _ in 0..10 {
+        // the outputs go off once the Z brake grips (engage_s = 300 periods)
+        for _ in 0..310 {
             linked(&mut m, &mut w, &mut ch, &mut st, &mut s);
         }
         assert_eq!(m.status().executed, 3);
@@ -743,7 +745,8 @@ mod split {
         m.submit(Request::Segment(Segment::line([7.0, 0.0, 0.0], 20.0, 3)));
         let mut outcomes = Vec::new();
         let mut executed = 0;
-        for _ in 0..20 {
+        // (the program starts once the Z brake is open, 700 periods after arming)
+        for _ in 0..720 {
             m.period(&mut w);
             w.advance();
             task.run();

@@ -46,6 +46,7 @@ fn world(start: [f64; 3]) -> WorldConfig {
             },
         ],
         imperfections: ImperfectionConfig::default(),
+        brakes: Default::default(),
     }
 }
 
@@ -198,9 +199,10 @@ fn jog_times_out_when_commands_stop() {
         }],
         1,
     );
-    // 0.3 s timeout + 20 / 500 s of braking, then Idle
+    // the jog starts once the Z brake is open (70 ms after arming: 690 periods after the
+    // jog command), then 0.3 s timeout + 20 / 500 s of braking, then Idle
     let k = until(&mut r, 20_000, |r| r.servo().state() == ServoState::Idle);
-    assert!((3_000..3_600).contains(&k), "{k}");
+    assert!((3_690..4_290).contains(&k), "{k}");
     let moved = r.servo().snapshot().pos[1];
     assert!((5.0..7.0).contains(&moved), "{moved}");
 }
@@ -401,7 +403,8 @@ fn reconfigure_only_with_outputs_off_and_keeps_homing_and_counts() {
         r.servo_mut().reconfigure(&cfg),
         Err(ReconfigureError::OutputsOn)
     );
-    step(&mut r, &[Command::Disarm], 10);
+    // the outputs go off once the Z brake grips (engage_s = 300 periods)
+    step(&mut r, &[Command::Disarm], 310);
     let mut bad = cfg;
     bad.rate_hz = 5;
     assert!(matches!(

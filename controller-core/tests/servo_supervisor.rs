@@ -22,6 +22,7 @@ fn run(inject: Option<TimedInjection>) -> SimRun<f32> {
             initial: [InitialState::default(); 3],
             switches: [SwitchConfig::NONE; 3],
             imperfections: ImperfectionConfig::default(),
+            brakes: Default::default(),
         },
         truth: TruthSpec::default(),
         periods: 1_000_000,
@@ -116,12 +117,13 @@ fn a_healthy_encoder_passes_the_check_after_a_jump_and_a_stuck_one_does_not() {
     step(&mut r, &[], 1_000);
     assert_eq!(r.servo().state(), ServoState::Disabled, "the check passes");
     assert!(!r.servo().faults().any());
-    // a stuck one: the reset is refused, after a bounded drift
+    // a stuck one: the reset is refused, after a bounded drift (stuck while the path
+    // moves: it starts once the Z brake is open, 70 ms after arming)
     let mut r = run(Some(TimedInjection {
-        at_s: 0.05,
+        at_s: 0.12,
         fault: Injection::EncoderStuck { axis: Axis::Y },
     }));
-    step(&mut r, &[Command::Arm, Command::StartPath], 1_000);
+    step(&mut r, &[Command::Arm, Command::StartPath], 1_500);
     assert_eq!(r.servo().state(), ServoState::Fault);
     step(&mut r, &[], 3_000); // coast to rest
     let before = true_pos(&r)[1];

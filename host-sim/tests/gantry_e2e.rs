@@ -181,6 +181,9 @@ fn scenario<T: Transport + EstopPanel>(mut c: Client<T>, tag: &str) -> Figures {
     };
     assert!(why.contains("disarm first"), "{why}");
     assert_eq!(c.status().unwrap().state, MachineState::Idle);
+    // Z's brake opens 70 ms after arming (machines/gantry.toml); until then the brake,
+    // not the amplifier, holds Z up
+    c.sleep_ms(100).unwrap();
     // the scope: 200 periods of the held axis, read out over the link
     let cfg = ScopeConfig {
         channels: heapless::Vec::from_slice(&[Signal::Pos(0), Signal::Effort(2)]).unwrap(),

@@ -239,7 +239,7 @@ fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
     let mut c = connect(SimModels::Designed);
     let all = cli::read_settings(&mut c).unwrap();
     // 113 + the work offsets (27) and the tool table (16)
-    assert_eq!(all.len(), 156);
+    assert_eq!(all.len(), 165);
     let text = cli::export_toml(&all);
     let back = cli::parse_settings_toml("export.toml", &text).unwrap();
     assert_eq!(
@@ -392,6 +392,8 @@ fn telemetry_logs_to_csv_at_the_session_rate() {
     // chosen signals: more columns, each sample carrying them
     use controller_core::machine::scope::Signal;
     expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    // Z's brake opens 70 ms after arming; until then the brake, not the amplifier, holds Z
+    c.sleep_ms(100).unwrap();
     let chosen = [Signal::Pos(0), Signal::Effort(2)];
     expect_done(
         "subscribe",

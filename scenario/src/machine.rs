@@ -76,6 +76,7 @@ pub const PHYSICAL_RANGES: &[PhysicalRange] = &[
     range("plant.paper.b", -1e6, 1e6, "1/s²", "the paper's normalised axis: any finite coefficient an f32 law can carry"),
     range("plant.paper.k", 1e-6, 1e6, "", "input gain: positive (the laws assume it), finite"),
     range("amplifier.resolution_bits", 8.0, 24.0, "bits", "0 is the ideal amplifier; a real one resolves at least 8 bits (a 1-bit one is a bang-bang switch) and at most 24 (no PWM timer or DAC resolves more)"),
+    range("brake.holding_mnm", 0.0, 100_000.0, "mN·m", "the simulated brake's static torque: none (0) up to the largest effort of the machine class (100 N·m); positive when the brake is present"),
     range("initial.pos_mm", -10_000.0, 10_000.0, "mm", "any gantry's travel (the settings' length range, ±10 m)"),
     range("initial.vel_mm_s", -10_000.0, 10_000.0, "mm/s", "the settings' speed range (10 m/s)"),
 ];
@@ -187,6 +188,9 @@ fn write_axis(s: &mut Settings, i: usize, a: &AxisSpec) {
         t.homing.enabled = false;
     }
     t.jog = a.jog;
+    // the brake's timings are settings (`axis.<a>.brake.*`): their ranges and the servo's
+    // own check apply
+    t.brake = a.brake.servo();
 }
 
 /// Check machine `m` (see the module docs); the error names the field, its value and the
@@ -226,6 +230,14 @@ pub fn check(m: &MachineSpec) -> Result<(), String> {
                 "amplifier.resolution_bits",
                 f64::from(a.amplifier.resolution_bits),
             )?;
+        }
+        check_physical(n, "brake.holding_mnm", f64::from(a.brake.holding_mnm))?;
+        if a.brake.present && !(a.brake.holding_mnm > 0.0) {
+            return Err(format!(
+                "`machine.axes.{name}.brake.holding_mnm` = {} must be positive when \
+                 `brake.present = true` (the simulated brake must hold something)",
+                a.brake.holding_mnm
+            ));
         }
         check_physical(n, "initial.pos_mm", a.initial.pos_mm)?;
         check_physical(n, "initial.vel_mm_s", a.initial.vel_mm_s)?;

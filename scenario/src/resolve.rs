@@ -4,7 +4,7 @@
 //! building them once.
 
 use crate::file::{Run, ScenarioError};
-use crate::schema::{AccelSpec, LawSpec, Mode, Numeric, Scenario, TunedLaw};
+use crate::schema::{AccelSpec, BrakeSpec, LawSpec, Mode, Numeric, Scenario, TunedLaw};
 use controller_core::controller::ControllerConfig;
 use controller_core::coupling::CouplingConfig;
 use controller_core::estimator::{AccelInput, EstimatorBankConfig};
@@ -100,6 +100,18 @@ fn model_of(plant: &PlantConfig) -> PlantParams {
     }
 }
 
+/// The axis' brake as the run has it: none when the run starts on the path, already
+/// moving (a machine in motion has its brakes open, and the servo only opens them from
+/// rest after arming: such a run models the machine from the middle of its motion,
+/// without them).
+fn brake_of(m: &crate::schema::MachineSpec, a: &crate::schema::AxisSpec) -> BrakeSpec {
+    if m.start_on_path {
+        BrakeSpec::default()
+    } else {
+        a.brake
+    }
+}
+
 fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
     if !(sc.horizon_s > 0.0 && sc.horizon_s.is_finite()) {
         return Err(format!(
@@ -134,6 +146,7 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
         rate_hz: m.rate_hz,
         encoders: m.axes.each_ref().map(|a| a.encoder),
         amplifiers: m.axes.each_ref().map(|a| a.amplifier),
+        brakes: m.axes.each_ref().map(|a| brake_of(m, a).servo()),
         controller: ControllerConfig {
             laws,
             coupling: sc.controller.coupling,
@@ -180,6 +193,7 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
             sw
         }),
         imperfections: m.imperfections,
+        brakes: m.axes.each_ref().map(|a| brake_of(m, a).plant()),
     };
     let steps = match sc.mode {
         Mode::Discrete => sc.horizon_s * f64::from(m.rate_hz) * f64::from(m.plant_substeps),

@@ -11,6 +11,7 @@ use controller_core::law::dob_smc::DobSmcConfig;
 use controller_core::law::pid::PidConfig;
 use controller_core::law::smc::SmcConfig;
 use controller_core::motion::path::{PathConfig, PathStart};
+use controller_core::servo::brake::{BrakeConfig, DEFAULT_ENGAGE_S, DEFAULT_RELEASE_S};
 use controller_core::servo::homing::{AxisHomingConfig, HomingConfig};
 use controller_core::servo::io::{AmplifierConfig, EncoderConfig};
 use controller_core::servo::jog::{AxisJogConfig, JogConfig};
@@ -18,7 +19,9 @@ use controller_core::servo::monitor::{AxisSafetyConfig, SafetyConfig};
 use controller_core::servo::travel::AxisTravel;
 use controller_core::sim::run::TimedInjection;
 use controller_core::sim::truth::TruthSpec;
-use controller_core::sim::world::{ImperfectionConfig, InitialState, PlantConfig, SwitchConfig};
+use controller_core::sim::world::{
+    BrakePlantConfig, ImperfectionConfig, InitialState, PlantConfig, SwitchConfig,
+};
 use controller_core::sysid::{IdentifyConfig, IDENTIFY_DEFAULTS};
 use serde::{Deserialize, Serialize};
 
@@ -104,7 +107,8 @@ pub struct MachineSpec {
     #[serde(default = "four")]
     pub plant_substeps: u32,
     /// Start every axis on the path (its position and velocity at t = 0) instead of at
-    /// `initial`.
+    /// `initial`. Such a run starts mid-motion, so its axes' holding brakes are left out
+    /// (they would be open).
     #[serde(default)]
     pub start_on_path: bool,
     /// Timings of the fault checks (overspeed ratio, stuck and runaway times, overrun
@@ -172,6 +176,55 @@ pub struct AxisSpec {
     /// whose model is not known refuses to arm.
     #[serde(default = "yes")]
     pub model_known: bool,
+    /// The axis' holding brake (default: none).
+    #[serde(default)]
+    pub brake: BrakeSpec,
+}
+
+/// An axis' holding brake: what the servo knows of it (`present`, the timings) and what
+/// the simulated machine's brake does (the same timings, its holding torque).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BrakeSpec {
+    /// The axis has a brake (the servo drives its output).
+    pub present: bool,
+    /// The brake grips this long after its coil is de-energised, s (0..=1).
+    pub engage_s: f32,
+    /// The brake opens this long after its coil is energised, s (0..=1).
+    pub release_s: f32,
+    /// Holding torque while it grips, mN·m (positive when `present`).
+    pub holding_mnm: f32,
+}
+
+impl Default for BrakeSpec {
+    fn default() -> Self {
+        Self {
+            present: false,
+            engage_s: DEFAULT_ENGAGE_S,
+            release_s: DEFAULT_RELEASE_S,
+            holding_mnm: 0.0,
+        }
+    }
+}
+
+impl BrakeSpec {
+    /// The servo's view.
+    pub const fn servo(&self) -> BrakeConfig {
+        BrakeConfig {
+            present: self.present,
+            engage_s: self.engage_s,
+            release_s: self.release_s,
+        }
+    }
+
+    /// The simulated machine's brake (none unless `present`).
+    pub const fn plant(&self) -> BrakePlantConfig {
+        BrakePlantConfig {
+            holding_mnm: if self.present { self.holding_mnm } else { 0.0 },
+            engage_s: self.engage_s,
+            release_s: self.release_s,
+        }
+    }
 }
 
 fn unlimited() -> AxisTravel {

@@ -3,7 +3,8 @@
 //! presets): a change to one without the other fails here.
 
 use controller_core::presets::gantry::{
-    GANTRY_AMPLIFIERS, GANTRY_AXES, GANTRY_ENCODERS, GANTRY_SAFETY,
+    GANTRY_AMPLIFIERS, GANTRY_AXES, GANTRY_BRAKES, GANTRY_ENCODERS, GANTRY_SAFETY,
+    GANTRY_Z_BRAKE_HOLDING_MNM,
 };
 use controller_core::presets::paper::PAPER_PLANT;
 use controller_core::sim::world::PlantConfig;
@@ -30,8 +31,14 @@ fn gantry_machine_file_equals_the_core_presets() {
     assert_eq!(s.encoders, GANTRY_ENCODERS);
     assert_eq!(s.amplifiers, GANTRY_AMPLIFIERS);
     assert_eq!(s.safety.axes, GANTRY_SAFETY);
+    assert_eq!(s.brakes, GANTRY_BRAKES);
     for (i, p) in r.run.world.plants.iter().enumerate() {
         assert_eq!(*p, PlantConfig::Physical(GANTRY_AXES[i]), "axis {i}");
+    }
+    let holding = r.run.world.brakes.map(|b| b.holding_mnm);
+    assert_eq!(holding, [0.0, 0.0, GANTRY_Z_BRAKE_HOLDING_MNM]);
+    for (w, s) in r.run.world.brakes.iter().zip(&s.brakes) {
+        assert_eq!((w.engage_s, w.release_s), (s.engage_s, s.release_s));
     }
 }
 
@@ -173,6 +180,37 @@ fn nan_infinite_and_negative_machine_values_are_refused_with_the_field() {
             "machine.axes.x.plant.physical.torque_max_mnm` = NaN",
         ),
         ("rate_hz", "10000", "10", "machine.rate_hz` = 10"),
+        // the Z brake (the only one): its timings are settings, its torque physical
+        (
+            "engage_s",
+            "0.03",
+            "nan",
+            "machine.axes.z.brake.engage_s` = NaN",
+        ),
+        (
+            "release_s",
+            "0.07",
+            "-0.07",
+            "machine.axes.z.brake.release_s` = -0.07",
+        ),
+        (
+            "engage_s",
+            "0.03",
+            "1.5",
+            "machine.axes.z.brake.engage_s` = 1.5",
+        ),
+        (
+            "holding_mnm",
+            "320.0",
+            "-320.0",
+            "machine.axes.z.brake.holding_mnm` = -320",
+        ),
+        (
+            "holding_mnm",
+            "320.0",
+            "nan",
+            "machine.axes.z.brake.holding_mnm` = NaN",
+        ),
     ] {
         let e = refusal(field, old, new);
         assert!(e.contains(path), "{field} = {new}: {e}");
@@ -211,4 +249,15 @@ fn every_shipped_scenario_and_machine_file_loads_and_resolves() {
         let name = m.unwrap().file_name().to_string_lossy().into_owned();
         machine(&name);
     }
+}
+
+#[test]
+fn a_present_brake_without_holding_torque_is_refused_by_name() {
+    let e = refusal("holding_mnm", "320.0", "0.0");
+    assert!(
+        e.contains(
+            "`machine.axes.z.brake.holding_mnm` = 0 must be positive when `brake.present = true`"
+        ),
+        "{e}"
+    );
 }

@@ -470,7 +470,9 @@ where
                 self.retired = self.retired.wrapping_add(1);
             }
         }
-        if self.program {
+        // the program's clock stands still while the servo holds its start for the brakes
+        let ticked = self.program && !self.servo.motion_held();
+        if ticked {
             self.sample = self.mem.planner.tick();
             self.servo.set_planner_reference(&self.sample);
             // the executor's place in the program, for the status
@@ -488,7 +490,14 @@ where
         if self.program {
             match s.state {
                 ServoState::Run => {
-                    if self.program_ended && self.mem.planner.is_idle() && !self.held {
+                    // (a program whose start waits for the brakes has not begun: the
+                    // executor is judged once it has been ticked)
+                    if ticked
+                        && self.program_ended
+                        && self.mem.planner.is_idle()
+                        && !self.held
+                        && !self.servo.motion_held()
+                    {
                         self.pend(Command::Stop);
                         self.program = false;
                         self.program_ended = false;
@@ -650,7 +659,8 @@ where
         repair: bool,
         cmds: &heapless::Vec<Command, 4>,
     ) -> Step {
-        if !cmds.is_empty() {
+        // (a disarm whose brakes still engage: the outputs go off by themselves soon)
+        if !cmds.is_empty() || self.servo.switching_off() {
             return Step::Wait;
         }
         if self.servo.state().drives() {

@@ -6,7 +6,8 @@
 //! machine units (mm, mN·m): the paper's DSMC rescaled to each axis' model
 //! ([`dsmc_for`]) with the paper's contour coupling at λ = 1 (the gain that matters in
 //! mm; docs/seed-methods.md), efforts limited to each motor's peak torque (the
-//! amplifiers' full command), the PLL at [`BOARD_PLL`], and the gantry's fault thresholds.
+//! amplifiers' full command), the PLL at [`BOARD_PLL`], the gantry's fault thresholds and
+//! its holding brake on Z ([`crate::presets::gantry::GANTRY_BRAKES`]).
 //! Arming holds position; the demo helix ([`BOARD_PATH`]) runs only when a path is
 //! started explicitly (firmware feature `demo-helix`, or the host link).
 //!
@@ -20,8 +21,8 @@ use crate::estimator::{EstimatorBankConfig, EstimatorConfig, PllConfig};
 use crate::law::LawConfig;
 use crate::motion::path::{PathConfig, PathStart};
 use crate::presets::gantry::{
-    dsmc_for, GANTRY_AMPLIFIERS, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL,
-    GANTRY_X, GANTRY_Y, GANTRY_Z,
+    dsmc_for, GANTRY_AMPLIFIERS, GANTRY_BRAKES, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY,
+    GANTRY_TRAVEL, GANTRY_X, GANTRY_Y, GANTRY_Z,
 };
 use crate::servo::jog::JogConfig;
 use crate::servo::monitor::SafetyConfig;
@@ -65,6 +66,7 @@ pub const fn servo_config(rate_hz: u32) -> ServoConfig {
         rate_hz,
         encoders: GANTRY_ENCODERS,
         amplifiers: GANTRY_AMPLIFIERS,
+        brakes: GANTRY_BRAKES,
         controller: ControllerConfig {
             laws: [
                 LawConfig::Smc(dsmc_for(&GANTRY_X)),

@@ -14,6 +14,7 @@ use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
 use crate::law::smc::SmcConfig;
+use crate::servo::brake::BrakeConfig;
 use crate::servo::homing::{AxisHomingConfig, HomeDirection, HomingConfig};
 use crate::servo::io::{AmplifierConfig, EncoderConfig};
 use crate::servo::monitor::AxisSafetyConfig;
@@ -79,6 +80,18 @@ pub const GANTRY_Z: PhysicalAxisConfig = PhysicalAxisConfig {
     load_const_mnm: 23.0,
     ..GANTRY_X
 };
+
+/// The holding brakes: Z, the vertical axis that falls when its amplifier goes off, has
+/// one (the Z motor's built-in spring-applied brake, default timings of
+/// [`crate::servo::brake`]: 30 ms to grip, 70 ms to open); X and Y, horizontal, have none.
+pub const GANTRY_BRAKES: [BrakeConfig; 3] =
+    [BrakeConfig::NONE, BrakeConfig::NONE, BrakeConfig::FITTED];
+
+/// Holding torque of the Z brake as the simulated machine models it, mN·m: 320, the
+/// static torque catalogues list for the holding brake of a 100 W servo motor (0.32 N·m,
+/// the motor's rated torque: the brake holds what the motor can hold continuously), 14
+/// times Z's 23 mN·m of gravity.
+pub const GANTRY_Z_BRAKE_HOLDING_MNM: f32 = 320.0;
 
 /// The three physical axes.
 pub const GANTRY_AXES: [PhysicalAxisConfig; 3] = [GANTRY_X, GANTRY_Y, GANTRY_Z];

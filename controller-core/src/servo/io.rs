@@ -66,6 +66,15 @@ pub trait ServoIo<R> {
     /// low). Idempotent; safe to call in every period.
     fn disable_outputs(&mut self);
 
+    /// Drives the holding brakes: `released[i]` energises axis i's brake coil (brake
+    /// open), `false` de-energises it (brake gripping, the fail-safe state). Called once
+    /// per period after the outputs (and again, all `false`, whenever the outputs go off
+    /// early in a period); idempotent. The default does nothing: a machine without brake
+    /// outputs ([`super::brake`]).
+    fn write_brakes(&mut self, released: [bool; AXES]) {
+        let _ = released;
+    }
+
     /// The simulated plant's true velocities, for [`crate::estimator::EstimatorConfig::Exact`]
     /// (`None` on hardware, which has no such oracle).
     fn true_velocity(&self) -> Option<[f64; AXES]> {

@@ -17,7 +17,9 @@
 //!    following error and speed; write the outputs, or switch them off on an immediate
 //!    fault, or start a controlled stop; commit every controller and estimator state with
 //!    the output actually applied;
-//! 6. publish the telemetry [`Snapshot`] (plain copies).
+//! 6. the holding brakes' commands ([`brake`]: released only on an axis driven now and in
+//!    the previous period, engaged at the end of a controlled stop), written out once;
+//!    then publish the telemetry [`Snapshot`] (plain copies).
 //!
 //! States ([`ServoState`]): `Disabled` (boot; outputs off) → arm → `Idle` (holding the
 //! position it armed at: arming never starts motion) → `Run` (a path or the planner's
@@ -28,6 +30,11 @@
 //! the encoder check (`EncoderCheck`): the axis must follow a small effort in both
 //! directions, or the reset is refused. Which command is valid when: [`commands::check`].
 //!
+//! Holding brakes ([`brake`]): motion commanded while a brake still opens is accepted and
+//! held at rest until it is open ([`Servo::motion_held`]); a controlled stop ends with the
+//! brakes gripping before the outputs go off; an immediate one engages them in the period
+//! the outputs go off.
+//!
 //! Coordinates: the servo works in machine coordinates, the wide encoder counts whose
 //! origin homing moves ([`homing`], [`WideCounter::rebase`]); the encoder checks see the
 //! steps between readings, so re-basing never looks like a jump. Soft limits ([`travel`]) apply to axes
@@ -36,6 +43,7 @@
 //! Nothing here allocates, blocks, formats or panics; every number that reaches an output
 //! is finite and within the amplifier's range.
 
+pub mod brake;
 pub mod commands;
 pub mod faults;
 pub mod homing;
@@ -60,6 +68,7 @@ use crate::motion::trajectory::{RefSample, Trajectory};
 use crate::sysid::IDENTIFY_DEFAULTS;
 use crate::sysid::{AxisSample, IdentifyConfig};
 use crate::{Real, Vec3};
+use brake::{BrakeConfig, BrakeState};
 pub use commands::{Command, Refusal};
 use faults::{Fault, FaultKind, FaultLog, FaultRecord, StopCategory};
 use homing::{Homing, HomingConfig, HomingEvent, HomingInputs};
@@ -104,6 +113,10 @@ pub struct ServoConfig {
     pub encoders: [EncoderConfig; AXES],
     #[cfg_attr(feature = "serde", serde(with = "crate::axes::per_axis"))]
     pub amplifiers: [AmplifierConfig; AXES],
+    /// Per axis: the holding brake ([`brake`]; default: none, so configurations written
+    /// before brakes existed keep working).
+    #[cfg_attr(feature = "serde", serde(default, with = "crate::axes::per_axis"))]
+    pub brakes: [BrakeConfig; AXES],
     pub controller: ControllerConfig,
     pub estimator: EstimatorBankConfig,
     /// Limits and fault thresholds.
@@ -247,6 +260,14 @@ pub struct Servo<R> {
     check_counts: i64,
     check_effort: [f32; AXES],
     applied: Vec3<R>,
+    /// The holding brakes ([`brake`]).
+    brakes: [BrakeState; AXES],
+    /// Axes the servo drove in the previous period (bit i = axis i): a brake is released
+    /// only once its axis' amplifier has held it for a period.
+    prev_driven: u8,
+    /// The controlled stop under way ends with the brakes engaging: none is released, and
+    /// the outputs go off once every brake grips.
+    braking: bool,
     /// The controller's evaluation of the current period (filled in place).
     out: ControlOutput<R>,
     snapshot: Snapshot,
@@ -292,6 +313,7 @@ impl<R: Real> Servo<R> {
             None => None,
         };
         cfg.travel.validate()?;
+        brake::validate_all(&cfg.brakes)?;
         cfg.homing.validate()?;
         cfg.jog.validate()?;
         for (i, a) in cfg.homing.axes.iter().enumerate() {
@@ -381,6 +403,9 @@ impl<R: Real> Servo<R> {
             check_counts: i64::from(s.encoder_check_counts.max(1)),
             check_effort: s.axes.map(|a| a.stuck_effort_change),
             applied: Vec3::zero(),
+            brakes: cfg.brakes.map(|b| BrakeState::new(&b, period_s)),
+            prev_driven: 0,
+            braking: false,
             out: ControlOutput::default(),
             snapshot,
         })
@@ -428,6 +453,13 @@ impl<R: Real> Servo<R> {
         self.state
     }
 
+    /// A stop is under way that ends with the outputs off (a disarm whose brakes still
+    /// engage, a category-1 e-stop, a fault's controlled stop): they go off within the
+    /// stop's bounded time without another command.
+    pub fn switching_off(&self) -> bool {
+        self.state == ServoState::Stopping && self.stop_then != ServoState::Idle
+    }
+
     /// Latched faults, the first one, and the history.
     pub fn faults(&self) -> &FaultLog {
         &self.faults
@@ -443,6 +475,10 @@ impl<R: Real> Servo<R> {
     /// planner (`Run` after [`Command::Run`]); a non-finite sample is ignored too (the
     /// reference keeps the last good one, and the following-error check acts).
     pub fn set_planner_reference(&mut self, s: &PathSample) {
+        if self.motion_held() {
+            // the program starts once the brakes are open; until then the start is held
+            return;
+        }
         if let Motion::Planner(r) = &mut self.motion {
             let ok = s
                 .pos_mm
@@ -486,6 +522,79 @@ impl<R: Real> Servo<R> {
     /// [`Self::referenced`] of every axis as a bit set.
     fn referenced_mask(&self) -> u8 {
         self.homed | self.no_homing
+    }
+
+    /// Axes whose outputs the servo drives in the current state (bit i = axis i): every
+    /// axis while armed, only the identified one when identification started from
+    /// Disabled, only the checked one during an encoder check.
+    fn driven_mask(&self) -> u8 {
+        match self.state {
+            ServoState::Disabled | ServoState::Fault => 0,
+            ServoState::Identify => match &self.identify {
+                Some(r) if !r.hold_others => 1 << r.axis.min(AXES - 1),
+                _ => 0b111,
+            },
+            ServoState::EncoderCheck => self.check.map_or(0, |c| 1 << c.axis.min(AXES - 1)),
+            _ => 0b111,
+        }
+    }
+
+    /// Every brake of the axes in `mask` is open in the coming period (or absent).
+    fn brakes_open(&self, mask: u8) -> bool {
+        (0..AXES).all(|i| mask & (1 << i) == 0 || self.brakes[i].open())
+    }
+
+    /// Every brake grips in the coming period (or is absent).
+    fn brakes_gripping(&self) -> bool {
+        self.brakes.iter().all(BrakeState::gripping)
+    }
+
+    /// The motion just started waits for the brakes to open: the reference is held (the
+    /// path's, jog's and homing's clocks stand still, identification and the encoder
+    /// check have not begun, planner samples are ignored). The supervisor does not advance
+    /// the planner's program while this holds, so the program starts where it was
+    /// planned to once the brakes are open.
+    pub fn motion_held(&self) -> bool {
+        matches!(
+            self.state,
+            ServoState::Run
+                | ServoState::Jog
+                | ServoState::Homing
+                | ServoState::Identify
+                | ServoState::EncoderCheck
+        ) && !self.brakes_open(self.driven_mask())
+    }
+
+    /// Per axis: the brake is commanded released (coil energised), as written last period.
+    pub fn brakes_released(&self) -> [bool; AXES] {
+        self.brakes.map(|b| b.released())
+    }
+
+    /// The period's brake commands: released only on an axis driven now and in the
+    /// previous period, and not while a stop ends with the brakes engaging; written out
+    /// with the outputs, once per period.
+    fn write_brakes<IO: ServoIo<R>>(&mut self, io: &mut IO) {
+        let driven = self.driven_mask();
+        if self.state != ServoState::Stopping {
+            self.braking = false;
+        }
+        for (i, b) in self.brakes.iter_mut().enumerate() {
+            let bit = 1 << i;
+            b.update(!self.braking && driven & self.prev_driven & bit != 0);
+        }
+        self.prev_driven = driven;
+        let released = self.brakes_released();
+        io.write_brakes(released);
+        self.snapshot.brakes_released = released;
+    }
+
+    /// Longest engage time of the brakes fitted, periods (0 without any).
+    fn engage_periods(&self) -> u32 {
+        self.brakes
+            .iter()
+            .map(BrakeState::engage_periods)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Latch a fault the board found outside the servo step (a failed crystal, a
@@ -538,6 +647,7 @@ impl<R: Real> Servo<R> {
     fn begin_stop(&mut self, from: &RefSample<R>, then: ServoState) {
         self.motion = Motion::stop_from(from, &self.stop_decel);
         self.rest_periods = 0;
+        self.braking = false;
         self.stop_then = then;
         self.state = ServoState::Stopping;
     }
@@ -653,7 +763,18 @@ impl<R: Real> Servo<R> {
                 self.state = ServoState::Idle;
                 self.hold_here(counts);
             }
-            (Command::Disarm, ServoState::Idle) => self.state = ServoState::Disabled,
+            (Command::Disarm, ServoState::Idle) => {
+                if self.brakes_gripping() {
+                    self.state = ServoState::Disabled;
+                } else {
+                    // a released brake grips first: hold where the axes are (already at
+                    // rest, so no settling), engage, then outputs off
+                    let r = here();
+                    self.begin_stop(&r, ServoState::Disabled);
+                    self.rest_periods = self.settle_periods;
+                    self.braking = true;
+                }
+            }
             (Command::Disarm, ServoState::Identify) => {
                 self.end_identify(true);
                 self.state = ServoState::Disabled;
@@ -925,7 +1046,13 @@ impl<R: Real> Servo<R> {
                     self.state = ServoState::Fault;
                     None
                 }
-                (ServoState::Stopping, n) => Some(n - 1),
+                (ServoState::Stopping, n) => {
+                    // the brakes engage so that they grip by the deadline
+                    if n <= self.engage_periods() {
+                        self.braking = true;
+                    }
+                    Some(n - 1)
+                }
                 _ => None,
             };
         }
@@ -951,6 +1078,8 @@ impl<R: Real> Servo<R> {
         }
         if !self.state.drives() {
             io.disable_outputs();
+            // (recorded at the end of the period; the coil is off from now on)
+            io.write_brakes([false; AXES]);
         }
 
         // 2. Wide and machine counts.
@@ -972,7 +1101,10 @@ impl<R: Real> Servo<R> {
         }
         if !self.state.drives() {
             io.disable_outputs();
+            io.write_brakes([false; AXES]);
         }
+        // motion that starts waits for the brakes to open
+        let held = self.motion_held();
 
         // the index pulses: glitches corrected (or faulted) before anything uses the counts
         // (a fault waits for the encoder checks: a jump that lands on an index pass is
@@ -988,7 +1120,7 @@ impl<R: Real> Servo<R> {
         };
 
         // 3. Reference.
-        if matches!(self.state, ServoState::Jog | ServoState::Homing) {
+        if matches!(self.state, ServoState::Jog | ServoState::Homing) && !held {
             let index = if matches!(self.motion, Motion::Homing { .. }) {
                 if self.index.any() {
                     index
@@ -1000,8 +1132,13 @@ impl<R: Real> Servo<R> {
             };
             self.step_manual(&inputs, index, &mut counts);
         }
-        let (reference, motion_t, at_rest) =
+        let (mut reference, motion_t, at_rest) =
             motion::sample(&self.motion, self.path.as_ref(), &self.clock);
+        if held {
+            // held at its start: a path that starts moving (the helix) is held at rest
+            reference.vel = Vec3::zero();
+            reference.acc = Vec3::zero();
+        }
 
         // 4. Positions and velocities.
         let meas: Measured<R> = self
@@ -1039,7 +1176,7 @@ impl<R: Real> Servo<R> {
                 }
                 let mut reference = reference;
                 let identifying = self.state == ServoState::Identify;
-                if identifying {
+                if identifying && !held {
                     self.identify_reference(&mut reference, &meas);
                 }
                 self.controller
@@ -1060,7 +1197,12 @@ impl<R: Real> Servo<R> {
                     u[i] = u[i].clamp_finite(self.full_scale[i]);
                 }
                 if identifying && self.state.drives() {
-                    u = self.identify_effort(u, &meas, &vel);
+                    if !held {
+                        u = self.identify_effort(u, &meas, &vel);
+                    } else if self.driven_mask() != 0b111 {
+                        // started from Disabled: nothing is driven before the run begins
+                        u = Vec3::zero();
+                    }
                 }
                 if self.referenced_mask() != 0 && self.state.drives() && !identifying {
                     self.check_soft_limits(&reference);
@@ -1098,14 +1240,20 @@ impl<R: Real> Servo<R> {
                 }
                 self.controller
                     .commit(&self.out, &reference, &meas, applied, self.dt);
-                self.motion.advance();
+                if !held {
+                    self.motion.advance();
+                }
                 evaluated = true;
             }
             ServoState::EncoderCheck => {
                 if let Some((f, v)) = index_fault.take() {
                     self.trip(f, v, None);
                 }
-                applied = self.encoder_check(&counts);
+                applied = if held {
+                    Vec3::zero()
+                } else {
+                    self.encoder_check(&counts)
+                };
                 if self.state.drives() {
                     io.write_outputs(&applied.to_array());
                 } else {
@@ -1121,6 +1269,7 @@ impl<R: Real> Servo<R> {
         }
         self.applied = applied;
         self.estimators.applied(applied);
+        self.write_brakes(io);
 
         // 6. Telemetry (plain copies).
         if matches!(self.state, ServoState::Homing | ServoState::Identify) {
@@ -1275,6 +1424,10 @@ impl<R: Real> Servo<R> {
     fn finish_motion(&mut self, reference: &RefSample<R>, vel: &[f32; AXES]) {
         match self.state {
             ServoState::Stopping => {
+                if self.stop_then != ServoState::Idle {
+                    // the reference is at rest: the brakes engage while the axes settle
+                    self.braking = true;
+                }
                 self.rest_periods = self.rest_periods.saturating_add(1);
                 let settled = self.rest_periods >= self.settle_periods
                     && vel
@@ -1282,9 +1435,12 @@ impl<R: Real> Servo<R> {
                         .zip(0..AXES)
                         .all(|(v, i)| v.abs() <= 0.02 * self.monitor.vel_max(i));
                 if settled || self.rest_periods >= self.stop_timeout_periods {
-                    self.state = self.stop_then;
-                    if self.state == ServoState::Idle {
+                    if self.stop_then == ServoState::Idle {
+                        self.state = ServoState::Idle;
                         self.motion = Motion::Hold(reference.pos);
+                    } else if self.brakes_gripping() {
+                        // the outputs go off only once every brake holds its axis
+                        self.state = self.stop_then;
                     }
                 }
             }

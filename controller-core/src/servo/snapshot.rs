@@ -52,6 +52,9 @@ pub struct Snapshot {
     /// Counts the index check corrected so far per axis (the net of the glitches it
     /// found; `servo::index_check`).
     pub index_corrected_counts: [i32; AXES],
+    /// Per axis: the holding brake is commanded released (coil energised) after this
+    /// period; always false on an axis without a brake ([`crate::servo::brake`]).
+    pub brakes_released: [bool; AXES],
 }
 
 impl Snapshot {
@@ -83,6 +86,7 @@ impl Snapshot {
             counts: [0; AXES],
             outputs_on: false,
             index_corrected_counts: [0; AXES],
+            brakes_released: [false; AXES],
         }
     }
 

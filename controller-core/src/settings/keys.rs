@@ -453,6 +453,7 @@ mod unit {
     pub const MM_S2: &str = "mm/s²";
     pub const MNM: &str = "mN·m";
     pub const RAD_S: &str = "rad/s";
+    pub const S: &str = "s";
     pub const NONE: &str = "";
 }
 
@@ -474,6 +475,9 @@ const WORK_OFFSET: Range = LEN;
 const TOOL_LENGTH: Range = f32_range(-1_000.0, 1_000.0);
 /// Cutter diameters 0..1 m (0: not measured).
 const TOOL_DIAMETER: Range = f32_range(0.0, 1_000.0);
+/// Brake engage and release times 0..=1 s: the servo's own bound
+/// ([`crate::servo::brake::MAX_BRAKE_TIME_S`], checked again by the servo).
+const BRAKE_TIME: Range = f32_range(0.0, crate::servo::brake::MAX_BRAKE_TIME_S);
 
 /// The per-axis keys, in the tree's field order.
 static AXIS_KEYS: &[AxisDef] = &[
@@ -720,6 +724,27 @@ static AXIS_KEYS: &[AxisDef] = &[
         f32_range(10.0, 1e9),
         OutputsOff,
         "Largest jerk the motion planner commands"
+    ),
+    axis_key!(
+        brake.present,
+        unit::NONE,
+        Range::Bool,
+        OutputsOff,
+        "The axis has a holding brake on its brake output (gripping when de-energised; the servo releases it only while it drives the axis)"
+    ),
+    axis_key!(
+        brake.engage_s,
+        unit::S,
+        BRAKE_TIME,
+        OutputsOff,
+        "Time the brake needs to grip after its coil is switched off: a controlled stop holds the axis this long before the outputs go off"
+    ),
+    axis_key!(
+        brake.release_s,
+        unit::S,
+        BRAKE_TIME,
+        OutputsOff,
+        "Time the brake needs to open after its coil is switched on: motion after arming waits this long"
     ),
 ];
 

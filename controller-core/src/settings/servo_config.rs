@@ -139,6 +139,9 @@ impl Settings {
             if let Some(j) = c.jog.axes.get_mut(i) {
                 *j = a.jog;
             }
+            if let Some(b) = c.brakes.get_mut(i) {
+                *b = a.brake;
+            }
             if let Some(k) = c.model_known.get_mut(i) {
                 *k = a.model.is_some();
             }
@@ -172,6 +175,8 @@ impl Settings {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
+
     use super::*;
     use crate::presets::board::{factory_config, servo_config, BOARD_RATE_HZ};
     use crate::presets::gantry::{dsmc_for, GANTRY_AXES};
@@ -277,6 +282,7 @@ mod tests {
     fn validating_servo_fits_the_documented_stack_budget() {
         // servo_config's doc states the stack the validation takes
         let size = core::mem::size_of::<Servo<f32>>();
+        std::println!("Servo<f32>: {size} bytes");
         assert!(size <= 3600, "Servo<f32> is {size} bytes");
     }
 }

@@ -18,8 +18,10 @@ use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
 use crate::motion::planner::{PlannerConfig, GANTRY_PLANNER};
 use crate::presets::board::{BOARD_LAMBDA, BOARD_PLL};
 use crate::presets::gantry::{
-    GANTRY_AMPLIFIERS, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL, LOOP_OMEGA,
+    GANTRY_AMPLIFIERS, GANTRY_BRAKES, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL,
+    LOOP_OMEGA,
 };
+use crate::servo::brake::BrakeConfig;
 use crate::servo::homing::AxisHomingConfig;
 use crate::servo::jog::{AxisJogConfig, JogConfig};
 use crate::servo::travel::AxisTravel;
@@ -28,8 +30,9 @@ use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
 use super::offsets::{ToolTable, WorkOffsets};
 
 /// Version of the tree's layout, stored with every record (see the module docs). 3: the
-/// work offsets, the tool table and the planner's servo reserve.
-pub const SETTINGS_VERSION: u16 = 3;
+/// work offsets, the tool table and the planner's servo reserve; 4: the holding brakes
+/// (`axis.<a>.brake`).
+pub const SETTINGS_VERSION: u16 = 4;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -156,6 +159,9 @@ pub struct AxisSettings {
     pub jog: AxisJogConfig,
     /// What the motion planner may command on this axis.
     pub planner: AxisPlannerSettings,
+    /// The axis' holding brake (absent from files written before brakes existed: none).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub brake: BrakeConfig,
 }
 
 /// The motion planner's limits of one axis (its velocity at most the axis' `vel_max_mm_s`,
@@ -290,13 +296,14 @@ const fn factory_axis(i: usize) -> AxisSettings {
             acc_max_mm_s2: GANTRY_PLANNER.acc_max_mm_s2[i],
             jerk_max_mm_s3: GANTRY_PLANNER.jerk_max_mm_s3[i],
         },
+        brake: GANTRY_BRAKES[i],
     }
 }
 
 /// The factory settings: what a board runs before anything was stored, equal to
 /// [`crate::presets::board::factory_config`] (tested): the designed gantry's DSMC at
 /// [`LOOP_OMEGA`], contour coupling λ = [`BOARD_LAMBDA`], the PLL at [`BOARD_PLL`], the
-/// gantry's limits, travel, homing and jog, the link's default watchdog, identification's
+/// gantry's limits, travel, homing, jog and Z brake, the link's default watchdog, identification's
 /// default cap and margin — and no axis model, so the model-based laws refuse to arm
 /// until the axes are identified or their models entered.
 pub const FACTORY: Settings = Settings {

@@ -14,7 +14,7 @@ use crate::config::ConfigError;
 use crate::motion::path::PathStart;
 use crate::motion::trajectory::Trajectory;
 use crate::servo::snapshot::Snapshot;
-use crate::servo::{Command, Servo, ServoConfig};
+use crate::servo::{Command, Servo, ServoConfig, ServoState};
 use crate::sim::truth::{Truth, TruthFigures, TruthSpec};
 use crate::sim::world::{Injection, World, WorldConfig};
 use crate::{Real, Vec3};
@@ -58,6 +58,9 @@ pub struct SimRun<R> {
     hold: bool,
     inject: Option<(u32, Injection)>,
     injected_at: Option<u32>,
+    /// The run's period in which the servo started the path (it holds the start until the
+    /// holding brakes are open): the figures' path time counts from there.
+    path_from: Option<u32>,
 }
 
 impl<R: Real> SimRun<R> {
@@ -98,6 +101,7 @@ impl<R: Real> SimRun<R> {
             hold: cfg.hold,
             inject,
             injected_at: None,
+            path_from: None,
         })
     }
 
@@ -138,13 +142,25 @@ impl<R: Real> SimRun<R> {
     pub fn finish_period(&mut self) -> Option<f64> {
         let s = self.world.state();
         let pos = Vec3::new(s[0].pos, s[1].pos, s[2].pos);
-        let d = self.truth.record(
-            &self.reference,
-            self.world.time_s(),
-            self.servo.period_s(),
-            pos,
-            self.world.effort(),
-        );
+        let held = self.servo.motion_held();
+        if self.path_from.is_none() && !held && self.servo.state() == ServoState::Run {
+            self.path_from = Some(self.k);
+        }
+        // the figures compare the machine with the path from the period the path started
+        // (the same as the run's start without brakes); while a brake still opens there is
+        // no path to compare with yet
+        let d = if self.path_from.is_none() && held {
+            None
+        } else {
+            let from_s = f64::from(self.path_from.unwrap_or(0)) * self.servo.period_s();
+            self.truth.record(
+                &self.reference,
+                self.world.time_s() - from_s,
+                self.servo.period_s(),
+                pos,
+                self.world.effort(),
+            )
+        };
         self.world.advance();
         self.k = self.k.saturating_add(1);
         d

@@ -10,6 +10,7 @@
 use crate::axes::AXES;
 use crate::config::{finite, ConfigError};
 use crate::estimator::CounterWidth;
+use crate::servo::brake::{BrakeConfig, DEFAULT_ENGAGE_S, DEFAULT_RELEASE_S};
 use crate::servo::io::{Inputs, ServoIo};
 use crate::servo::ServoConfig;
 use crate::sim::physical::{PhysicalAxis, PhysicalAxisConfig};
@@ -131,6 +132,37 @@ pub struct ImperfectionConfig {
     pub command_delay_periods: u8,
 }
 
+/// One axis' holding brake as the simulated machine has it: a static friction torque
+/// while it grips, with the delays of a real brake between its command and its effect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+pub struct BrakePlantConfig {
+    /// Holding torque while the brake grips, mN·m on a physical axis (units/s² on the
+    /// paper's); 0: no brake. It acts as static friction: the axis does not move while the
+    /// sum of the other torques on it stays within it, and decelerates with it otherwise.
+    pub holding_mnm: f32,
+    /// The brake grips this long after its coil is de-energised, s.
+    pub engage_s: f32,
+    /// The brake opens this long after its coil is energised, s.
+    pub release_s: f32,
+}
+
+impl BrakePlantConfig {
+    /// No brake.
+    pub const NONE: Self = Self {
+        holding_mnm: 0.0,
+        engage_s: DEFAULT_ENGAGE_S,
+        release_s: DEFAULT_RELEASE_S,
+    };
+}
+
+impl Default for BrakePlantConfig {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
 /// The simulated machine.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -147,6 +179,9 @@ pub struct WorldConfig {
     pub switches: [SwitchConfig; AXES],
     #[cfg_attr(feature = "serde", serde(default))]
     pub imperfections: ImperfectionConfig,
+    /// Holding brakes (default: none).
+    #[cfg_attr(feature = "serde", serde(default, with = "crate::axes::per_axis"))]
+    pub brakes: [BrakePlantConfig; AXES],
 }
 
 /// A validated plant.
@@ -219,6 +254,46 @@ pub struct World {
     last_counts: [i64; AXES],
     /// The index pulse of the last period, as the counter captured it.
     index: [Option<u32>; AXES],
+    brakes: WorldBrakes,
+}
+
+/// The simulated brakes' state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct WorldBrakes {
+    /// Holding torque as an acceleration, units/s² (0: no brake).
+    hold_accel: [f64; AXES],
+    engage_s: [f64; AXES],
+    release_s: [f64; AXES],
+    /// The coil is energised (the servo's last command).
+    released: [bool; AXES],
+    /// When that command was given, s (`-inf`: at boot, engaged long since).
+    since_s: [f64; AXES],
+    /// The axis is held at rest by the gripping brake (stuck, in the static-friction
+    /// sense).
+    stuck: [bool; AXES],
+}
+
+/// Slack of the brake's timing comparisons, s: far below a period, above the rounding of
+/// `periods × period_s`.
+const BRAKE_TIME_SLACK_S: f64 = 1e-9;
+
+/// An axis whose brake grips: the brake's friction `-hold · sign` added to the plant's
+/// acceleration, or, while stuck, no motion at all.
+struct Braked<'a> {
+    pushed: Pushed<'a>,
+    /// Acceleration of the brake's friction over this substep (signed), units/s².
+    friction: f64,
+    stuck: bool,
+}
+
+impl AxisDynamics<f64> for Braked<'_> {
+    fn accel(&self, s: AxisState<f64>, u: f64, t: f64) -> f64 {
+        if self.stuck {
+            0.0
+        } else {
+            self.pushed.accel(s, u, t) + self.friction
+        }
+    }
 }
 
 /// Faults injected into the simulated machine (fault matrix, tests).
@@ -330,6 +405,10 @@ impl World {
             pending: [0.0; AXES],
             last_counts: [0; AXES],
             index: [None; AXES],
+            brakes: WorldBrakes {
+                since_s: [f64::NEG_INFINITY; AXES],
+                ..WorldBrakes::default()
+            },
         };
         if cfg.imperfections.command_delay_periods > 1 {
             return Err(ConfigError::OutOfRange(
@@ -355,6 +434,24 @@ impl World {
                 CounterWidth::Bits16 => 0xFFFF,
                 CounterWidth::Bits32 => u32::MAX,
             };
+            let b = &cfg.brakes[i];
+            // the timings are checked by the servo's own rule (one implementation)
+            BrakeConfig {
+                present: true,
+                engage_s: b.engage_s,
+                release_s: b.release_s,
+            }
+            .validate(i)?;
+            if !(b.holding_mnm >= 0.0 && b.holding_mnm.is_finite()) {
+                return Err(ConfigError::OutOfRange("brakes.holding_mnm (finite, >= 0)"));
+            }
+            let scale = match &w.plants[i] {
+                Plant::Physical(p) => p.inv_inertia(),
+                Plant::Paper(_) => 1.0,
+            };
+            w.brakes.hold_accel[i] = f64::from(b.holding_mnm) * scale;
+            w.brakes.engage_s[i] = f64::from(b.engage_s);
+            w.brakes.release_s[i] = f64::from(b.release_s);
             let amp = &servo.amplifiers[i];
             w.full_scale[i] = f64::from(amp.checked_full_scale()?);
             if amp.resolution_bits > 0 {
@@ -417,6 +514,31 @@ impl World {
     /// Whether the servo drives the outputs this period.
     pub fn outputs_on(&self) -> bool {
         self.outputs_on
+    }
+
+    /// Per axis: the brake coil is energised (the servo's last brake command).
+    pub fn brakes_released(&self) -> [bool; AXES] {
+        self.brakes.released
+    }
+
+    /// Per axis: the brake grips now (engaged for its `engage_s`, or still closed while
+    /// it opens); false on an axis without a brake.
+    pub fn brake_gripping(&self) -> [bool; AXES] {
+        let t = self.time_s();
+        core::array::from_fn(|i| self.gripping_at(i, t))
+    }
+
+    fn gripping_at(&self, i: usize, t: f64) -> bool {
+        let b = &self.brakes;
+        if !(b.hold_accel[i] > 0.0) {
+            return false;
+        }
+        let since = t - b.since_s[i];
+        if b.released[i] {
+            since < b.release_s[i] - BRAKE_TIME_SLACK_S
+        } else {
+            since >= b.engage_s[i] - BRAKE_TIME_SLACK_S
+        }
     }
 
     /// Simulated time at the start of the current period, s.
@@ -545,8 +667,11 @@ impl World {
                 *a = 0.0;
             }
         }
-        let f = &self.faults;
-        if f.ext_accel == [0.0; AXES] && f.drag == [0.0; AXES] {
+        let gripping = [0, 1, 2].map(|i| self.gripping_at(i, t));
+        if gripping.iter().any(|g| *g) {
+            self.advance_braked(t, h, u, gripping);
+        } else if self.faults.ext_accel == [0.0; AXES] && self.faults.drag == [0.0; AXES] {
+            self.brakes.stuck = [false; AXES];
             for j in 0..self.substeps {
                 rk4_step(
                     &self.plants,
@@ -557,6 +682,8 @@ impl World {
                 );
             }
         } else {
+            self.brakes.stuck = [false; AXES];
+            let f = &self.faults;
             let axes = [0, 1, 2].map(|i| Pushed {
                 plant: &self.plants[i],
                 ext: f.ext_accel[i],
@@ -573,6 +700,79 @@ impl World {
                 let unit = (self.next_random() >> 11) as f64 / (1u64 << 53) as f64;
                 self.noise[i] = n * (unit - 0.5);
             }
+        }
+    }
+}
+
+impl World {
+    /// One period's substeps with at least one brake gripping. A gripping brake is static
+    /// friction of `hold` (as an acceleration): a stuck axis stays stuck while the other
+    /// accelerations at rest sum to at most `hold`; otherwise the brake's friction opposes
+    /// the motion (or, breaking away, the net push) over the substep, and a velocity that
+    /// crosses zero sticks the axis there. Stick and slip resolve at the substep (25 µs at
+    /// 10 kHz × 4).
+    fn advance_braked(&mut self, t: f64, h: f64, u: [f64; AXES], gripping: [bool; AXES]) {
+        for (s, g) in self.brakes.stuck.iter_mut().zip(gripping) {
+            // a released brake lets go at once
+            *s &= g;
+        }
+        for j in 0..self.substeps {
+            let tj = t + f64::from(j) * h;
+            let f = &self.faults;
+            let pushed = |i: usize| Pushed {
+                plant: &self.plants[i],
+                ext: f.ext_accel[i],
+                drag: f.drag[i],
+            };
+            let mut friction = [0.0; AXES];
+            let mut stuck = self.brakes.stuck;
+            for i in 0..AXES {
+                if !gripping[i] {
+                    continue;
+                }
+                let hold = self.brakes.hold_accel[i];
+                let v = self.state[i].vel;
+                if stuck[i] || v == 0.0 {
+                    // at rest: does the rest of the push overcome the brake?
+                    let rest = AxisState {
+                        pos: self.state[i].pos,
+                        vel: 0.0,
+                    };
+                    let a = pushed(i).accel(rest, u[i], tj);
+                    if libm::fabs(a) <= hold {
+                        stuck[i] = true;
+                    } else {
+                        stuck[i] = false;
+                        friction[i] = -libm::copysign(hold, a);
+                    }
+                } else {
+                    friction[i] = -libm::copysign(hold, v);
+                }
+            }
+            let axes = [0, 1, 2].map(|i| Braked {
+                pushed: pushed(i),
+                friction: friction[i],
+                stuck: stuck[i],
+            });
+            let before = self.state;
+            rk4_step(&axes, &mut self.state, tj, h, |_, _| u);
+            for i in 0..AXES {
+                if stuck[i] {
+                    self.state[i] = AxisState {
+                        pos: before[i].pos,
+                        vel: 0.0,
+                    };
+                } else if gripping[i]
+                    && before[i].vel * self.state[i].vel <= 0.0
+                    && before[i].vel != 0.0
+                {
+                    // the brake's friction stops a moving axis, never reverses it: it sticks
+                    // where its velocity crosses zero (breaking away, it moves the push's way)
+                    self.state[i].vel = 0.0;
+                    stuck[i] = true;
+                }
+            }
+            self.brakes.stuck = stuck;
         }
     }
 }
@@ -602,6 +802,17 @@ impl<R: Real> ServoIo<R> for World {
         // the enable line cuts the amplifier at once, whatever it was about to apply
         self.pending = [0.0; AXES];
         self.outputs_on = false;
+    }
+
+    fn write_brakes(&mut self, released: [bool; AXES]) {
+        let t = self.time_s();
+        let b = &mut self.brakes;
+        for ((now, was), since) in released.iter().zip(&mut b.released).zip(&mut b.since_s) {
+            if now != was {
+                *was = *now;
+                *since = t;
+            }
+        }
     }
 
     fn true_velocity(&self) -> Option<[f64; AXES]> {

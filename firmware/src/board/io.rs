@@ -1,7 +1,7 @@
 //! The core's [`ServoIo`] for the board: encoder timer registers and index captures
 //! ([`super::index`]) in, e-stop, limit and
 //! amplifier-fault pins and the control timer's overrun flag in, TIM1 PWM + direction +
-//! drive enables out (through [`DriveCommand`]: full duty is
+//! drive enables + holding brakes out (through [`DriveCommand`]: full duty is
 //! the amplifier's `full_scale` of the servo configuration).
 
 use controller_core::axes::AXES;
@@ -98,5 +98,10 @@ impl ServoIo<f32> for BoardIo {
     #[inline]
     fn disable_outputs(&mut self) {
         self.servo.disable();
+    }
+
+    #[inline]
+    fn write_brakes(&mut self, released: [bool; AXES]) {
+        self.servo.write_brakes(released);
     }
 }

@@ -13,6 +13,7 @@
 //! | X/Y/Z servo PWM | PE9 / PE11 / PE13 | TIM1 CH1/CH2/CH3, AF1 | 20 kHz, ARR 8399 (8400 steps) |
 //! | X/Y/Z direction | PE10 / PE12 / PE14 | GPIO push-pull | high = negative direction |
 //! | X/Y/Z drive enable | PD0 / PD1 / PD2 | GPIO push-pull | high = enabled, low at reset |
+//! | X/Y/Z holding brake | PD4 / PD5 / PD6 | GPIO push-pull | high = coil energised (brake released), low = gripping: at reset (the brake driver needs a pull-down on its input), boot and on every fault |
 //! | e-stop | PB12 | TIM1_BKIN (AF1), pull-up | NC contact to GND: high = stop (also on wire break); TIM1's break input, so the PWM goes off in hardware |
 //! | limits X-/X+/Y-/Y+/Z-/Z+ | PC0..PC5 | GPIO input, pull-up | NC contacts to GND: high = active |
 //! | amplifier fault X/Y/Z | PD8 / PD9 / PD10 | GPIO input, pull-up | amplifier "ready" output to GND (open collector, on when healthy): high = fault (also on wire break) |
@@ -31,7 +32,7 @@
 //! the safety state machine enables it.
 //!
 //! Order of [`init`] (board-level safety, see README-firmware.md "Board-level safety"):
-//! drive enables, direction and PWM pins become push-pull outputs driven low *before*
+//! drive enables, brake outputs, direction and PWM pins become push-pull outputs driven low *before*
 //! the clock setup (the pins float from reset until then: the drives need pull-downs on
 //! their enable inputs for that first microsecond); then the crystal with a start-up
 //! timeout and the HSI fallback ([`clock`]); then TIM1 with its break input and locked
@@ -132,6 +133,21 @@ pub fn init(dp: pac::Peripherals) -> Board {
             .into_push_pull_output_in_state(PinState::Low)
             .erase(),
     ];
+    // brake coils de-energised (gripping) from the first instructions on
+    let brake = [
+        gpiod
+            .pd4
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        gpiod
+            .pd5
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        gpiod
+            .pd6
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+    ];
     let direction = [
         gpioe
             .pe10
@@ -181,7 +197,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         ch2.with(pwm_pins.1).erase(),
         ch3.with(pwm_pins.2).erase(),
     ];
-    let servo = ServoOutputs::new(pwm_timer, pwm, direction, enable);
+    let servo = ServoOutputs::new(pwm_timer, pwm, direction, enable, brake);
 
     let mut encoders = Encoders {
         // PA15 and PB3 come out of reset as JTAG pins (AF0); SWD only needs PA13/PA14.

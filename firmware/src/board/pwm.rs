@@ -1,5 +1,6 @@
-//! Servo outputs: TIM1 PWM magnitude (CH1..CH3 on PE9/PE11/PE13, 20 kHz), direction pins
-//! and drive enables. (The QEMU rig configures and disables them, and drives the
+//! Servo outputs: TIM1 PWM magnitude (CH1..CH3 on PE9/PE11/PE13, 20 kHz), direction pins,
+//! drive enables and the holding-brake outputs (PD4/PD5/PD6: high = coil energised,
+//! brake released; low = gripping, the reset and fault state). (The QEMU rig configures and disables them, and drives the
 //! simulated machine instead.)
 //!
 //! All three PWM channels are on TIM1, so one register write (clearing BDTR.MOE) turns
@@ -19,12 +20,14 @@ use firmware::drive::DriveCommand;
 
 use super::shutdown::{BDTR_ON, BDTR_SAFE};
 
-/// TIM1's three PWM channels, direction and enable pins.
+/// TIM1's three PWM channels, direction, enable and brake pins.
 #[cfg_attr(feature = "qemu", allow(dead_code))]
 pub struct ServoOutputs {
     pwm: [ErasedChannel<pac::TIM1>; AXES],
     direction: [AnyPin<Output>; AXES],
     enable: [AnyPin<Output>; AXES],
+    /// Brake coils X, Y, Z (high = released).
+    brake: [AnyPin<Output>; AXES],
     max_duty_counts: u16,
     active: bool,
     /// Owns TIM1's period settings (kept so nothing else can reconfigure the timer).
@@ -39,6 +42,7 @@ impl ServoOutputs {
         mut pwm: [ErasedChannel<pac::TIM1>; AXES],
         direction: [AnyPin<Output>; AXES],
         enable: [AnyPin<Output>; AXES],
+        brake: [AnyPin<Output>; AXES],
     ) -> Self {
         configure_tim1_break_and_idle();
         for ch in pwm.iter_mut() {
@@ -50,6 +54,7 @@ impl ServoOutputs {
             pwm,
             direction,
             enable,
+            brake,
             active: true,
             _timer: timer,
         };
@@ -79,7 +84,9 @@ impl ServoOutputs {
     }
 
     /// Main output off first (all three PWM pins to idle low in one write), then duties
-    /// to zero and drive enables low. Cheap enough to call every period.
+    /// to zero, drive enables low and every brake gripping (an axis whose amplifier is off
+    /// must never hang on an open brake, whatever the servo commanded). Cheap enough to
+    /// call every period.
     #[inline]
     pub fn disable(&mut self) {
         tim1_main_output(false);
@@ -89,7 +96,19 @@ impl ServoOutputs {
         for en in self.enable.iter_mut() {
             en.set_low();
         }
+        for b in self.brake.iter_mut() {
+            b.set_low();
+        }
         self.active = false;
+    }
+
+    /// The brake coils: `released[i]` energises axis i's (brake open), `false` lets it
+    /// grip. Only while the output stage is on: with it off every brake stays gripping.
+    #[inline]
+    pub fn write_brakes(&mut self, released: [bool; AXES]) {
+        for (pin, r) in self.brake.iter_mut().zip(released) {
+            pin.set_state(PinState::from(r && self.active));
+        }
     }
 }
 

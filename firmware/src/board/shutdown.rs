@@ -8,8 +8,9 @@
 //! 1. TIM1 BDTR = [`BDTR_SAFE`]: main output enable (MOE) off, so all three PWM pins go
 //!    to their idle level (low; OSSI keeps them driven) in one write;
 //! 2. TIM1 CCR1..CCR3 = 0: zero duty, should anything turn MOE on again;
-//! 3. GPIOD BSRR = reset bits of PD0..PD2: the drive enables low (BSRR sets the output
-//!    data register's bits atomically, so no other pin of the port is touched).
+//! 3. GPIOD BSRR = reset bits of [`OFF_PINS`], PD0..PD2 and PD4..PD6: the drive enables
+//!    low and the holding brakes de-energised, gripping (BSRR sets the output data
+//!    register's bits atomically, so no other pin of the port is touched).
 //!
 //! It needs no RAM, no stack beyond the call and no peripheral driver, and works before
 //! `init` too (writes to a peripheral whose clock is still off are ignored; the pins are
@@ -64,8 +65,14 @@ pub const BDTR_ON: u32 = BDTR_SAFE | BDTR_MOE;
 
 /// The drive enables PD0, PD1, PD2 (X, Y, Z) as GPIOD bit positions.
 pub const ENABLE_PINS: u32 = 0b111;
+/// The holding-brake outputs PD4, PD5, PD6 (X, Y, Z) as GPIOD bit positions (high =
+/// released).
+pub const BRAKE_PINS: u32 = 0b111 << 4;
+/// Every GPIOD pin a fault drives low: the drive enables off and the brakes gripping.
+pub const OFF_PINS: u32 = ENABLE_PINS | BRAKE_PINS;
 
-/// Every servo output off: TIM1 main output off, duties zero, drive enables low. Callable
+/// Every servo output off: TIM1 main output off, duties zero, drive enables low, brakes
+/// gripping. Callable
 /// from any context, before `init` and in fault handlers; idempotent. (The naked
 /// exception entries below do the same stores in assembly.)
 #[inline(always)]
@@ -81,7 +88,7 @@ pub fn outputs_off_raw() {
         reg(TIM1_BASE + TIM1_CCR1).write_volatile(0);
         reg(TIM1_BASE + TIM1_CCR2).write_volatile(0);
         reg(TIM1_BASE + TIM1_CCR3).write_volatile(0);
-        reg(GPIOD_BSRR).write_volatile(ENABLE_PINS << 16);
+        reg(GPIOD_BSRR).write_volatile(OFF_PINS << 16);
     }
 }
 
@@ -152,8 +159,8 @@ pub unsafe extern "C" fn HardFault() -> ! {
         ccr3 = const TIM1_CCR3,
         bsrr_lo = const GPIOD_BSRR & 0xFFFF,
         bsrr_hi = const GPIOD_BSRR >> 16,
-        en_lo = const (ENABLE_PINS << 16) & 0xFFFF,
-        en_hi = const (ENABLE_PINS << 16) >> 16,
+        en_lo = const (OFF_PINS << 16) & 0xFFFF,
+        en_hi = const (OFF_PINS << 16) >> 16,
         report = sym exception_report,
     )
 }

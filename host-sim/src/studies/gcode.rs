@@ -584,6 +584,9 @@ pub fn run_with_settings(
     let mut fault = None;
     let mut finished_at = None;
     let mut rest = 0u32;
+    // periods the servo held the program's start for the brakes to open: the program's
+    // time begins after them (its clock stood still)
+    let mut held_periods = 0u64;
     loop {
         while next < segs.len() && mp.free_slots() > 0 {
             mp.push(&segs[next].seg).map_err(|e| {
@@ -598,26 +601,38 @@ pub fn run_with_settings(
                 b.set_position(next as u64);
             }
         }
-        let sample: PathSample = mp.tick();
-        run.servo_mut().set_planner_reference(&sample);
+        // the program's clock stands still while the servo holds its start for the brakes
+        // to open (`Servo::motion_held`), as the machine's supervisor does
+        let held = run.servo().motion_held();
+        let sample: PathSample = if held {
+            PathSample::default()
+        } else {
+            let s = mp.tick();
+            run.servo_mut().set_planner_reference(&s);
+            s
+        };
         let snap = *run.control_with(&[]);
         let truth = run.world().state().map(|s| s.pos);
         run.finish_period();
         k += 1;
-        along += f64::from(sample.path_speed_mm_s.abs()) * dt;
-        metrics.add(
-            &MetricSample {
-                t_s: k as f64 * dt,
-                tag: sample.tag as usize,
-                planned_mm: sample.pos_mm.to_array().map(f64::from),
-                vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
-                acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
-                actual_mm: truth,
-                along_mm: along,
-            },
-            finished_at.is_none(),
-            k.is_multiple_of(every),
-        );
+        if held {
+            held_periods += 1;
+        } else {
+            along += f64::from(sample.path_speed_mm_s.abs()) * dt;
+            metrics.add(
+                &MetricSample {
+                    t_s: (k - held_periods) as f64 * dt,
+                    tag: sample.tag as usize,
+                    planned_mm: sample.pos_mm.to_array().map(f64::from),
+                    vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
+                    acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
+                    actual_mm: truth,
+                    along_mm: along,
+                },
+                finished_at.is_none(),
+                k.is_multiple_of(every),
+            );
+        }
 
         if snap.state == ServoState::Fault || snap.state == ServoState::Stopping {
             let f = run.servo().faults().first();
@@ -626,8 +641,8 @@ pub fn run_with_settings(
             run_while(&mut run, ServoState::Stopping, 1_000_000)?;
             break;
         }
-        if finished_at.is_none() && next == segs.len() && mp.is_idle() {
-            finished_at = Some(k);
+        if !held && finished_at.is_none() && next == segs.len() && mp.is_idle() {
+            finished_at = Some(k - held_periods);
         }
         if finished_at.is_some() {
             rest += 1;
@@ -643,7 +658,7 @@ pub fn run_with_settings(
         b.finish_and_clear();
     }
     let compute_s = started.elapsed().as_secs_f64();
-    let duration_s = finished_at.unwrap_or(k) as f64 * dt;
+    let duration_s = finished_at.unwrap_or(k - held_periods) as f64 * dt;
     if fault.is_none() {
         // back to Idle, holding the end point
         run.control_with(&[Command::Stop]);
