@@ -38,6 +38,8 @@ fn run(servo: ServoConfig, index_counts: u32, noise_counts: u8) -> SimRun<f32> {
                 seed: 5,
                 ..ImperfectionConfig::default()
             },
+            // (X carries the index check under test; Z's brake plays no part)
+            brakes: Default::default(),
         },
         truth: TruthSpec::default(),
         periods: u32::MAX,

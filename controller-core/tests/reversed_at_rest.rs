@@ -11,12 +11,13 @@
 
 use controller_core::axes::Axis;
 use controller_core::presets::board::servo_config;
-use controller_core::presets::gantry::GANTRY_AXES;
+use controller_core::presets::gantry::{GANTRY_AXES, GANTRY_Z_BRAKE_HOLDING_MNM};
 use controller_core::servo::{Command, ServoState};
 use controller_core::sim::run::{RunConfig, SimRun};
 use controller_core::sim::truth::TruthSpec;
 use controller_core::sim::world::{
-    ImperfectionConfig, InitialState, Injection, PlantConfig, SwitchConfig, WorldConfig,
+    BrakePlantConfig, ImperfectionConfig, InitialState, Injection, PlantConfig, SwitchConfig,
+    WorldConfig,
 };
 
 /// Detection bound for a swapped A/B at rest on a loaded axis, periods: the following
@@ -27,16 +28,24 @@ const BOUND_PERIODS: u32 = 1_000;
 /// 0.1 mm limit plus the runaway during the stop's period and the coast is not counted).
 const BOUND_TRAVEL_MM: f64 = 0.25;
 
+/// The simulated gantry with Z's holding brake (the board configuration has it).
+fn gantry_world() -> WorldConfig {
+    let mut brakes = [BrakePlantConfig::NONE; 3];
+    brakes[Axis::Z.index()].holding_mnm = GANTRY_Z_BRAKE_HOLDING_MNM;
+    WorldConfig {
+        plants: GANTRY_AXES.map(PlantConfig::Physical),
+        plant_substeps: 4,
+        initial: [InitialState::default(); 3],
+        switches: [SwitchConfig::NONE; 3],
+        imperfections: ImperfectionConfig::default(),
+        brakes,
+    }
+}
+
 fn holding() -> SimRun<f32> {
     let cfg = RunConfig {
         servo: servo_config(10_000),
-        world: WorldConfig {
-            plants: GANTRY_AXES.map(PlantConfig::Physical),
-            plant_substeps: 4,
-            initial: [InitialState::default(); 3],
-            switches: [SwitchConfig::NONE; 3],
-            imperfections: ImperfectionConfig::default(),
-        },
+        world: gantry_world(),
         truth: TruthSpec::default(),
         periods: u32::MAX,
         hold: true,
@@ -130,4 +139,114 @@ fn a_swapped_encoder_at_rest_stops_within_the_following_error() {
         worst = worst.max(p);
     }
     println!("worst {worst} periods");
+}
+
+/// The board configuration with `safety.arm_encoder_check` on, disarmed for 0.1 s on the
+/// simulated gantry (Z's brake gripping), with `swapped`'s A/B swapped while disarmed
+/// (a wiring change made with the power off).
+fn disarmed_with_arm_check(swapped: Option<Axis>) -> SimRun<f32> {
+    let mut servo = servo_config(10_000);
+    servo.safety.arm_encoder_check = true;
+    let cfg = RunConfig {
+        servo,
+        world: gantry_world(),
+        truth: TruthSpec::default(),
+        periods: u32::MAX,
+        hold: true,
+        inject: None,
+    };
+    let mut r = SimRun::new(&cfg).expect("the board configuration validates");
+    for _ in 0..1_000 {
+        r.control_with(&[]);
+        r.finish_period();
+    }
+    assert_eq!(r.servo().state(), ServoState::Disabled);
+    if let Some(axis) = swapped {
+        r.world_mut().inject(&Injection::EncoderReversed { axis });
+    }
+    r
+}
+
+/// Arm with the arm check on: (periods from arm to the end of the check, periods of it
+/// with the axes free to move (every brake open), the state then, the first fault's name,
+/// the largest travel of any axis from where it armed during the check, mm).
+fn arm_checked(swapped: Option<Axis>) -> (u32, u32, ServoState, &'static str, f64) {
+    let mut r = disarmed_with_arm_check(swapped);
+    let from = r.world().state().map(|s| s.pos);
+    r.control_with(&[Command::Arm]);
+    r.finish_period();
+    assert_eq!(
+        r.servo().state(),
+        ServoState::EncoderCheck,
+        "{:?}",
+        r.servo().faults().first()
+    );
+    let (mut periods, mut moving, mut travel) = (1u32, 0u32, 0.0f64);
+    while r.servo().state() == ServoState::EncoderCheck {
+        if !r.servo().motion_held() {
+            moving += 1;
+        }
+        r.control_with(&[]);
+        r.finish_period();
+        periods += 1;
+        let now = r.world().state().map(|s| s.pos);
+        for i in 0..3 {
+            travel = travel.max((now[i] - from[i]).abs());
+        }
+        assert!(periods < 20_000, "the arm check never ended");
+    }
+    let first = r.servo().faults().first();
+    if let Some(f) = first {
+        assert_eq!(f.fault.axis, swapped, "{f:?}");
+    }
+    let kind = first.map_or("none", |f| f.fault.kind.name());
+    (periods, moving, r.servo().state(), kind, travel)
+}
+
+/// Periods the arm check may take on a healthy gantry: Z's brake opens (700 periods),
+/// the 20 ms settle, the ramps out (16 counts at 2 mm/s: 50 periods) and back (100) with
+/// the heaviest axis' (Y's) lag, and the 20 ms settle at the end (measured 1,824).
+const ARM_CHECK_BOUND_PERIODS: u32 = 2_500;
+/// Travel the arm check may make, mm: the 16 check counts (10 µm) and the laws'
+/// overshoot (measured 0.0120).
+const ARM_CHECK_TRAVEL_MM: f64 = 0.03;
+/// The goal for a swapped A/B: found within 100 periods of motion (X and Y:
+/// measured 61 and 48 periods after the check's reference starts moving).
+const ARM_SWAP_BOUND_PERIODS: u32 = 100;
+/// ... and on the braked Z, from its brake opening: the runaway its load starts must grow
+/// past the sag a healthy Z shows (6 counts) before it tells (measured 113).
+const ARM_SWAP_BRAKED_BOUND_PERIODS: u32 = 150;
+/// Travel a swapped axis may make before its outputs go off, mm (measured 0.0013-0.0068:
+/// a few counts).
+const ARM_SWAP_TRAVEL_MM: f64 = 0.015;
+
+#[test]
+fn the_arm_check_finds_a_swapped_encoder_before_anything_moves() {
+    // healthy: armed after the check, nothing latched, the axes back where they armed
+    let (p, moving, state, kind, travel) = arm_checked(None);
+    println!(
+        "| healthy | {p} | {moving} | {state:?} | {kind} | {:.4} |",
+        travel
+    );
+    assert_eq!((state, kind), (ServoState::Idle, "none"));
+    assert!(p <= ARM_CHECK_BOUND_PERIODS, "{p} periods");
+    assert!(travel <= ARM_CHECK_TRAVEL_MM, "{travel} mm");
+    println!("| swapped axis | periods from arm | periods moving | state | fault | travel mm |");
+    println!("| --- | --- | --- | --- | --- | --- |");
+    for axis in [Axis::X, Axis::Y, Axis::Z] {
+        let (p, moving, state, kind, travel) = arm_checked(Some(axis));
+        println!("| {axis:?} | {p} | {moving} | {state:?} | {kind} | {travel:.4} |");
+        assert_eq!(
+            (state, kind),
+            (ServoState::Fault, "encoder_jump"),
+            "{axis:?}"
+        );
+        let bound = if axis == Axis::Z {
+            ARM_SWAP_BRAKED_BOUND_PERIODS
+        } else {
+            ARM_SWAP_BOUND_PERIODS
+        };
+        assert!(moving <= bound, "{axis:?}: {moving} periods");
+        assert!(travel <= ARM_SWAP_TRAVEL_MM, "{axis:?}: {travel} mm");
+    }
 }

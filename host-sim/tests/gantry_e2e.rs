@@ -326,7 +326,9 @@ fn e_stop<T: Transport + EstopPanel>(c: &mut Client<T>) -> (u32, u32) {
     )
     .unwrap();
     start_long_move(c);
-    // (from here on every sample is of the running program)
+    // (from here on every sample is of the program moving: its start waits for Z's brake
+    // to open, and an axis held exactly still without load needs no effort)
+    cli::wait_while(c, |s| s.vel_mm_s[0] < 1.0).unwrap();
     let _ = c.take_telemetry();
     cli::wait_while(c, |s| s.vel_mm_s[0] < 40.0).unwrap();
     let pressed_at = c.transport.press_estop(true).unwrap();

@@ -261,6 +261,7 @@ pub struct SafetyTimings {
     pub estop_stop_time_s: f32,
     pub encoder_noise_counts: f32,
     pub index_max_correction_counts: u32,
+    pub arm_encoder_check: bool,
 }
 
 impl Default for SafetyTimings {
@@ -281,6 +282,7 @@ impl Default for SafetyTimings {
             estop_stop_time_s: d.estop_stop_time_s,
             encoder_noise_counts: d.encoder_noise_counts,
             index_max_correction_counts: d.index_max_correction_counts,
+            arm_encoder_check: d.arm_encoder_check,
         }
     }
 }
@@ -304,6 +306,7 @@ impl SafetyTimings {
             estop_stop_time_s: self.estop_stop_time_s,
             encoder_noise_counts: self.encoder_noise_counts,
             index_max_correction_counts: self.index_max_correction_counts,
+            arm_encoder_check: self.arm_encoder_check,
         }
     }
 }

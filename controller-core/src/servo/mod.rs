@@ -207,6 +207,52 @@ struct Check {
     n0: i64,
 }
 
+/// The closed-loop encoder check at arming ([`SafetyConfig::arm_encoder_check`]): every
+/// axis' hold reference moves `encoder_check_counts` out and back each way at
+/// [`ARM_CHECK_SPEED_MM_S`], all at once, under the laws; each reading must follow.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ArmCheck<R> {
+    /// Each axis' phase, and the periods it has been in it.
+    phase: [ArmPhase; AXES],
+    k: [u32; AXES],
+    /// Every axis' counts where the check began (its hold point).
+    base: [i64; AXES],
+    /// The hold point of every axis, mm.
+    hold: Vec3<R>,
+    /// The reference's offset from the hold point, counts.
+    offset: [f32; AXES],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ArmPhase {
+    /// An axis with a brake holds for the stop's settle time once the brakes are open
+    /// (the load the brake held settles onto the law), then its hold point is taken.
+    Settle,
+    /// Out the positive way: the axis must reach half the check counts.
+    Out,
+    /// Back and out the negative way: the axis must reach minus half the check counts.
+    Back,
+    /// Back to the hold point.
+    Home,
+    /// Followed both ways, holding.
+    Done,
+}
+
+/// Speed of the arm check's reference, mm/s: 2 mm/s moves the 16 check counts (10 µm on
+/// the gantry) in 5 ms, slow enough that the law follows with a fraction of a count of lag.
+pub const ARM_CHECK_SPEED_MM_S: f32 = 5.0;
+
+/// Counts a healthy axis may stray the wrong way while the arm check's reference moves
+/// out, beyond the configured edge noise: one count of holding dither and one of a
+/// settling load. A swapped A/B moves the reading the wrong way from the first push on.
+const ARM_CHECK_WRONG_COUNTS: f32 = 2.0;
+
+/// Counts an axis may stray from where it armed while the arm check lets it settle,
+/// beyond the wrong-way margin: a braked axis' load sags the law's hold when the brake
+/// lets go (6 counts, 3.8 µm, on the gantry's Z, whose law starts from zero effort); 10
+/// counts is a runaway, not a sag.
+const ARM_CHECK_SETTLE_COUNTS: f32 = 8.0;
+
 /// The servo step's state, owned by the control interrupt.
 pub struct Servo<R> {
     period_s: f64,
@@ -259,6 +305,13 @@ pub struct Servo<R> {
     check_periods: u32,
     check_counts: i64,
     check_effort: [f32; AXES],
+    /// The arm check under way (state `EncoderCheck` after an arm), and whether arming
+    /// runs it.
+    arm_check: Option<ArmCheck<R>>,
+    arm_check_on: bool,
+    /// The arm check's reference step per period (counts) and wrong-way limit (counts).
+    arm_check_step: [f32; AXES],
+    arm_check_wrong: f32,
     applied: Vec3<R>,
     /// The holding brakes ([`brake`]).
     brakes: [BrakeState; AXES],
@@ -402,6 +455,14 @@ impl<R: Real> Servo<R> {
             ),
             check_counts: i64::from(s.encoder_check_counts.max(1)),
             check_effort: s.axes.map(|a| a.stuck_effort_change),
+            arm_check: None,
+            arm_check_on: s.arm_encoder_check,
+            arm_check_step: core::array::from_fn(|i| {
+                (f64::from(ARM_CHECK_SPEED_MM_S)
+                    * f64::from(cfg.encoders[i].counts_per_mm)
+                    * period_s) as f32
+            }),
+            arm_check_wrong: s.encoder_noise_counts + ARM_CHECK_WRONG_COUNTS,
             applied: Vec3::zero(),
             brakes: cfg.brakes.map(|b| BrakeState::new(&b, period_s)),
             prev_driven: 0,
@@ -534,6 +595,7 @@ impl<R: Real> Servo<R> {
                 Some(r) if !r.hold_others => 1 << r.axis.min(AXES - 1),
                 _ => 0b111,
             },
+            ServoState::EncoderCheck if self.arm_check.is_some() => 0b111,
             ServoState::EncoderCheck => self.check.map_or(0, |c| 1 << c.axis.min(AXES - 1)),
             _ => 0b111,
         }
@@ -762,6 +824,25 @@ impl<R: Real> Servo<R> {
             (Command::Arm, _) => {
                 self.state = ServoState::Idle;
                 self.hold_here(counts);
+                if self.arm_check_on {
+                    // the encoders proven before anything may move (a swapped A/B is a
+                    // wiring change made with the power off; holding still shows nothing)
+                    let brake = |i: usize| self.brakes[i].present();
+                    self.arm_check = Some(ArmCheck {
+                        phase: core::array::from_fn(|i| {
+                            if brake(i) {
+                                ArmPhase::Settle
+                            } else {
+                                ArmPhase::Out
+                            }
+                        }),
+                        k: [0; AXES],
+                        base: *counts,
+                        hold: self.position_of(counts),
+                        offset: [0.0; AXES],
+                    });
+                    self.state = ServoState::EncoderCheck;
+                }
             }
             (Command::Disarm, ServoState::Idle) => {
                 if self.brakes_gripping() {
@@ -782,6 +863,18 @@ impl<R: Real> Servo<R> {
             (Command::Disarm, ServoState::Run | ServoState::Jog | ServoState::Homing) => {
                 let r = here();
                 self.begin_stop(&r, ServoState::Disabled);
+            }
+            (Command::Disarm, ServoState::EncoderCheck) if self.arm_check.is_some() => {
+                // an arm check given up: nothing was proven, nothing is latched
+                let r = here();
+                self.arm_check = None;
+                if self.brakes_gripping() {
+                    self.state = ServoState::Disabled;
+                } else {
+                    self.begin_stop(&r, ServoState::Disabled);
+                    self.rest_periods = self.settle_periods;
+                    self.braking = true;
+                }
             }
             (Command::Disarm, ServoState::EncoderCheck) => {
                 self.check = None;
@@ -1082,6 +1175,11 @@ impl<R: Real> Servo<R> {
             io.write_brakes([false; AXES]);
         }
 
+        if self.state != ServoState::EncoderCheck {
+            // a fault or a stop ended the arm check
+            self.arm_check = None;
+        }
+
         // 2. Wide and machine counts.
         let raw = io.read_counters();
         let mut counts = [0i64; AXES];
@@ -1132,6 +1230,10 @@ impl<R: Real> Servo<R> {
             };
             self.step_manual(&inputs, index, &mut counts);
         }
+        let arm_checking = self.state == ServoState::EncoderCheck && self.arm_check.is_some();
+        if arm_checking && !held {
+            self.step_arm_check(&counts);
+        }
         let (mut reference, motion_t, at_rest) =
             motion::sample(&self.motion, self.path.as_ref(), &self.clock);
         if held {
@@ -1149,13 +1251,18 @@ impl<R: Real> Servo<R> {
         // 5. Control.
         let mut applied = Vec3::zero();
         let mut evaluated = false;
+        let law = arm_checking
+            || matches!(
+                self.state,
+                ServoState::Idle
+                    | ServoState::Run
+                    | ServoState::Jog
+                    | ServoState::Homing
+                    | ServoState::Identify
+                    | ServoState::Stopping
+            );
         match self.state {
-            ServoState::Idle
-            | ServoState::Run
-            | ServoState::Jog
-            | ServoState::Homing
-            | ServoState::Identify
-            | ServoState::Stopping => {
+            _ if law => {
                 let prev = self.applied.to_array().map(Real::to_f32);
                 if let Some((f, v)) = self.monitor.check_encoders(&steps, &vel, &prev) {
                     self.trip(f, v, Some(&reference));
@@ -1266,6 +1373,7 @@ impl<R: Real> Servo<R> {
                     self.trip(f, v, None);
                 }
             }
+            _ => {}
         }
         self.applied = applied;
         self.estimators.applied(applied);
@@ -1455,6 +1563,91 @@ impl<R: Real> Servo<R> {
     /// One period of the encoder check: the effort on the checked axis (others zero).
     #[cold]
     #[inline(never)]
+    /// One period of the arm check: each axis' reference one step further along its
+    /// phase's way and its reading judged; armed once every axis is done.
+    fn step_arm_check(&mut self, counts: &[i64; AXES]) {
+        let Some(mut c) = self.arm_check else {
+            return;
+        };
+        let full = self.check_counts as f32;
+        let half = 0.5 * full;
+        let mut hold = c.hold;
+        let mut done = true;
+        for (i, axis) in Axis::ALL.into_iter().enumerate() {
+            let moved = counts[i].saturating_sub(c.base[i]) as f32;
+            let phase = c.phase[i];
+            let k = c.k[i].saturating_add(1);
+            // (a wrong-way reading, and a reading that never follows: the fault and the
+            // counts it moved)
+            let (next, fault) = match phase {
+                // a healthy axis settles within a couple of counts of where it armed once
+                // its brake lets go; a swapped A/B turns the hold into positive feedback
+                // and runs away from it (Z under gravity)
+                ArmPhase::Settle
+                    if moved.abs() > ARM_CHECK_SETTLE_COUNTS + self.arm_check_wrong =>
+                {
+                    (phase, Some(FaultKind::EncoderJump))
+                }
+                ArmPhase::Settle if k >= self.settle_periods => {
+                    // from here the reading must follow the reference
+                    c.base[i] = counts[i];
+                    (ArmPhase::Out, None)
+                }
+                ArmPhase::Out if moved <= -self.arm_check_wrong => {
+                    // counts the wrong way while the law pushes the axis out: swapped A/B
+                    (phase, Some(FaultKind::EncoderJump))
+                }
+                ArmPhase::Out if moved >= half => (ArmPhase::Back, None),
+                // (from the positive end, where the law may overshoot by part of the step:
+                // twice the way out is no overshoot but the wrong way)
+                ArmPhase::Back if moved >= 2.0 * full + self.arm_check_wrong => {
+                    (phase, Some(FaultKind::EncoderJump))
+                }
+                ArmPhase::Back if moved <= -half => (ArmPhase::Home, None),
+                // back at the hold point, settled for the stop's settle time
+                ArmPhase::Home if c.offset[i] == 0.0 && k >= self.settle_periods => {
+                    (ArmPhase::Done, None)
+                }
+                ArmPhase::Out | ArmPhase::Back
+                    if k >= self.check_periods.saturating_add(self.settle_periods) =>
+                {
+                    // the reference moved and the reading did not follow
+                    (phase, Some(FaultKind::EncoderStuck))
+                }
+                _ => (phase, None),
+            };
+            if let Some(kind) = fault {
+                self.arm_check = None;
+                self.trip(Fault::on(kind, axis), moved, None);
+                return;
+            }
+            c.k[i] = if next == phase { k } else { 0 };
+            c.phase[i] = next;
+            let target = match phase {
+                ArmPhase::Out => full,
+                ArmPhase::Back => -full,
+                ArmPhase::Settle | ArmPhase::Home | ArmPhase::Done => 0.0,
+            };
+            let (o, step) = (c.offset[i], self.arm_check_step[i]);
+            c.offset[i] = if o < target {
+                (o + step).min(target)
+            } else {
+                (o - step).max(target)
+            };
+            hold[i] = c.hold[i] + R::from_f32(c.offset[i] * self.count_len_f32[i]);
+            done &= next == ArmPhase::Done;
+        }
+        if done {
+            // every axis followed both ways: armed, holding where it armed
+            self.arm_check = None;
+            self.motion = Motion::Hold(c.hold);
+            self.state = ServoState::Idle;
+            return;
+        }
+        self.motion = Motion::Hold(hold);
+        self.arm_check = Some(c);
+    }
+
     fn encoder_check(&mut self, counts: &[i64; AXES]) -> Vec3<R> {
         let mut u = Vec3::zero();
         let Some(mut c) = self.check else {

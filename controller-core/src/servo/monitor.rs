@@ -132,6 +132,15 @@ pub struct SafetyConfig {
     /// [`crate::servo::index_check::MAX_INDEX_CORRECTION_COUNTS`] (`servo::index_check`).
     #[cfg_attr(feature = "serde", serde(default = "d_index_correction"))]
     pub index_max_correction_counts: u32,
+    /// Arming checks every encoder before the machine is ready: with every axis holding
+    /// under its law, each axis' hold point moves `encoder_check_counts` out and back
+    /// both ways at [`crate::servo::ARM_CHECK_SPEED_MM_S`], and the reading must follow;
+    /// a reading that goes the wrong way (swapped A/B) is `encoder_jump`, one that does
+    /// not move is `encoder_stuck` (docs/safety.md, "Swapped A/B at rest"). Off by
+    /// default: it makes arming move the axes (10 µm on the gantry), which only an
+    /// explicit setting may.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub arm_encoder_check: bool,
 }
 
 /// Largest `encoder_noise_counts`: beyond 16 counts of noise the encoder or its wiring is
@@ -244,6 +253,7 @@ impl SafetyConfig {
             estop_stop_time_s: defaults::ESTOP_STOP_TIME_S,
             encoder_noise_counts: 0.0,
             index_max_correction_counts: defaults::INDEX_MAX_CORRECTION_COUNTS,
+            arm_encoder_check: false,
         }
     }
 

@@ -114,6 +114,11 @@ pub fn ready<T: Transport>(c: &mut Client<T>, home: bool) -> Result<Status> {
     }
     if s.state == MachineState::Disabled {
         expect_done("arm", c.exec(Request::Arm)?)?;
+        // with `safety.arm_encoder_check` the machine checks its encoders first
+        let s = wait_while(c, |s| s.state == MachineState::EncoderCheck)?;
+        if s.state != MachineState::Idle {
+            bail!("arming failed: {:?} ({})", s.state, fault_text(&s));
+        }
     }
     if home && c.status()?.homed != 0b111 {
         expect_done("home", c.exec(Request::Home)?)?;
