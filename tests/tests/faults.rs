@@ -16,8 +16,10 @@ fn every_fault_class_is_detected_within_its_bounds() {
     // the explicit bounds
     let stuck = by("encoder_stuck_moving");
     assert!(stuck.detect_periods.unwrap() <= 20 && stuck.overrun_mm < 2.0);
+    // < 2 mm before Z had a brake: the controlled stop now keeps the outputs on for the
+    // brake's 30 ms engage time and the blind law pushes Z on meanwhile (faults.toml)
     let holding = by("encoder_stuck_holding");
-    assert!(holding.overrun_mm < 2.0);
+    assert!(holding.overrun_mm < 3.5, "{}", holding.overrun_mm);
     assert_eq!(
         by("encoder_jump").detect_periods,
         Some(0),

@@ -830,6 +830,13 @@ static GLOBAL_KEYS: &[GlobalDef] = &[
         OutputsOff,
         "Share of each axis' jerk the planner leaves to the servo along the path (0: the full limits)"
     ),
+    global_key!(
+        safety.arm_encoder_check,
+        unit::NONE,
+        Range::Bool,
+        OutputsOff,
+        "Arming checks every encoder first: each axis' hold point moves 16 counts out and back both ways, and a reading that goes the wrong way (swapped A/B) or not at all faults"
+    ),
 ];
 
 /// The table keys: the work coordinate systems, then the tool table, each row by row.

@@ -31,8 +31,8 @@ use super::offsets::{ToolTable, WorkOffsets};
 
 /// Version of the tree's layout, stored with every record (see the module docs). 3: the
 /// work offsets, the tool table and the planner's servo reserve; 4: the holding brakes
-/// (`axis.<a>.brake`).
-pub const SETTINGS_VERSION: u16 = 4;
+/// (`axis.<a>.brake`); 5: the machine's safety switches (`safety.*`).
+pub const SETTINGS_VERSION: u16 = 5;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -194,6 +194,16 @@ pub struct PlannerSettings {
     pub servo_reserve: f32,
 }
 
+/// Machine-wide safety switches.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct SafetySettings {
+    /// Arming checks every encoder by moving each axis' hold point 16 counts out and back
+    /// both ways (`SafetyConfig::arm_encoder_check`; off: arming moves nothing).
+    pub arm_encoder_check: bool,
+}
+
 /// Jog settings shared by the axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -260,6 +270,10 @@ pub struct Settings {
     pub link: LinkSettings,
     pub identify: IdentifySettings,
     pub planner: PlannerSettings,
+    /// Machine-wide safety switches (absent from files written before they existed: the
+    /// factory's).
+    #[cfg_attr(feature = "serde", serde(default = "factory_safety"))]
+    pub safety: SafetySettings,
     /// The work coordinate systems G54..G59.3 (`work.g54` .. `work.g59_3`).
     pub work: WorkOffsets,
     /// The tool table (`tool.1` .. `tool.8`).
@@ -300,6 +314,17 @@ const fn factory_axis(i: usize) -> AxisSettings {
     }
 }
 
+/// The factory's safety switches: the arm check off (arming never moves an axis unless
+/// the user asks for it).
+const FACTORY_SAFETY: SafetySettings = SafetySettings {
+    arm_encoder_check: false,
+};
+
+#[cfg(feature = "serde")]
+fn factory_safety() -> SafetySettings {
+    FACTORY_SAFETY
+}
+
 /// The factory settings: what a board runs before anything was stored, equal to
 /// [`crate::presets::board::factory_config`] (tested): the designed gantry's DSMC at
 /// [`LOOP_OMEGA`], contour coupling λ = [`BOARD_LAMBDA`], the PLL at [`BOARD_PLL`], the
@@ -331,6 +356,7 @@ pub const FACTORY: Settings = Settings {
         tangential_share: GANTRY_PLANNER.tangential_share,
         servo_reserve: GANTRY_PLANNER.servo_reserve,
     },
+    safety: FACTORY_SAFETY,
     work: WorkOffsets::ZERO,
     tool: ToolTable::EMPTY,
 };
