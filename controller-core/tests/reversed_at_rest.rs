@@ -1,10 +1,16 @@
-//! A/B swapped while the axis holds still (board configuration on the simulated gantry,
-//! Z under gravity): the position loop turns into positive feedback, and an axis that any
-//! load pushes runs away from where it holds until a check stops it. Measured: the
-//! following-error limit at rest (0.1 mm) stops it after 470–750 periods with about
-//! 0.21 mm of travel: issue 20's goal of 100 periods is not met (docs/safety.md,
-//! "Swapped A/B at rest"). An axis nothing pushes (X, Y without load: the friction holds
-//! them) does not move at all, and its swapped encoder shows nothing until it does.
+//! A/B swapped on an axis, at rest and at arming (board configuration on the simulated
+//! gantry, Z under gravity with its holding brake).
+//!
+//! At rest the position loop turns into positive feedback, and an axis that any load
+//! pushes runs away from where it holds until the following-error limit at rest (0.1 mm)
+//! stops it: 465–914 periods, about 0.21 mm of travel. An axis nothing pushes (X, Y: the
+//! friction holds them) does not move at all and shows nothing until it does.
+//!
+//! The arm check (`safety.arm_encoder_check`) moves each axis' hold point 16 counts out
+//! and back both ways at arming and faults a reading that goes the wrong way: X and Y
+//! within 61 and 48 periods of motion (issue 20's goal: 100), Z 113 periods after its
+//! brake opens (its load's runaway must outgrow a healthy Z's 6-count sag first), a few
+//! µm of travel (docs/safety.md, "Swapped A/B at rest").
 //!
 //! `cargo test --release -p controller-core --test reversed_at_rest -- --nocapture` prints
 //! the table docs/safety.md quotes.
@@ -21,10 +27,10 @@ use controller_core::sim::world::{
 };
 
 /// Detection bound for a swapped A/B at rest on a loaded axis, periods: the following
-/// error of 0.1 mm at rest reached on a runaway from rest (measured 468–743; the issue's
-/// goal is 100).
+/// error of 0.1 mm at rest reached on a runaway from rest (measured 465–914; the arm
+/// check is what finds it within about 100).
 const BOUND_PERIODS: u32 = 1_000;
-/// Travel allowed from the swap to the outputs going off, mm (measured 0.205–0.211: the
+/// Travel allowed from the swap to the outputs going off, mm (measured 0.205–0.214: the
 /// 0.1 mm limit plus the runaway during the stop's period and the coast is not counted).
 const BOUND_TRAVEL_MM: f64 = 0.25;
 
@@ -204,8 +210,8 @@ fn arm_checked(swapped: Option<Axis>) -> (u32, u32, ServoState, &'static str, f6
 }
 
 /// Periods the arm check may take on a healthy gantry: Z's brake opens (700 periods),
-/// the 20 ms settle, the ramps out (16 counts at 2 mm/s: 50 periods) and back (100) with
-/// the heaviest axis' (Y's) lag, and the 20 ms settle at the end (measured 1,824).
+/// the 20 ms settle, the ramps out (16 counts at 5 mm/s: 20 periods) and back (40) with
+/// the heaviest axis' (Y's) lag, and the 20 ms settle at the end (measured 1,792).
 const ARM_CHECK_BOUND_PERIODS: u32 = 2_500;
 /// Travel the arm check may make, mm: the 16 check counts (10 µm) and the laws'
 /// overshoot (measured 0.0120).
@@ -224,15 +230,12 @@ const ARM_SWAP_TRAVEL_MM: f64 = 0.015;
 fn the_arm_check_finds_a_swapped_encoder_before_anything_moves() {
     // healthy: armed after the check, nothing latched, the axes back where they armed
     let (p, moving, state, kind, travel) = arm_checked(None);
-    println!(
-        "| healthy | {p} | {moving} | {state:?} | {kind} | {:.4} |",
-        travel
-    );
+    println!("| axis swapped | periods from arm | periods moving | state | fault | travel mm |");
+    println!("| --- | --- | --- | --- | --- | --- |");
+    println!("| none | {p} | {moving} | {state:?} | {kind} | {travel:.4} |");
     assert_eq!((state, kind), (ServoState::Idle, "none"));
     assert!(p <= ARM_CHECK_BOUND_PERIODS, "{p} periods");
     assert!(travel <= ARM_CHECK_TRAVEL_MM, "{travel} mm");
-    println!("| swapped axis | periods from arm | periods moving | state | fault | travel mm |");
-    println!("| --- | --- | --- | --- | --- | --- |");
     for axis in [Axis::X, Axis::Y, Axis::Z] {
         let (p, moving, state, kind, travel) = arm_checked(Some(axis));
         println!("| {axis:?} | {p} | {moving} | {state:?} | {kind} | {travel:.4} |");

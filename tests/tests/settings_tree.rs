@@ -39,8 +39,8 @@ fn every_field_has_a_key_and_every_key_a_field() {
     names.sort();
     assert_eq!(fields, names);
     // 109 before the work offsets (27), the tool table (16), `planner.servo_reserve` (1)
-    // and the brakes (3 × 3)
-    assert_eq!(fields.len(), 109 + 27 + 16 + 1 + 9);
+    // the brakes (3 × 3) and `safety.arm_encoder_check` (1)
+    assert_eq!(fields.len(), 109 + 27 + 16 + 1 + 9 + 1);
 }
 
 #[test]

@@ -238,8 +238,8 @@ enum ArmPhase {
     Done,
 }
 
-/// Speed of the arm check's reference, mm/s: 2 mm/s moves the 16 check counts (10 µm on
-/// the gantry) in 5 ms, slow enough that the law follows with a fraction of a count of lag.
+/// Speed of the arm check's reference, mm/s: 5 mm/s moves the 16 check counts (10 µm on
+/// the gantry) in 2 ms, slow enough that the law follows with about a count of lag.
 pub const ARM_CHECK_SPEED_MM_S: f32 = 5.0;
 
 /// Counts a healthy axis may stray the wrong way while the arm check's reference moves
