@@ -224,8 +224,12 @@ fn scenario<T: Transport + EstopPanel>(mut c: Client<T>, tag: &str) -> Figures {
     };
     let held = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, Some(hold)).unwrap();
     assert_eq!(held.status, "completed", "{held:?}");
+    // the hold lasts from the machine receiving the hold to receiving the resume: 0.3 s
+    // of the operator's machine time (read from the status) give or take the link's
+    // latency, which over QEMU's emulated link varies by tens of ms of machine time
+    // between the two requests (measured 0.288 s of added time once, 0.317 s on --sim)
     assert!(
-        held.duration_s >= plain.duration_s + 0.29,
+        held.duration_s >= plain.duration_s + 0.25,
         "{} vs {}",
         held.duration_s,
         plain.duration_s
@@ -454,7 +458,9 @@ fn a_stopped_emulator_is_waited_for_and_a_dead_one_reported() {
     assert_eq!(s.state, MachineState::Idle, "{s:?}");
     assert_eq!(s.first_fault, None, "{s:?}");
     expect_done("disarm", c.exec(Request::Disarm).unwrap()).unwrap();
-    assert_eq!(c.status().unwrap().state, MachineState::Disabled);
+    // (the disarm engages Z's brake first: `Stopping` for its engage time)
+    let s = cli::wait_while(&mut c, |s| s.state == MachineState::Stopping).unwrap();
+    assert_eq!(s.state, MachineState::Disabled, "{s:?}");
 
     // stopped for good: the wall-clock backstop ends the session
     signal(pid, "STOP");

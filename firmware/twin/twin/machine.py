@@ -1,0 +1,566 @@
+"""The board twin: the release firmware ELF on an emulated STM32F407 (unicorn for the
+Cortex-M4 core, the peripherals modelled here at register level), from reset.
+
+Time: the core executes one instruction per cycle of HCLK (the cycle model of
+docs/board-twin.md); a run goes in chunks that end at the next peripheral event (a
+timer update, a SysTick wrap, a UART byte, the watchdog's expiry), when the core sleeps
+(WFI) or when software changes what may interrupt it."""
+
+import bisect
+import math
+import mmap
+import ctypes
+
+from capstone import CS_ARCH_ARM, CS_MODE_MCLASS, CS_MODE_THUMB, Cs
+from elftools.elf.elffile import ELFFile
+from unicorn import (
+    UC_ARCH_ARM,
+    UC_HOOK_CODE,
+    UC_HOOK_INTR,
+    UC_HOOK_MEM_WRITE,
+    UC_MODE_MCLASS,
+    UC_MODE_THUMB,
+    UC_PROT_ALL,
+    UC_PROT_READ,
+    UC_PROT_WRITE,
+    UC_PROT_EXEC,
+    Uc,
+    UcError,
+)
+from unicorn.arm_const import (
+    UC_ARM_REG_BASEPRI,
+    UC_ARM_REG_MSP,
+    UC_ARM_REG_PC,
+    UC_ARM_REG_PRIMASK,
+    UC_ARM_REG_SP,
+    UC_ARM_REG_XPSR,
+    UC_ARM_REG_FAULTMASK,
+)
+
+from . import board, exceptions
+from .counter import Counter
+from .exti import Exti, Syscfg
+from .flash import FLASH_BASE, FLASH_SIZE, OPTCR_FACTORY, Flash
+from .gpio import Gpio
+from .iwdg import LSI_TYPICAL_HZ, Iwdg
+from .rcc import CSR_PINRSTF, CSR_PORRSTF, CSR_IWDGRSTF, CSR_SFTRSTF, Pwr, Rcc
+from .regs import TwinError
+from .scs import Dwt, Scs
+from .timers import ADVANCED, GP16, GP32, Timer
+from .usart import Usart
+
+SRAM_BASE, SRAM_SIZE = 0x2000_0000, 0x2_0000
+CCM_BASE, CCM_SIZE = 0x1000_0000, 0x1_0000
+PERIPH_PAGES = [(0x4000_0000, 0x8000), (0x4001_0000, 0x6000), (0x4002_0000, 0x6000)]
+BITBAND_BASE, BITBAND_SIZE = 0x4200_0000, 0x0200_0000
+# system memory, OTP, option bytes: read-only information the HAL may look at
+SYSMEM_BASE, SYSMEM_SIZE = 0x1FFF_0000, 0x1_0000
+MAX_CHUNK = 2_000_000
+EXCP_UDEF, EXCP_SWI, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 7, 8
+HARDFAULT = 3
+
+
+class Twin:
+    def __init__(self, elf, hse_hz=8_000_000, lsi_hz=LSI_TYPICAL_HZ, flash_image=None, option_bytes=OPTCR_FACTORY):
+        self.elf_path = elf
+        self.hse_hz = hse_hz
+        self.lsi_hz = lsi_hz
+        self.option_bytes = option_bytes
+        self.flash_mm = mmap.mmap(-1, FLASH_SIZE)
+        self.flash_mem = memoryview(self.flash_mm)
+        self.flash_mem[:] = b"\xff" * FLASH_SIZE
+        self.sram_keep = None
+        self.symbols = {}
+        self._load_elf(elf, flash_image)
+        self.resets = []  # (time, cause)
+        self.t_s = 0.0
+        self.cycles = 0
+        self.log = []  # (t_s, signal, value): every change of a machine output
+        self.faults = []  # (t_s, exception, pc)
+        self.external = {}  # (port, pin) -> level driven by the outside
+        for p, lv in board.HEALTHY_INPUTS:
+            self.external[p] = lv
+        self.encoder = {n: 0 for n in board.ENCODER_TIMER.values()}
+        self.rtt_bytes = bytearray()
+        self.unclocked = []  # (t_s, read/write, peripheral) with its clock off
+        self.entries = {}  # exception number -> times entered
+        self.first_entry = {}  # exception number -> time first entered
+        self.power_on(reset_flags=CSR_PORRSTF | CSR_PINRSTF)
+
+    # --- image -----------------------------------------------------------------
+    def _load_elf(self, path, flash_image):
+        with open(path, "rb") as f:
+            elf = ELFFile(f)
+            self.load = []
+            for seg in elf.iter_segments():
+                if seg["p_type"] != "PT_LOAD" or seg["p_filesz"] == 0:
+                    continue
+                pa = seg["p_paddr"]
+                if not FLASH_BASE <= pa < FLASH_BASE + FLASH_SIZE:
+                    raise TwinError(f"ELF segment at 0x{pa:08x} is not in flash")
+                self.flash_mem[pa - FLASH_BASE : pa - FLASH_BASE + seg["p_filesz"]] = seg.data()
+            symtab = elf.get_section_by_name(".symtab")
+            for s in symtab.iter_symbols():
+                if s.name:
+                    self.symbols[s.name] = s["st_value"]
+            text = elf.get_section_by_name(".text")
+            self.wfi_addrs = []
+            md = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
+            md.skipdata = True
+            self.unmask_addrs = []
+            for ins in md.disasm(text.data(), text["sh_addr"]):
+                if ins.mnemonic == "wfi":
+                    self.wfi_addrs.append(ins.address)
+                # after an instruction that may lower the execution priority, a pending
+                # exception is taken at once
+                op = ins.op_str.replace(" ", "")
+                if ins.mnemonic == "cpsie" or (ins.mnemonic == "msr" and op.split(",")[0] in ("basepri", "primask", "faultmask")):
+                    self.unmask_addrs.append(ins.address + ins.size)
+        self._check_layout()
+        if flash_image is not None:
+            for off, data in flash_image:
+                self.flash_mem[off : off + len(data)] = data
+
+    def _check_layout(self):
+        """cortex-m-rt's reset handler copies __sidata to __sdata..__edata and zeroes
+        __sbss..__ebss with loops that end only at equality: bounds outside SRAM or in the
+        wrong order make it run off the end of RAM (the .ccmdata defect of memory.x)."""
+        sym = self.symbols
+        for lo, hi in (("__sdata", "__edata"), ("__sbss", "__ebss")):
+            a, b = sym.get(lo), sym.get(hi)
+            if a is None or b is None:
+                raise TwinError(f"ELF: no {lo}/{hi} (not a cortex-m-rt image)")
+            if not (SRAM_BASE <= a <= b <= SRAM_BASE + SRAM_SIZE):
+                raise TwinError(f"ELF: {lo} 0x{a:08x} .. {hi} 0x{b:08x} is not a range in SRAM: the reset handler's loop would never end")
+
+    # --- power and reset ------------------------------------------------------------
+    def power_on(self, reset_flags):
+        """A reset: the core and every peripheral to their reset state; flash keeps its
+        contents, SRAM keeps its contents across a system reset (not across power)."""
+        sram = None
+        ccm = None
+        if hasattr(self, "uc"):
+            sram = bytes(self.uc.mem_read(SRAM_BASE, SRAM_SIZE))
+            ccm = bytes(self.uc.mem_read(CCM_BASE, CCM_SIZE))
+        self.uc = uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        self.counter = Counter(uc)
+        self.in_chunk = False
+        self.sleeping = False
+        self.reset_pending = None
+        self.stop_reason = None
+        self.pending_stores = []
+        self.irq_lines = set()
+        # exceptions a scenario keeps from being taken (a hung control loop); a reset
+        # clears them, as it clears the software state that hung
+        self.blocked = set()
+        ptr = ctypes.addressof(ctypes.c_char.from_buffer(self.flash_mm))
+        uc.mem_map_ptr(0x0000_0000, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC, ptr)
+        uc.mem_map_ptr(FLASH_BASE, FLASH_SIZE, UC_PROT_ALL, ptr)
+        uc.mem_map(SRAM_BASE, SRAM_SIZE)
+        uc.mem_map(CCM_BASE, CCM_SIZE, UC_PROT_READ | UC_PROT_WRITE)
+        if sram is not None:
+            uc.mem_write(SRAM_BASE, sram)
+            uc.mem_write(CCM_BASE, ccm)
+        self._peripherals(reset_flags)
+        for base, size in PERIPH_PAGES:
+            uc.mmio_map(base, size, self._mmio_read, base, self._mmio_write, base)
+        uc.mmio_map(BITBAND_BASE, BITBAND_SIZE, self._bb_read, None, self._bb_write, None)
+        uc.mmio_map(0xE000_0000, 0x10_0000, self._mmio_read, 0xE000_0000, self._mmio_write, 0xE000_0000)
+        uc.mem_map(SYSMEM_BASE, SYSMEM_SIZE, UC_PROT_READ)
+        uc.mem_write(0x1FFF_7A22, (1024).to_bytes(2, "little"))  # flash size in KiB
+        uc.hook_add(UC_HOOK_INTR, self._intr)
+        uc.hook_add(UC_HOOK_MEM_WRITE, self._flash_store, begin=FLASH_BASE, end=FLASH_BASE + FLASH_SIZE - 1)
+        for a in self.wfi_addrs:
+            uc.hook_add(UC_HOOK_CODE, self._wfi, begin=a, end=a)
+        for a in self.unmask_addrs:
+            uc.hook_add(UC_HOOK_CODE, self._unmasked, begin=a, end=a)
+        sp = self.read_u32(0)
+        pc = self.read_u32(4)
+        uc.reg_write(UC_ARM_REG_MSP, sp)
+        uc.reg_write(UC_ARM_REG_SP, sp)
+        uc.reg_write(UC_ARM_REG_XPSR, 1 << 24)
+        self.pc = pc
+        self.resets.append((self.t_s, reset_flags))
+        self.entries_at_reset = dict(self.entries)
+        self.pins_changed()
+
+    def _peripherals(self, reset_flags):
+        self.rcc = Rcc(self, 0x4002_3800, self.hse_hz, reset_flags)
+        self.flash = Flash(self, 0x4002_3C00, self.option_bytes)
+        self.pwr = Pwr(self, 0x4000_7000)
+        self.scs = Scs(self, 0xE000_E000)
+        self.dwt = Dwt(self, 0xE000_1000)
+        self.gpio = {}
+        for i, letter in enumerate("ABCDE"):
+            self.gpio[letter] = Gpio(self, 0x4002_0000 + 0x400 * i, letter, i)
+        for (port, pin), lv in self.external.items() if hasattr(self, "external") else []:
+            self.gpio[port].external[pin] = lv
+        self.tim = {
+            "TIM1": Timer(self, 0x4001_0000, "TIM1", ADVANCED, ("APB2ENR", 0), 2, 27),
+            "TIM2": Timer(self, 0x4000_0000, "TIM2", GP32, ("APB1ENR", 0), 1, 28),
+            "TIM3": Timer(self, 0x4000_0400, "TIM3", GP16, ("APB1ENR", 1), 1, 29),
+            "TIM4": Timer(self, 0x4000_0800, "TIM4", GP16, ("APB1ENR", 2), 1, 30),
+            "TIM5": Timer(self, 0x4000_0C00, "TIM5", GP32, ("APB1ENR", 3), 1, 50),
+        }
+        self.usart2 = Usart(self, 0x4000_4400, "USART2", ("APB1ENR", 17), 38)
+        self.iwdg = Iwdg(self, 0x4000_3000, self.lsi_hz)
+        self.syscfg = Syscfg(self, 0x4001_3800)
+        self.exti = Exti(self, 0x4001_3C00)
+        self.periphs = [self.rcc, self.flash, self.pwr, self.scs, self.dwt, *self.gpio.values(), *self.tim.values(),
+                        self.usart2, self.iwdg, self.syscfg, self.exti]
+        self.by_base = sorted((p.base, p) for p in self.periphs)
+        self.bases = [b for b, _ in self.by_base]
+        self.outputs_seen = {}
+
+    def request_reset(self, cause):
+        self.reset_pending = cause
+        self.uc.emu_stop()
+
+    # --- time -------------------------------------------------------------------
+    def now_s(self):
+        if self.in_chunk:
+            return self.chunk_t0 + min(self.counter.read(), self.chunk_n) / self.chunk_hz
+        return self.t_s
+
+    def now_cycles(self):
+        if self.in_chunk:
+            return self.chunk_c0 + min(self.counter.read(), self.chunk_n)
+        return self.cycles
+
+    def stall(self, seconds, _what):
+        """The core waits `seconds` (a flash operation): time passes, nothing executes."""
+        self.stall_s += seconds
+
+    stall_s = 0.0
+
+    def reschedule(self):
+        # a register write changed what may interrupt the core or when: the chunk ends
+        # after that store (see _mmio_write)
+        if self.in_chunk:
+            self.want_stop = True
+
+    want_stop = False
+    replay = None
+
+    def clocks_changed(self):
+        for p in self.periphs:
+            p.clocks_changed()
+        self.reschedule()
+
+    # --- memory-mapped peripherals -------------------------------------------------
+    def _periph_at(self, addr):
+        i = bisect.bisect_right(self.bases, addr) - 1
+        if i >= 0:
+            base, p = self.by_base[i]
+            if addr < base + p.size:
+                return p
+        raise TwinError(f"access to 0x{addr:08x}: no peripheral the twin models")
+
+    def _mmio_read(self, uc, off, size, region):
+        try:
+            self._apply_stores()
+            addr = region + off
+            p = self._periph_at(addr)
+            v = p.read32((addr - p.base) & ~3)
+            lane = addr & 3
+            return (v >> (8 * lane)) & ((1 << (8 * size)) - 1)
+        except TwinError as e:
+            self._fail(e)
+            return 0
+
+    def _mmio_write(self, uc, off, size, value, region):
+        addr = region + off
+        if self.replay is not None:
+            if self.replay == (uc.reg_read(UC_ARM_REG_PC), addr, value):
+                # unicorn stops a run inside a store by restarting that store: this is
+                # the store the previous chunk already applied
+                self.replay = None
+                return
+            self.replay = None
+        try:
+            self._apply_stores()
+            p = self._periph_at(addr)
+            lane = addr & 3
+            mask = ((1 << (8 * size)) - 1) << (8 * lane)
+            p.write32((addr - p.base) & ~3, (value << (8 * lane)) & 0xFFFFFFFF, mask)
+        except TwinError as e:
+            self._fail(e)
+        if self.want_stop and self.in_chunk:
+            self.want_stop = False
+            self.replay = (uc.reg_read(UC_ARM_REG_PC), addr, value)
+            uc.emu_stop()
+
+    def _bb_target(self, off):
+        return 0x4000_0000 + (off >> 5), (off >> 2) & 7
+
+    def _bb_read(self, uc, off, size, _u):
+        addr, bit = self._bb_target(off)
+        return self._read_word(addr & ~3) >> (bit + 8 * (addr & 3)) & 1
+
+    def _read_word(self, addr):
+        try:
+            p = self._periph_at(addr)
+            return p.read32(addr - p.base)
+        except TwinError as e:
+            self._fail(e)
+            return 0
+
+    def _bb_write(self, uc, off, size, value, _u):
+        addr, bit = self._bb_target(off)
+        bit += 8 * (addr & 3)
+        if self.replay is not None:
+            if self.replay == (uc.reg_read(UC_ARM_REG_PC), addr, value):
+                self.replay = None
+                return
+            self.replay = None
+        try:
+            self._apply_stores()
+            p = self._periph_at(addr & ~3)
+            p.write32((addr & ~3) - p.base, (value & 1) << bit, 1 << bit)
+        except TwinError as e:
+            self._fail(e)
+        if self.want_stop and self.in_chunk:
+            self.want_stop = False
+            self.replay = (uc.reg_read(UC_ARM_REG_PC), addr, value)
+            uc.emu_stop()
+
+    def _fail(self, e):
+        if self.stop_reason is None:
+            self.stop_reason = e
+        self.uc.emu_stop()
+
+    def read_u32(self, addr):
+        return int.from_bytes(self.uc.mem_read(addr, 4), "little")
+
+    # --- flash stores ---------------------------------------------------------------
+    def _flash_store(self, uc, _access, addr, size, value, _u):
+        off = addr - FLASH_BASE
+        # applied at the next register access (the firmware polls FLASH_SR after every
+        # store) or at the end of the chunk
+        self.pending_stores.append((addr, size, value, bytes(self.flash_mem[off : off + size])))
+
+    def _apply_stores(self):
+        while self.pending_stores:
+            addr, size, value, old = self.pending_stores.pop(0)
+            self.flash.program_store(addr, size, value, old)
+
+    # --- pins ---------------------------------------------------------------------------
+    def drive(self, pin, level):
+        """The outside drives `pin` = (port, n) to `level` (0/1)."""
+        self.external[pin] = level
+        self.gpio[pin[0]].external[pin[1]] = level
+        self.pins_changed()
+
+    def af_level(self, port, pin, af):
+        sig = board.AF_OUTPUTS.get((port, pin, af))
+        if sig is None:
+            return None
+        if sig[0] == "TIM1":
+            return 1 if self.tim["TIM1"].channel_duty(sig[1]) > 0 else 0
+        if sig[0] == "USART2_TX":
+            return 1
+        return None
+
+    def bkin_level(self):
+        port, pin = board.ESTOP
+        g = self.gpio[port]
+        if g.mode(pin) != 2 or g.af(pin) != 1:
+            return None
+        return g.level(pin)
+
+    def pins_changed(self, port=None):
+        if not hasattr(self, "tim"):
+            return
+        if port in (None, "B"):
+            self.tim["TIM1"].inputs_changed()
+        if port in (None, "D", "E"):
+            self._record()
+
+    def outputs_changed(self, _timer, t_s):
+        self._record(t_s)
+
+    def _record(self, t_s=None):
+        t = self.now_s() if t_s is None else t_s
+        now = {}
+        for a in board.AXES:
+            for kind, table in (("enable", board.ENABLE), ("brake", board.BRAKE), ("dir", board.DIRECTION)):
+                port, pin = table[a]
+                now[f"{kind}.{a}"] = self.gpio[port].level(pin)
+            port, pin, ch = board.PWM[a]
+            g = self.gpio[port]
+            if g.mode(pin) == 2 and g.af(pin) == 1:
+                now[f"pwm.{a}"] = round(self.tim["TIM1"].channel_duty(ch), 6)
+            else:
+                now[f"pwm.{a}"] = g.level(pin)
+        now["moe"] = self.tim["TIM1"]["BDTR"] >> 15 & 1
+        for k, v in now.items():
+            if self.outputs_seen.get(k, "unset") != v:
+                self.outputs_seen[k] = v
+                self.log.append((t, k, v))
+
+    def encoder_counts(self, timer):
+        return self.encoder[timer]
+
+    # --- interrupts -----------------------------------------------------------------------
+    def irq_level(self, irq, level):
+        if level:
+            if irq not in self.irq_lines:
+                self.irq_lines.add(irq)
+                self.scs.pending.add(16 + irq)
+                self.reschedule()
+        else:
+            self.irq_lines.discard(irq)
+
+    def _exec_priority(self):
+        uc = self.uc
+        prio = 256
+        for e in self.scs.active:
+            prio = min(prio, self.scs.group(self.scs.priority(e)))
+        basepri = uc.reg_read(UC_ARM_REG_BASEPRI) & 0xF0
+        if basepri:
+            prio = min(prio, self.scs.group(basepri))
+        if uc.reg_read(UC_ARM_REG_PRIMASK) & 1:
+            prio = min(prio, 0)
+        if uc.reg_read(UC_ARM_REG_FAULTMASK) & 1:
+            prio = min(prio, -1)
+        return prio
+
+    def _preempting(self):
+        """The pending exception the core takes now, if any (PM0214 2.3.6)."""
+        scs = self.scs
+        for irq in self.irq_lines:
+            if 16 + irq not in scs.active:
+                scs.pending.add(16 + irq)
+        cands = [e for e in scs.pending if scs.exception_enabled(e) and e not in scs.active and e not in self.blocked]
+        if not cands:
+            return None
+        best = min(cands, key=lambda e: (scs.group(scs.priority(e)), scs.priority(e), e))
+        if scs.group(scs.priority(best)) >= self._exec_priority():
+            return None
+        return best
+
+    def _wakes(self):
+        """WFI ends on any enabled pending interrupt, masked or not (PM0214 2.5.2)."""
+        return any(self.scs.exception_enabled(e) and e not in self.blocked for e in self.scs.pending)
+
+    def _take_pending(self):
+        best = self._preempting()
+        if best is None:
+            return False
+        self.scs.pending.discard(best)
+        self._enter(best, self.pc)
+        return True
+
+    def _enter(self, exc, return_pc):
+        self.pc = exceptions.enter(self, exc, return_pc)
+        self.scs.active.append(exc)
+        self.sleeping = False
+        self.entries[exc] = self.entries.get(exc, 0) + 1
+        self.first_entry.setdefault(exc, self.t_s)
+
+    def check_stack(self, frame, exc):
+        lo = self.symbols.get("__ebss", SRAM_BASE)
+        if not (SRAM_BASE <= frame < SRAM_BASE + SRAM_SIZE):
+            raise TwinError(f"exception {exc}: stack frame at 0x{frame:08x} outside SRAM")
+
+    def _intr(self, uc, intno, _u):
+        pc = uc.reg_read(UC_ARM_REG_PC)
+        if intno == EXCP_EXCEPTION_EXIT:
+            exc_return = 0xFFFF_FF00 | (pc & 0xFF) | 1
+            try:
+                self.scs.active.pop()
+                self.pc = exceptions.exit_(self, exc_return)
+            except (TwinError, IndexError) as e:
+                self._fail(TwinError(f"exception return at 0x{pc:08x}: {e}"))
+                return
+            self.resume_pc = self.pc
+            uc.emu_stop()
+            return
+        if intno in (EXCP_UDEF, EXCP_BKPT):
+            # no debugger attached: UsageFault / DebugMonitor escalate to HardFault
+            self.fault_pc = pc
+            self.resume_pc = ("fault", pc, "udf" if intno == EXCP_UDEF else "bkpt")
+            uc.emu_stop()
+            return
+        self._fail(TwinError(f"CPU exception {intno} at 0x{pc:08x}"))
+
+    def _unmasked(self, uc, addr, _size, _u):
+        if (self.scs.pending or self.irq_lines) and self._preempting() is not None:
+            self.resume_pc = addr
+            uc.emu_stop()
+
+    def _wfi(self, uc, addr, _size, _u):
+        self.sleeping = True
+        self.resume_pc = addr + 2
+        uc.emu_stop()
+
+    # --- the run loop ---------------------------------------------------------------------
+    def _next_event(self):
+        ts = [t for t in (p.events() for p in self.periphs) if t is not None]
+        return min(ts) if ts else None
+
+    def run(self, until_s, poll=None, poll_every_s=1e-3):
+        next_poll = self.t_s
+        while self.t_s < until_s:
+            if self.stop_reason is not None:
+                raise self.stop_reason
+            if self.reset_pending is not None:
+                cause = self.reset_pending
+                flags = {"IWDG": CSR_IWDGRSTF, "SYSRESETREQ": CSR_SFTRSTF}[cause] | CSR_PINRSTF
+                self.power_on(flags)
+                continue
+            for p in self.periphs:
+                p.tick(self.t_s)
+            while self._take_pending():
+                pass
+            ev = self._next_event()
+            if self.sleeping:
+                if self._wakes():
+                    self.sleeping = False
+                else:
+                    if ev is None or ev > until_s:
+                        self.t_s = until_s
+                        break
+                    self.t_s = max(self.t_s, ev)
+                    continue
+            if poll is not None and self.t_s >= next_poll:
+                poll(self)
+                next_poll = self.t_s + poll_every_s
+            hz = self.rcc.hclk_hz()
+            horizon = min(x for x in (ev, until_s, next_poll if poll else None) if x is not None)
+            n = max(1, min(MAX_CHUNK, math.ceil((horizon - self.t_s) * hz)))
+            self._chunk(n, hz)
+
+    def _chunk(self, n, hz):
+        self.chunk_t0, self.chunk_c0, self.chunk_n, self.chunk_hz = self.t_s, self.cycles, n, hz
+        self.resume_pc = None
+        self.in_chunk = True
+        err = None
+        try:
+            self.uc.emu_start(self.pc | 1, 0, count=n)
+        except UcError as e:
+            err = e
+        executed = min(self.counter.read(), n)
+        self.in_chunk = False
+        self.cycles += executed
+        self.t_s += executed / hz + self.stall_s
+        self.stall_s = 0.0
+        self._apply_stores()
+        if self.stop_reason is not None:
+            raise self.stop_reason
+        if err is not None:
+            pc = self.uc.reg_read(UC_ARM_REG_PC)
+            self._hard_fault(pc, f"bus fault ({err})")
+            return
+        if isinstance(self.resume_pc, tuple):
+            _, pc, what = self.resume_pc
+            self._hard_fault(pc, what)
+            return
+        self.pc = self.resume_pc if self.resume_pc is not None else self.uc.reg_read(UC_ARM_REG_PC)
+
+    def _hard_fault(self, pc, what):
+        self.faults.append((self.t_s, what, pc))
+        if HARDFAULT in self.scs.active:
+            raise TwinError(f"lockup: {what} at 0x{pc:08x} inside the HardFault handler")
+        self.scs["HFSR"] |= 1 << 30
+        self._enter(HARDFAULT, pc)

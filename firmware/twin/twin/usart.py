@@ -1,0 +1,137 @@
+"""USART2 (RM0090 §30): the host link. Bytes leave at the baud rate BRR gives from PCLK1
+(TXE/TC follow the shift register), arrive from the host into RDR with RXNE, and an
+arrival with RXNE still set is an overrun (ORE; the byte is lost), as the hardware
+does. The interrupt line is (RXNEIE and (RXNE or ORE)) or (TXEIE and TXE) or (TCIE and TC)."""
+
+from collections import deque
+
+from .regs import Peripheral, TwinError
+
+
+class Usart(Peripheral):
+    def __init__(self, twin, base, name, clock, irq):
+        self.name = name
+        self.clock = clock
+        self.irq = irq
+        self.tx_busy_until = None
+        self.tx_pending = None  # byte in TDR waiting for the shift register
+        self.rx = deque()  # bytes from the host, in order
+        self.next_rx = None
+        self.sent = bytearray()
+        self.sink = None  # callable(bytes) for every byte sent
+        self.ore_read_sr = False
+        super().__init__(twin, base)
+
+    def define(self):
+        r = self.reg
+        r(0x00, "SR", 0x00C0, 0)
+        r(0x04, "DR", 0, 0x1FF)
+        r(0x08, "BRR", 0, 0xFFFF)
+        r(0x0C, "CR1", 0, 0xBFFF)
+        r(0x10, "CR2", 0, 0x7F7F)
+        r(0x14, "CR3", 0, 0x0FFF)
+        r(0x18, "GTPR", 0, 0xFFFF)
+
+    def byte_s(self):
+        brr = self["BRR"]
+        if brr == 0:
+            raise TwinError(f"{self.name}: transmission with BRR = 0")
+        over8 = self["CR1"] >> 15 & 1
+        # USARTDIV = BRR with the fraction in 4 bits (OVER8 = 0): baud = fck / BRR
+        baud = self.twin.rcc.pclk1_hz() / brr * (2 if over8 else 1) / 1
+        return 10 / baud
+
+    def enabled(self):
+        return self["CR1"] & (1 << 13)
+
+    def on_read_SR(self):
+        self._advance()
+        self.ore_read_sr = bool(self["SR"] & 0x8)
+        return self["SR"]
+
+    def on_write_SR(self, v, _l):
+        # rc_w0 bits: CTS, LBD, TC, RXNE
+        keep = ~0x0360 | v
+        self["SR"] &= keep
+        self._irq()
+
+    def on_read_DR(self):
+        self._advance()
+        v = self["DR"]
+        sr = self["SR"] & ~0x20  # RXNE cleared by the read
+        if self.ore_read_sr:
+            sr &= ~0x8  # ORE cleared by a read of SR then DR
+            self.ore_read_sr = False
+        self["SR"] = sr
+        self._irq()
+        return v
+
+    def on_write_DR(self, v, _l):
+        if not self.enabled() or not self["CR1"] & 0x8:
+            raise TwinError(f"{self.name}: byte written with the transmitter off")
+        self._advance()
+        if self.tx_busy_until is None:
+            self._start_tx(v & 0xFF)
+        else:
+            self.tx_pending = v & 0xFF
+            self["SR"] &= ~0x80  # TXE
+        self["SR"] &= ~0x40  # TC
+        self._irq()
+
+    def _start_tx(self, byte):
+        now = self.twin.now_s()
+        self.tx_busy_until = now + self.byte_s()
+        self.sent.append(byte)
+        if self.sink:
+            self.sink(bytes([byte]))
+        self.twin.reschedule()
+
+    def _advance(self):
+        now = self.twin.now_s()
+        while self.tx_busy_until is not None and now >= self.tx_busy_until:
+            if self.tx_pending is not None:
+                b, self.tx_pending = self.tx_pending, None
+                t = self.tx_busy_until
+                self.tx_busy_until = t + self.byte_s()
+                self.sent.append(b)
+                if self.sink:
+                    self.sink(bytes([b]))
+                self["SR"] |= 0x80
+            else:
+                self.tx_busy_until = None
+                self["SR"] |= 0xC0
+        while self.rx and self.next_rx is not None and now >= self.next_rx:
+            b = self.rx.popleft()
+            if self.enabled() and self["CR1"] & 0x4:
+                if self["SR"] & 0x20:
+                    self["SR"] |= 0x8  # overrun: RDR keeps the old byte
+                else:
+                    self["DR"] = b
+                    self["SR"] |= 0x20
+            self.next_rx = self.next_rx + self.byte_s() if self.rx else None
+
+    def send(self, data):
+        """The host sends `data` (bytes back to back from now)."""
+        if not self.rx:
+            self.next_rx = self.twin.now_s() + self.byte_s() if self["BRR"] else None
+        self.rx.extend(data)
+        self.twin.reschedule()
+
+    def _irq(self):
+        sr, cr1 = self["SR"], self["CR1"]
+        line = bool(
+            (cr1 & 0x20 and sr & 0x28) or (cr1 & 0x80 and sr & 0x80) or (cr1 & 0x40 and sr & 0x40)
+        )
+        self.twin.irq_level(self.irq, line)
+
+    def on_write_CR1(self, v, _l):
+        self.store("CR1", v)
+        self._irq()
+
+    def events(self):
+        ts = [t for t in (self.tx_busy_until, self.next_rx) if t is not None]
+        return min(ts) if ts else None
+
+    def tick(self, now_s):
+        self._advance()
+        self._irq()
