@@ -12,6 +12,7 @@
 //! - [`panel`] (feature `qemu`): the bytes of the QEMU link rig's operator panel (e-stop
 //!   press and release on USART1);
 //! - [`watchdog`]: the independent watchdog's timeout for the control rate;
+//! - [`reset_cause`]: why the chip last reset (RCC_CSR), logged at boot;
 //! - [`encoder_filter`]: the encoder timers' input filter and the count rate it passes;
 //! - [`index_capture`]: an encoder index capture handed from its interrupt to the control
 //!   period (the board's Y axis), and the guard against a noisy index line.
@@ -26,6 +27,7 @@ pub mod encoder_filter;
 pub mod index_capture;
 #[cfg(feature = "qemu")]
 pub mod panel;
+pub mod reset_cause;
 #[cfg(feature = "qemu")]
 pub mod scenarios;
 pub mod telemetry;

@@ -132,8 +132,24 @@ mod app {
         core.DCB.enable_trace();
         core.DWT.enable_cycle_counter();
 
+        // why the chip reset, before anything else touches RCC (cleared for the next boot)
+        #[cfg(not(feature = "qemu"))]
+        let reset_cause = board::take_reset_cause();
         let board = board::init(cx.device);
+        #[cfg(not(feature = "qemu"))]
+        let brownout = board.brownout;
         Mono::start(core.SYST, SYSCLK_HZ);
+        // SysTick (the 1 ms monotonic) below the control interrupt: at its reset priority
+        // 0 it would preempt every period. At the plan task's level it still runs before
+        // the link, button and telemetry tasks that wait on it.
+        // SAFETY: init runs with interrupts disabled; no priority-based critical section
+        // depends on SysTick's priority (the monotonic uses critical sections).
+        unsafe {
+            core.SCB.set_priority(
+                cortex_m::peripheral::scb::SystemHandler::SysTick,
+                board::SYSTICK_PRIORITY_HW,
+            )
+        };
 
         // The link's queues and the machine's place (init runs once: each `singleton!`
         // yields its static).
@@ -248,6 +264,24 @@ mod app {
             "gantry firmware up: control {=u32} Hz, outputs disabled until armed",
             CONTROL_RATE_HZ
         );
+        #[cfg(not(feature = "qemu"))]
+        defmt::info!("reset cause: {=str}", reset_cause.name());
+        #[cfg(not(feature = "qemu"))]
+        match brownout {
+            board::brownout::BorSetting::Kept => defmt::info!("brown-out reset: 2.7 V"),
+            board::brownout::BorSetting::Programmed { was } => {
+                defmt::info!(
+                    "brown-out reset: programmed to 2.7 V (BOR_LEV was {=u8:02b})",
+                    was
+                )
+            }
+            board::brownout::BorSetting::Failed { now } => {
+                defmt::error!(
+                    "brown-out reset: programming failed, BOR_LEV {=u8:02b}",
+                    now
+                )
+            }
+        }
         if telemetry::spawn().is_err() {
             defmt::error!("telemetry task already running");
         }
@@ -349,8 +383,13 @@ mod app {
     #[task(priority = 2, local = [arm, commands], shared = [telemetry])]
     async fn button(mut cx: button::Context) {
         let mut debounce = Debounce::new(ARM_BUTTON_HOLD_SAMPLES);
+        // a fixed schedule: `delay(1 ms)` waits 2 ticks of the 1 kHz monotonic (it rounds
+        // up to guarantee the duration), which made the samples 2 ms apart and the 20 ms
+        // hold 40 ms (measured on the board twin)
+        let mut next = Mono::now();
         loop {
-            Mono::delay(BUTTON_POLL_MS.millis()).await;
+            next += BUTTON_POLL_MS.millis();
+            Mono::delay_until(next).await;
             if debounce.update(cx.local.arm.pressed()) {
                 let state = cx.shared.telemetry.lock(|t| t.snapshot.state);
                 for c in press_commands(state, cfg!(feature = "demo-helix")) {
@@ -390,8 +429,11 @@ mod app {
         let Some(task) = cx.local.link_task else {
             return;
         };
+        // every millisecond on a fixed schedule (see `button`: `delay` would make it 2 ms)
+        let mut next = Mono::now();
         loop {
-            Mono::delay(1.millis()).await;
+            next += 1.millis();
+            Mono::delay_until(next).await;
             if task.run() {
                 rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
             }

@@ -46,10 +46,13 @@
 //! captures), [`pwm`] (servo outputs),
 //! [`inputs`] (safety inputs, arm button), [`leds`], [`tick`] (control timer),
 //! [`cycles`] (execution-time counter), [`io`] (the core's `ServoIo` for the board),
-//! [`clock`] (clock tree, crystal timeout, clock security system), [`shutdown`] (outputs
+//! [`clock`] (clock tree, crystal timeout, clock security system), [`brownout`] (the
+//! brown-out reset level in the option bytes), [`shutdown`] (outputs
 //! off from any context; panic and exception handlers), [`watchdog`] (the IWDG) and
 //! [`flash`] (the settings store's sectors).
 
+#[cfg(not(feature = "qemu"))]
+pub mod brownout;
 pub mod clock;
 pub mod cycles;
 pub mod encoders;
@@ -81,6 +84,22 @@ use tick::ControlTick;
 /// clock tree registers say).
 pub const SYSCLK_HZ: u32 = 168_000_000;
 
+/// SysTick's hardware priority: RTIC logical priority 3 (the plan task's level) with the
+/// STM32F4's 4 priority bits, `(16 - 3) << 4`: below the control interrupt (4, 0xC0).
+pub const SYSTICK_PRIORITY_HW: u8 = (16 - 3) << 4;
+
+/// Why the chip last reset (RCC_CSR's flags), the flags then cleared (RMVF) so the next
+/// boot reports its own cause.
+#[cfg(not(feature = "qemu"))]
+pub fn take_reset_cause() -> firmware::reset_cause::ResetCause {
+    // SAFETY: init runs before anything else uses RCC; CSR's RMVF only clears the flags
+    // (LSION, the other bit written, is kept as read).
+    let rcc = unsafe { &*pac::RCC::ptr() };
+    let csr = rcc.csr().read().bits();
+    rcc.csr().modify(|_, w| w.rmvf().set_bit());
+    firmware::reset_cause::ResetCause::from_csr(csr)
+}
+
 /// Everything `init` hands to the RTIC tasks.
 pub struct Board {
     pub encoders: Encoders,
@@ -105,6 +124,9 @@ pub struct Board {
     /// The flash controller (the settings store).
     #[cfg(not(feature = "qemu"))]
     pub flash: pac::FLASH,
+    /// The brown-out reset level found at boot, and whether it was programmed.
+    #[cfg(not(feature = "qemu"))]
+    pub brownout: brownout::BorSetting,
 }
 
 /// Safe pins, clocks, timers. Outputs end up disabled; the control timer is configured but
@@ -191,7 +213,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
     let (pwm_timer, (ch1, ch2, ch3, _ch4)) = dp
         .TIM1
         .pwm_hz(firmware::config::PWM_FREQUENCY_HZ.Hz(), &mut rcc);
-    pwm::configure_tim1_break_and_idle();
+    pwm::reset_and_lock_tim1();
     let pwm = [
         ch1.with(pwm_pins.0).erase(),
         ch2.with(pwm_pins.1).erase(),
@@ -270,6 +292,10 @@ pub fn init(dp: pac::Peripherals) -> Board {
         dp.USART1
     };
 
+    // the brown-out reset at 2.7 V (once per chip; every output is still off)
+    #[cfg(not(feature = "qemu"))]
+    let brownout = brownout::ensure_2v7(&dp.FLASH);
+
     Board {
         encoders,
         #[cfg(not(feature = "qemu"))]
@@ -287,5 +313,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         panel_usart,
         #[cfg(not(feature = "qemu"))]
         flash: dp.FLASH,
+        #[cfg(not(feature = "qemu"))]
+        brownout,
     }
 }

@@ -29,6 +29,8 @@ pub struct ServoOutputs {
     /// Brake coils X, Y, Z (high = released).
     brake: [AnyPin<Output>; AXES],
     max_duty_counts: u16,
+    /// The direction each pin drives now (true = negative).
+    reverse: [bool; AXES],
     active: bool,
     /// Owns TIM1's period settings (kept so nothing else can reconfigure the timer).
     _timer: PwmHzManager<pac::TIM1>,
@@ -49,12 +51,14 @@ impl ServoOutputs {
             ch.set_duty(0);
             ch.enable();
         }
+        compare_preload_off();
         let mut s = Self {
             max_duty_counts: timer.get_max_duty(),
             pwm,
             direction,
             enable,
             brake,
+            reverse: [false; AXES],
             active: true,
             _timer: timer,
         };
@@ -70,8 +74,16 @@ impl ServoOutputs {
     /// Writes duty and direction per axis and turns the output stage on if needed.
     #[inline]
     pub fn write(&mut self, cmd: &[DriveCommand; AXES]) {
-        for ((pwm, dir), c) in self.pwm.iter_mut().zip(self.direction.iter_mut()).zip(cmd) {
-            dir.set_state(PinState::from(c.reverse));
+        let pins = self.pwm.iter_mut().zip(self.direction.iter_mut());
+        for (((pwm, dir), c), reverse) in pins.zip(cmd).zip(self.reverse.iter_mut()) {
+            // a sign change: the duty goes to 0 before the direction pin flips, so no
+            // magnitude is ever driven the wrong way (the compare preload is off: every
+            // duty takes effect as it is written)
+            if c.reverse != *reverse {
+                pwm.set_duty(0);
+                dir.set_state(PinState::from(c.reverse));
+                *reverse = c.reverse;
+            }
             pwm.set_duty(c.duty_counts);
         }
         if !self.active {
@@ -112,12 +124,56 @@ impl ServoOutputs {
     }
 }
 
-/// TIM1's break and idle configuration, outputs off: the first write of BDTR after the
-/// HAL's `pwm_hz` (which turns automatic output enable on), and the one that sets the
-/// lock (see [`super::shutdown::BDTR_SAFE`]). Called before the PWM pins are switched to
-/// TIM1, so they go from GPIO low straight to a driven idle low.
+/// TIM1's break and idle configuration, outputs off (MOE cleared; the rest of BDTR is
+/// locked by [`reset_and_lock_tim1`]).
 pub fn configure_tim1_break_and_idle() {
     tim1_main_output(false);
+}
+
+/// TIM1 CCMR1/CCMR2 output-compare preload enables (OC1PE, OC2PE; OC3PE), RM0090 17.4.7.
+const CCMR1_OC1PE_OC2PE: u32 = (1 << 3) | (1 << 11);
+const CCMR2_OC3PE: u32 = 1 << 3;
+
+/// Re-initialises TIM1 with its configuration locked: BDTR's LOCK can be written once
+/// after a reset, by the first write of BDTR, and the HAL's `pwm_hz` has already written it
+/// (automatic output enable), which left LOCK at 0 for good. So: keep the period and the
+/// PWM modes the HAL computed, reset the timer through RCC, write BDTR first
+/// ([`BDTR_SAFE`]: break on, AOE off, idle low, LOCK level 1), then the period, the modes
+/// and the counter back. Called once, in `init`, before the PWM pins become TIM1 outputs
+/// and before any channel is enabled.
+pub fn reset_and_lock_tim1() {
+    // SAFETY: init, interrupts disabled; TIM1 is not enabled as an output yet (MOE off,
+    // CCER 0) and nothing else uses it; the RCC reset bit is TIM1's alone.
+    let (rcc, tim1) = unsafe { (&*pac::RCC::ptr(), &*pac::TIM1::ptr()) };
+    let psc = tim1.psc().read().bits();
+    let arr = tim1.arr().read().bits();
+    let ccmr1 = tim1.ccmr1_output().read().bits();
+    let ccmr2 = tim1.ccmr2_output().read().bits();
+    let cr1 = tim1.cr1().read().bits();
+    rcc.apb2rstr().modify(|_, w| w.tim1rst().set_bit());
+    rcc.apb2rstr().modify(|_, w| w.tim1rst().clear_bit());
+    tim1.bdtr().write(|w| unsafe { w.bits(BDTR_SAFE) });
+    tim1.psc().write(|w| unsafe { w.bits(psc) });
+    tim1.arr().write(|w| unsafe { w.bits(arr) });
+    tim1.ccmr1_output().write(|w| unsafe { w.bits(ccmr1) });
+    tim1.ccmr2_output().write(|w| unsafe { w.bits(ccmr2) });
+    // load PSC/ARR into their shadows, then count as the HAL had it (ARPE, CEN)
+    tim1.egr().write(|w| w.ug().set_bit());
+    tim1.cr1().write(|w| unsafe { w.bits(cr1) });
+}
+
+/// Turns TIM1's compare preload off on CH1..CH3 (the HAL's channel enable turns it on):
+/// a new duty takes effect when it is written, together with its direction pin; with the
+/// preload the old duty would drive the new direction until the next update, up to a PWM
+/// period (50 µs) ([`ServoOutputs::write`]).
+fn compare_preload_off() {
+    // SAFETY: init (from `ServoOutputs::new`), before the outputs are on; CCMR1/CCMR2 are
+    // written nowhere else after this.
+    let tim1 = unsafe { &*pac::TIM1::ptr() };
+    tim1.ccmr1_output()
+        .modify(|r, w| unsafe { w.bits(r.bits() & !CCMR1_OC1PE_OC2PE) });
+    tim1.ccmr2_output()
+        .modify(|r, w| unsafe { w.bits(r.bits() & !CCMR2_OC3PE) });
 }
 
 /// Sets or clears TIM1 BDTR.MOE by writing the whole register (the rest of it is the

@@ -43,7 +43,7 @@ from .exti import Exti, Syscfg
 from .flash import FLASH_BASE, FLASH_SIZE, OPTCR_FACTORY, Flash
 from .gpio import Gpio
 from .iwdg import LSI_TYPICAL_HZ, Iwdg
-from .rcc import CSR_PINRSTF, CSR_PORRSTF, CSR_IWDGRSTF, CSR_SFTRSTF, Pwr, Rcc
+from .rcc import CSR_BORRSTF, CSR_PINRSTF, CSR_PORRSTF, CSR_IWDGRSTF, CSR_SFTRSTF, Pwr, Rcc
 from .regs import TwinError
 from .scs import Dwt, Scs
 from .timers import ADVANCED, GP16, GP32, Timer
@@ -85,7 +85,8 @@ class Twin:
         self.unclocked = []  # (t_s, read/write, peripheral) with its clock off
         self.entries = {}  # exception number -> times entered
         self.first_entry = {}  # exception number -> time first entered
-        self.power_on(reset_flags=CSR_PORRSTF | CSR_PINRSTF)
+        # a power-on leaves PORRSTF, BORRSTF and PINRSTF (RCC_CSR's reset value, RM0090 6.3.21)
+        self.power_on(reset_flags=CSR_PORRSTF | CSR_BORRSTF | CSR_PINRSTF)
 
     # --- image -----------------------------------------------------------------
     def _load_elf(self, path, flash_image):
@@ -208,9 +209,34 @@ class Twin:
         self.exti = Exti(self, 0x4001_3C00)
         self.periphs = [self.rcc, self.flash, self.pwr, self.scs, self.dwt, *self.gpio.values(), *self.tim.values(),
                         self.usart2, self.iwdg, self.syscfg, self.exti]
-        self.by_base = sorted((p.base, p) for p in self.periphs)
+        self.by_base = sorted(((p.base, p) for p in self.periphs), key=lambda bp: bp[0])
         self.bases = [b for b, _ in self.by_base]
         self.outputs_seen = {}
+
+    def reset_peripheral(self, name):
+        """An RCC reset of one peripheral: every register back to its reset value."""
+        old = next(p for p in self.periphs if p.name == name)
+        if isinstance(old, Gpio):
+            new = Gpio(self, old.base, old.letter, "ABCDE".index(old.letter))
+            new.external = old.external
+            self.gpio[old.letter] = new
+        elif isinstance(old, Timer):
+            new = Timer(self, old.base, old.name, old.kind, old.clock, old.apb, old.irq)
+            self.tim[name] = new
+        elif isinstance(old, Usart):
+            new = Usart(self, old.base, old.name, old.clock, old.irq)
+            self.usart2 = new
+        elif isinstance(old, Syscfg):
+            new = self.syscfg = Syscfg(self, old.base)
+        elif isinstance(old, Pwr):
+            new = self.pwr = Pwr(self, old.base)
+        else:
+            raise TwinError(f"RCC reset of {name}: not modelled")
+        self.periphs[self.periphs.index(old)] = new
+        self.by_base = sorted(((p.base, p) for p in self.periphs), key=lambda bp: bp[0])
+        self.bases = [b for b, _ in self.by_base]
+        self.irq_level(getattr(old, "irq", -1), False) if hasattr(old, "irq") else None
+        self.pins_changed()
 
     def request_reset(self, cause):
         self.reset_pending = cause

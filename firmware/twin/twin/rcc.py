@@ -118,6 +118,30 @@ class Rcc(Peripheral):
 
     sws = 0
 
+    # peripheral resets (RM0090 6.3.5-6.3.8): a set bit holds the peripheral in its reset
+    # state; the twin rebuilds it with its reset values when the bit is set
+    RESETS = {
+        "AHB1RSTR": {0: "GPIOA", 1: "GPIOB", 2: "GPIOC", 3: "GPIOD", 4: "GPIOE"},
+        "APB1RSTR": {0: "TIM2", 1: "TIM3", 2: "TIM4", 3: "TIM5", 17: "USART2", 28: "PWR"},
+        "APB2RSTR": {0: "TIM1", 14: "SYSCFG"},
+    }
+
+    def _reset_bits(self, name, v):
+        old = self[name]
+        self.store(name, v)
+        for bit, periph in self.RESETS[name].items():
+            if v >> bit & 1 and not old >> bit & 1:
+                self.twin.reset_peripheral(periph)
+
+    def on_write_AHB1RSTR(self, v, _l):
+        self._reset_bits("AHB1RSTR", v)
+
+    def on_write_APB1RSTR(self, v, _l):
+        self._reset_bits("APB1RSTR", v)
+
+    def on_write_APB2RSTR(self, v, _l):
+        self._reset_bits("APB2RSTR", v)
+
     def on_write_CSR(self, v, _lanes):
         # RMVF clears every reset flag; LSION/LSIRDY in bits 0/1
         flags = self["CSR"] & 0xFE00_0000

@@ -34,7 +34,7 @@ use controller_core::presets::gantry::{adaptive_for, dob_smc_for, GANTRY_X, GANT
 use controller_core::presets::paper::{PAPER_DSMC, PAPER_LAMBDA, PAPER_PID, PAPER_PLANT};
 use controller_core::servo::io::{Inputs, ServoIo};
 use controller_core::servo::ServoState;
-use controller_core::servo::{Command, Servo};
+use controller_core::servo::{Command, Servo, ServoConfig};
 use controller_core::{LibmF32, Real, Vec3};
 
 /// Control period of the controller and estimator kernels: the firmware's 20 kHz rate.
@@ -248,6 +248,19 @@ impl<R: Real> Estimator3<R> {
 /// long enough for the PLL (100 Hz) to settle on the path's velocity.
 pub const SERVO_SETUP_PERIODS: usize = 400;
 
+/// The board's servo configuration as the servo kernels count it: the board's, with its
+/// holding brakes opening in the first period. The counted period runs with the brakes
+/// open either way (the brake logic costs the same per period); the board's 70 ms release
+/// of Z's brake would only add 700 held periods to the uncounted setup, in which the stub's
+/// encoder table and every kernel that replays it would have to stand still.
+pub fn kernel_servo_config() -> ServoConfig {
+    let mut cfg = servo_config(BOARD_RATE_HZ);
+    for b in cfg.brakes.iter_mut() {
+        b.release_s = 0.0;
+    }
+    cfg
+}
+
 /// Tracking error the [`ServoIo`] stub leaves per axis once it has grown in, mm (tens of
 /// counts: every error, power and sliding variable is non-zero, far below the 2 mm trip).
 pub const SERVO_STUB_ERROR_MM: [f64; 3] = [0.02, -0.015, 0.03];
@@ -269,7 +282,7 @@ impl StubIo {
     /// The board's helix from the origin, as the encoders would count it with the stub's
     /// error, at the board's rate and 1600 counts/mm (Z on its 16-bit timer).
     pub(crate) fn new() -> Option<Self> {
-        let cfg = servo_config(BOARD_RATE_HZ);
+        let cfg = kernel_servo_config();
         let traj = BOARD_PATH.path.build().ok()?;
         let p0 = traj.sample(0.0).pos;
         let period_s = 1.0 / f64::from(BOARD_RATE_HZ);
@@ -334,7 +347,7 @@ impl ServoPeriod {
     pub fn setup() -> Option<Self> {
         let mut io = StubIo::new()?;
         let raw = io.boot_registers();
-        let mut servo = Servo::<f32>::new(&servo_config(BOARD_RATE_HZ), raw, [0; AXES]).ok()?;
+        let mut servo = Servo::<f32>::new(&kernel_servo_config(), raw, [0; AXES]).ok()?;
         servo.period(&mut io, &[Command::Arm, Command::StartPath]);
         for _ in 1..SERVO_SETUP_PERIODS {
             servo.period(&mut io, &[]);

@@ -8,14 +8,13 @@
 //! `cargo insns parts` attributes the instructions of the real `servo_period` to the same
 //! parts instead (exact sum); docs/performance.md shows both.
 
-use crate::{StubIo, SERVO_SETUP_PERIODS};
+use crate::{kernel_servo_config, StubIo, SERVO_SETUP_PERIODS};
 use controller_core::axes::AXES;
 use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, Measured};
 use controller_core::coupling::contour::{cross_couple, Coupled};
 use controller_core::coupling::CouplingConfig;
 use controller_core::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
 use controller_core::motion::trajectory::{RefSample, Trajectory};
-use controller_core::presets::board::{servo_config, BOARD_RATE_HZ};
 use controller_core::servo::io::ServoIo;
 use controller_core::servo::monitor::Monitor;
 use controller_core::servo::motion::{self, Clock, Motion};
@@ -40,7 +39,7 @@ impl BoardRun {
     /// Arms, starts the path and runs `SERVO_SETUP_PERIODS + 1` periods (the last is the
     /// one the `servo_period` kernel counts).
     pub fn record() -> Option<Self> {
-        let cfg = servo_config(BOARD_RATE_HZ);
+        let cfg = kernel_servo_config();
         let mut io = StubIo::new()?;
         let raw = io.boot_registers();
         let mut servo = Servo::<f32>::new(&cfg, raw, [0; AXES]).ok()?;
