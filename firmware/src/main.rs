@@ -444,8 +444,11 @@ mod app {
     #[task(priority = 1, shared = [telemetry, end])]
     async fn telemetry(mut cx: telemetry::Context) {
         let mut logger = Logger::new();
+        // on a fixed schedule like the 1 ms tasks (one `delay_until` for all of them)
+        let mut next = Mono::now();
         loop {
-            Mono::delay(TELEMETRY_PERIOD_MS.millis()).await;
+            next += TELEMETRY_PERIOD_MS.millis();
+            Mono::delay_until(next).await;
             // `end` first: the control task publishes its last telemetry before `end`.
             let end = cx.shared.end.lock(|e| *e);
             let t = cx.shared.telemetry.lock(|t| *t);

@@ -22,6 +22,9 @@ def main(argv=None):
     ap.add_argument("--scenario", action="append", choices=sorted(scenarios.ALL),
                     help="scenario to run (repeatable; default: all)")
     ap.add_argument("--json", help="write the checks as JSON here")
+    ap.add_argument("--serve", metavar="PTY", help="instead of the scenarios: boot and serve USART2 at this pseudo-terminal")
+    ap.add_argument("--flash", metavar="FILE", help="--serve: the settings store's sectors and the option bytes, loaded at power-on (if the file exists) and written back when the twin stops")
+    ap.add_argument("--seconds", type=float, default=600.0, help="machine seconds --serve runs (default 600)")
     ap.add_argument("--log-dir", default=os.path.join(os.environ.get("CARGO_TARGET_DIR", "target"), "twin"),
                     help="where the decoded defmt logs go")
     a = ap.parse_args(argv)
@@ -29,6 +32,14 @@ def main(argv=None):
         print(f"--elf {a.elf}: not a file (build it with `cargo fw`)", file=sys.stderr)
         return 2
     os.makedirs(a.log_dir, exist_ok=True)
+    if a.serve:
+        if not (a.seconds > 0 and a.seconds < 1e6):
+            print(f"--seconds {a.seconds}: must be a positive number of machine seconds", file=sys.stderr)
+            return 2
+        from .serve import serve
+        t, wall = serve(a.elf, a.serve, a.seconds, os.path.join(a.log_dir, "serve.log"), a.flash)
+        print(f"twin: served {t.t_s:.3f} machine s in {wall:.1f} s")
+        return 0
     names = a.scenario or sorted(scenarios.ALL)
     report = []
     failed = 0

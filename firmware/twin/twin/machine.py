@@ -568,7 +568,8 @@ class Twin:
             err = e
         executed = min(self.counter.read(), n)
         self.in_chunk = False
-        self.cycles += executed
+        # a stalled core still counts cycles (the DWT counter runs on HCLK)
+        self.cycles += executed + int(self.stall_s * hz)
         self.t_s += executed / hz + self.stall_s
         self.stall_s = 0.0
         self._apply_stores()

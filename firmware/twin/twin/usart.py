@@ -18,7 +18,6 @@ class Usart(Peripheral):
         self.rx = deque()  # bytes from the host, in order
         self.next_rx = None
         self.sent = bytearray()
-        self.sink = None  # callable(bytes) for every byte sent
         self.ore_read_sr = False
         super().__init__(twin, base)
 
@@ -82,9 +81,14 @@ class Usart(Peripheral):
         now = self.twin.now_s()
         self.tx_busy_until = now + self.byte_s()
         self.sent.append(byte)
-        if self.sink:
-            self.sink(bytes([byte]))
+        self._out(byte)
         self.twin.reschedule()
+
+    def _out(self, byte):
+        # the twin's sink outlives this object (an RCC reset rebuilds the peripheral)
+        sink = getattr(self.twin, self.name.lower() + "_sink", None)
+        if sink is not None:
+            sink(byte)
 
     def _advance(self):
         now = self.twin.now_s()
@@ -94,8 +98,7 @@ class Usart(Peripheral):
                 t = self.tx_busy_until
                 self.tx_busy_until = t + self.byte_s()
                 self.sent.append(b)
-                if self.sink:
-                    self.sink(bytes([b]))
+                self._out(b)
                 self["SR"] |= 0x80
             else:
                 self.tx_busy_until = None

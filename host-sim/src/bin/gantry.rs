@@ -25,7 +25,7 @@ use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(name = "gantry", about = "Command a gantry over the host link")]
-#[command(group(ArgGroup::new("machine").required(true).args(["sim", "qemu", "port"])))]
+#[command(group(ArgGroup::new("machine").required(true).args(["sim", "qemu", "port", "twin"])))]
 struct Cli {
     /// The simulated gantry in-process.
     #[arg(long)]
@@ -37,6 +37,10 @@ struct Cli {
     /// A board: its UART's device (921,600 baud 8N1), e.g. /dev/ttyACM0.
     #[arg(long, value_name = "DEV")]
     port: Option<String>,
+    /// The board twin: the release firmware ELF on the emulated STM32F407, serving its
+    /// USART2 at PTY (`firmware/twin/run --serve PTY`); timeouts count its machine clock.
+    #[arg(long, value_name = "PTY")]
+    twin: Option<String>,
     /// The firmware ELF for --qemu (default: what `cargo fw-qemu-build` builds).
     #[arg(long, requires = "qemu")]
     elf: Option<PathBuf>,
@@ -214,7 +218,7 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<ExitCode> {
     // (clap's `requires` counts the flag's default as given)
     if cli.elf.is_some() && !cli.qemu {
-        bail!("--elf is the firmware for --qemu; it does nothing with --sim or --port");
+        bail!("--elf is the firmware for --qemu; it does nothing with --sim, --port or --twin");
     }
     if cli.factory && !cli.sim {
         bail!("--factory starts the simulated machine; it goes with --sim only");
@@ -231,7 +235,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
         SimModels::Designed
     };
     let decimation = 10_000 / cli.telemetry_hz;
-    if let Some(dev) = &cli.port {
+    if let Some(pty) = &cli.twin {
+        session(
+            subscribed(BoardPort::open_twin(pty)?, decimation)?,
+            cli.command,
+            decimation,
+        )
+    } else if let Some(dev) = &cli.port {
         session(
             subscribed(BoardPort::open(dev)?, decimation)?,
             cli.command,

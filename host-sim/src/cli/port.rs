@@ -1,19 +1,50 @@
 //! `gantry --port DEV`: a board over its host UART (USART2, PA2/PA3, 921,600 baud 8N1:
 //! an ST-Link virtual COM port such as `/dev/ttyACM0`, or any USB-UART adapter). The
 //! host's clock is the wall clock.
+//!
+//! `gantry --twin PTY`: the board twin (`firmware/twin/run --serve PTY`, the release ELF
+//! on the emulated STM32F407) over the same serial path; the host's clock is the twin's
+//! machine clock, which it writes to `PTY.clock` (milliseconds, u32 little-endian), so
+//! every link timeout counts machine time however slowly the twin runs.
 
 use super::Transport;
 use anyhow::{bail, Context, Result};
+use std::cell::Cell;
 use std::io::{ErrorKind, Read, Write};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 /// The firmware's link baud rate (firmware `board::serial::HOST_BAUD`).
 pub const BOARD_BAUD: u32 = 921_600;
 
-/// An open serial line to a board.
+/// Wall time the twin's clock may stand still before the session ends (the twin runs at
+/// about 0.1 x real time: a millisecond of machine time takes about 10 ms).
+pub const TWIN_CLOCK_STALL_LIMIT: Duration = Duration::from_secs(10);
+
+/// The machine clock of the board twin, read from the file it writes.
+struct TwinClock {
+    path: PathBuf,
+    last_ms: Cell<u32>,
+    last_change: Cell<Instant>,
+}
+
+impl TwinClock {
+    fn read(&self) -> Option<u32> {
+        let b = std::fs::read(&self.path).ok()?;
+        let ms = u32::from_le_bytes(b.get(..4)?.try_into().ok()?);
+        if ms != self.last_ms.get() {
+            self.last_ms.set(ms);
+            self.last_change.set(Instant::now());
+        }
+        Some(ms)
+    }
+}
+
+/// An open serial line to a board (or to the board twin).
 pub struct BoardPort {
     port: Box<dyn serialport::SerialPort>,
     t0: Instant,
+    twin: Option<TwinClock>,
 }
 
 impl BoardPort {
@@ -30,7 +61,26 @@ impl BoardPort {
         Ok(Self {
             port,
             t0: Instant::now(),
+            twin: None,
         })
+    }
+
+    /// The board twin serving its USART2 at `pty`, with its machine clock at `pty.clock`.
+    pub fn open_twin(pty: &str) -> Result<Self> {
+        let mut p = Self::open(pty)?;
+        let clock = TwinClock {
+            path: PathBuf::from(format!("{pty}.clock")),
+            last_ms: Cell::new(0),
+            last_change: Cell::new(Instant::now()),
+        };
+        if clock.read().is_none() {
+            bail!(
+                "{}: no machine clock (is `firmware/twin/run --serve {pty}` running?)",
+                clock.path.display()
+            );
+        }
+        p.twin = Some(clock);
+        Ok(p)
     }
 }
 
@@ -55,11 +105,24 @@ impl Transport for BoardPort {
     }
 
     fn now_ms(&self) -> u32 {
-        self.t0.elapsed().as_millis() as u32
+        match &self.twin {
+            Some(c) => c.read().unwrap_or_else(|| c.last_ms.get()),
+            None => self.t0.elapsed().as_millis() as u32,
+        }
     }
 
     fn wait(&mut self) -> Result<()> {
         std::thread::sleep(Duration::from_millis(1));
+        if let Some(c) = &self.twin {
+            c.read();
+            if c.last_change.get().elapsed() > TWIN_CLOCK_STALL_LIMIT {
+                bail!(
+                    "the board twin's clock ({}) stood still for {} s: the twin is gone",
+                    c.path.display(),
+                    TWIN_CLOCK_STALL_LIMIT.as_secs()
+                );
+            }
+        }
         Ok(())
     }
 }

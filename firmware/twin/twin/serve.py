@@ -1,0 +1,98 @@
+"""`firmware/twin/run --serve PTY`: the twin's USART2 behind a pseudo-terminal, the way
+`firmware/qemu/serve-link` serves the QEMU build, so `gantry --port PTY …` talks to the
+release firmware over the very path it takes to a board's UART. The bytes cross at the
+UART's own timing (BRR from PCLK1): the host sees the board's link, only slower in wall
+time (the twin runs at about 0.1 x real time)."""
+
+import os
+import signal
+import time
+import tty
+
+from .machine import Twin
+from .rtt import RttReader
+
+# machine time between two looks at the pty (a byte at 921,600 baud takes 10.9 µs: 1 ms
+# holds 92 bytes, far more than the link's 64-byte frames arrive in)
+POLL_S = 1e-3
+
+
+# the settings store's sectors 10 and 11 (firmware/memory.x): what --flash keeps
+STORE_OFF, STORE_LEN = 0xC_0000, 0x4_0000
+
+
+def load_store(path):
+    """The store's sectors and the option bytes a previous --serve left in `path`."""
+    if path is None or not os.path.exists(path):
+        return None, None
+    with open(path, "rb") as f:
+        raw = f.read()
+    if len(raw) != STORE_LEN + 4:
+        raise SystemExit(f"--flash {path}: {len(raw)} bytes, not a twin flash file ({STORE_LEN + 4})")
+    return [(STORE_OFF, raw[:STORE_LEN])], int.from_bytes(raw[STORE_LEN:], "little")
+
+
+def save_store(path, t):
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(bytes(t.flash_mem[STORE_OFF : STORE_OFF + STORE_LEN]))
+        f.write(t.option_bytes.to_bytes(4, "little"))
+    os.replace(tmp, path)
+
+
+def _stop(_sig, _frame):
+    raise KeyboardInterrupt
+
+
+def serve(elf, pty_path, seconds, log_path, flash_path=None):
+    image, optcr = load_store(flash_path)
+    t = Twin(elf, flash_image=image, **({"option_bytes": optcr} if optcr is not None else {}))
+    signal.signal(signal.SIGTERM, _stop)
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    if os.path.lexists(pty_path):
+        os.remove(pty_path)
+    os.symlink(os.ttyname(slave), pty_path)
+    out = bytearray()
+    t.usart2_sink = out.append
+    rtt = RttReader(t, elf, log_path)
+    # the machine clock gantry --twin counts its timeouts in (ms, u32 little-endian)
+    clock_path = pty_path + ".clock"
+    clock = os.open(clock_path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
+    os.pwrite(clock, (0).to_bytes(4, "little"), 0)
+    print(f"twin: the release firmware's USART2 is at {pty_path}", flush=True)
+
+    def poll(tw):
+        rtt.poll()
+        os.pwrite(clock, (int(tw.t_s * 1000) & 0xFFFF_FFFF).to_bytes(4, "little"), 0)
+        if out:
+            try:
+                n = os.write(master, bytes(out))
+                del out[:n]
+            except (BlockingIOError, OSError):
+                # nobody reads the pty yet: a UART's bytes go out whether anyone listens
+                out.clear()
+        try:
+            data = os.read(master, 4096)
+        except (BlockingIOError, OSError):
+            data = b""
+        if data:
+            tw.usart2.send(data)
+
+    w = time.time()
+    try:
+        t.run(seconds, poll=poll, poll_every_s=POLL_S)
+    except KeyboardInterrupt:
+        print(f"twin: stopped at {t.t_s:.3f} machine s", flush=True)
+    finally:
+        if flash_path is not None:
+            # the power goes off: the flash keeps what was written
+            save_store(flash_path, t)
+        rtt.close()
+        os.remove(pty_path)
+        os.close(clock)
+        os.remove(clock_path)
+        os.close(master)
+        os.close(slave)
+    return t, time.time() - w
