@@ -294,27 +294,35 @@ class Twin:
             self._fail(e)
             return 0
 
-    def _mmio_write(self, uc, off, size, value, region):
-        addr = region + off
+    def _store(self, uc, addr, value, apply):
+        """A store into a peripheral: `apply()` does it, once. unicorn stops a run inside a
+        store by restarting that store, so a chunk that a store ends (it changed what may
+        interrupt the core) sees the same store again first: that one is skipped."""
         if self.replay is not None:
-            if self.replay == (uc.reg_read(UC_ARM_REG_PC), addr, value):
-                # unicorn stops a run inside a store by restarting that store: this is
-                # the store the previous chunk already applied
-                self.replay = None
-                return
+            again = self.replay == (uc.reg_read(UC_ARM_REG_PC), addr, value)
             self.replay = None
+            if again:
+                return
         try:
             self._apply_stores()
-            p = self._periph_at(addr)
-            lane = addr & 3
-            mask = ((1 << (8 * size)) - 1) << (8 * lane)
-            p.write32((addr - p.base) & ~3, (value << (8 * lane)) & 0xFFFFFFFF, mask)
+            apply()
         except TwinError as e:
             self._fail(e)
         if self.want_stop and self.in_chunk:
             self.want_stop = False
             self.replay = (uc.reg_read(UC_ARM_REG_PC), addr, value)
             uc.emu_stop()
+
+    def _mmio_write(self, uc, off, size, value, region):
+        addr = region + off
+
+        def apply():
+            p = self._periph_at(addr)
+            lane = addr & 3
+            mask = ((1 << (8 * size)) - 1) << (8 * lane)
+            p.write32((addr - p.base) & ~3, (value << (8 * lane)) & 0xFFFFFFFF, mask)
+
+        self._store(uc, addr, value, apply)
 
     def _bb_target(self, off):
         return 0x4000_0000 + (off >> 5), (off >> 2) & 7
@@ -334,21 +342,12 @@ class Twin:
     def _bb_write(self, uc, off, size, value, _u):
         addr, bit = self._bb_target(off)
         bit += 8 * (addr & 3)
-        if self.replay is not None:
-            if self.replay == (uc.reg_read(UC_ARM_REG_PC), addr, value):
-                self.replay = None
-                return
-            self.replay = None
-        try:
-            self._apply_stores()
+
+        def apply():
             p = self._periph_at(addr & ~3)
             p.write32((addr & ~3) - p.base, (value & 1) << bit, 1 << bit)
-        except TwinError as e:
-            self._fail(e)
-        if self.want_stop and self.in_chunk:
-            self.want_stop = False
-            self.replay = (uc.reg_read(UC_ARM_REG_PC), addr, value)
-            uc.emu_stop()
+
+        self._store(uc, BITBAND_BASE + off, value, apply)
 
     def _fail(self, e):
         if self.stop_reason is None:
