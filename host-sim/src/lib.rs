@@ -28,3 +28,4 @@ pub mod jobs;
 pub mod output;
 pub mod overrides;
 pub mod studies;
+pub mod twin_plant;

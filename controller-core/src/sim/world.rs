@@ -541,6 +541,11 @@ impl World {
         }
     }
 
+    /// Per axis the amplifier's effort at full command (100 % duty), the laws' units.
+    pub fn full_scale(&self) -> [f64; AXES] {
+        self.full_scale
+    }
+
     /// Simulated time at the start of the current period, s.
     pub fn time_s(&self) -> f64 {
         self.periods as f64 * self.period_s

@@ -58,12 +58,21 @@ class Gpio(Peripheral):
         return {1: 1, 2: 0}.get(p)
 
     def on_read_IDR(self):
+        self.twin.inputs_read()
+        # the levels change only when a pin, a port register or TIM1's outputs do
+        # (Twin.pin_generation counts those): the control interrupt reads IDR many times
+        gen = self.twin.pin_generation
+        if self._idr_cache is not None and self._idr_cache[0] == gen:
+            return self._idr_cache[1]
         v = 0
         for pin in range(16):
             lv = self.level(pin)
             if lv:
                 v |= 1 << pin
+        self._idr_cache = (gen, v)
         return v
+
+    _idr_cache = None
 
     def _changed(self):
         self.twin.pins_changed(self.letter)

@@ -299,10 +299,14 @@ class Twin:
         store by restarting that store, so a chunk that a store ends (it changed what may
         interrupt the core) sees the same store again first: that one is skipped."""
         if self.replay is not None:
-            again = self.replay == (uc.reg_read(UC_ARM_REG_PC), addr, value)
-            self.replay = None
-            if again:
-                return
+            # the restarted store is the one at that pc on that stack: an exception taken
+            # at the chunk's end runs its handler first, whose stores are not it
+            here = tuple(uc.reg_read_batch((UC_ARM_REG_PC, UC_ARM_REG_SP)))
+            if here == self.replay[0]:
+                again = self.replay[1] == (addr, value)
+                self.replay = None
+                if again:
+                    return
         try:
             self._apply_stores()
             apply()
@@ -310,7 +314,7 @@ class Twin:
             self._fail(e)
         if self.want_stop and self.in_chunk:
             self.want_stop = False
-            self.replay = (uc.reg_read(UC_ARM_REG_PC), addr, value)
+            self.replay = (tuple(uc.reg_read_batch((UC_ARM_REG_PC, UC_ARM_REG_SP))), (addr, value))
             uc.emu_stop()
 
     def _mmio_write(self, uc, off, size, value, region):
@@ -393,7 +397,11 @@ class Twin:
             return None
         return g.level(pin)
 
+    pin_generation = 0
+    usart_overruns = 0  # bytes from the host lost to ORE (RXNE still set)
+
     def pins_changed(self, port=None):
+        self.pin_generation += 1
         if not hasattr(self, "tim"):
             return
         if port in (None, "B"):
@@ -402,6 +410,7 @@ class Twin:
             self._record()
 
     def outputs_changed(self, _timer, t_s):
+        self.pin_generation += 1
         self._record(t_s)
 
     def _record(self, t_s=None):
@@ -423,8 +432,43 @@ class Twin:
                 self.outputs_seen[k] = v
                 self.log.append((t, k, v))
 
+    plant = None  # the closed loop (plant.Plant), attached by a scenario or --serve
+
+    def control_update(self, rate_hz):
+        if self.plant is not None:
+            self.plant.control_update(round(rate_hz))
+
+    def symbol_at(self, addr):
+        """The ELF symbol `addr` is in (nearest below), as name+offset."""
+        if not hasattr(self, "_sym_sorted"):
+            self._sym_sorted = sorted((a & ~1, n) for n, a in self.symbols.items() if 0x0800_0000 <= a < 0x0810_0000)
+            self._sym_addrs = [a for a, _ in self._sym_sorted]
+        i = bisect.bisect_right(self._sym_addrs, addr) - 1
+        if i < 0:
+            return f"0x{addr:08x}"
+        a, n = self._sym_sorted[i]
+        return f"{n}+0x{addr - a:x}"
+
+    def describe(self):
+        """Where the core is: for a look at a run that stopped making progress."""
+        uc = self.uc
+        sp = uc.reg_read(UC_ARM_REG_SP)
+        n = max(0, min(256, (SRAM_BASE + SRAM_SIZE - sp) // 4))
+        words = [int.from_bytes(uc.mem_read(sp + 4 * i, 4), "little") for i in range(n)]
+        code = [self.symbol_at(w & ~1) for w in words if 0x0800_0000 <= w < 0x0810_0000 and w & 1]
+        return (f"t {self.t_s:.4f} s pc {self.symbol_at(self.pc)} sleeping {self.sleeping} active {self.scs.active} "
+                f"pending {sorted(self.scs.pending)} lines {sorted(self.irq_lines)} basepri 0x{uc.reg_read(UC_ARM_REG_BASEPRI):02x} "
+                f"primask {uc.reg_read(UC_ARM_REG_PRIMASK)} entries {dict(sorted(self.entries.items()))} stack code addresses {code[:12]}")
+
     def encoder_counts(self, timer):
+        if self.plant is not None:
+            self.plant.settle()
         return self.encoder[timer]
+
+    def inputs_read(self):
+        """The core reads an input port: the plant's step under way lands first."""
+        if self.plant is not None:
+            self.plant.settle()
 
     # --- interrupts -----------------------------------------------------------------------
     def irq_level(self, irq, level):

@@ -10,6 +10,7 @@ import time
 import tty
 
 from .machine import Twin
+from .plant import Plant
 from .rtt import RttReader
 
 # machine time between two looks at the pty (a byte at 921,600 baud takes 10.9 µs: 1 ms
@@ -40,14 +41,23 @@ def save_store(path, t):
     os.replace(tmp, path)
 
 
-def _stop(_sig, _frame):
-    raise KeyboardInterrupt
+class _Stop:
+    """SIGTERM: the run stops at its next poll. (Raised from the signal handler, the
+    exception would land inside one of unicorn's callbacks, which ctypes swallows.)"""
+
+    asked = False
+
+    def __call__(self, _sig, _frame):
+        self.asked = True
 
 
 def serve(elf, pty_path, seconds, log_path, flash_path=None):
     image, optcr = load_store(flash_path)
     t = Twin(elf, flash_image=image, **({"option_bytes": optcr} if optcr is not None else {}))
-    signal.signal(signal.SIGTERM, _stop)
+    t.plant = Plant(t)
+    stop = _Stop()
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
     master, slave = os.openpty()
     tty.setraw(slave)
     os.set_blocking(master, False)
@@ -63,12 +73,26 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
     os.pwrite(clock, (0).to_bytes(4, "little"), 0)
     print(f"twin: the release firmware's USART2 is at {pty_path}", flush=True)
 
+    stats = {"next_s": 1.0, "in": 0, "out": 0}
+
+    dump = {"want": False}
+    signal.signal(signal.SIGUSR1, lambda *_: dump.update(want=True))
+
     def poll(tw):
+        if stop.asked:
+            raise KeyboardInterrupt
+        if dump["want"]:
+            dump["want"] = False
+            print("twin: " + tw.describe(), flush=True)
+        if tw.t_s >= stats["next_s"] and os.environ.get("TWIN_LINK_STATS"):
+            stats["next_s"] += 1.0
+            print(f"twin: {tw.t_s:.0f} s: host bytes in {stats['in']}, out {stats['out']}, overruns {tw.usart_overruns}", flush=True)
         rtt.poll()
         os.pwrite(clock, (int(tw.t_s * 1000) & 0xFFFF_FFFF).to_bytes(4, "little"), 0)
         if out:
             try:
                 n = os.write(master, bytes(out))
+                stats["out"] += n
                 del out[:n]
             except (BlockingIOError, OSError):
                 # nobody reads the pty yet: a UART's bytes go out whether anyone listens
@@ -78,6 +102,7 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
         except (BlockingIOError, OSError):
             data = b""
         if data:
+            stats["in"] += len(data)
             tw.usart2.send(data)
 
     w = time.time()
@@ -90,6 +115,10 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
             # the power goes off: the flash keeps what was written
             save_store(flash_path, t)
         rtt.close()
+        t.plant.close()
+        if os.environ.get("TWIN_DUMP_TX"):
+            with open(os.environ["TWIN_DUMP_TX"], "wb") as f:
+                f.write(bytes(t.usart2.sent))
         os.remove(pty_path)
         os.close(clock)
         os.remove(clock_path)

@@ -94,6 +94,8 @@ class Timer(Peripheral):
                 self["SR"] |= 1
         self.cnt_t0, self.cnt_v0 = t_s, 0
         self._schedule()
+        if self.name == "TIM4" and from_overflow:
+            self.twin.control_update(self._hz() / (self.arr_active + 1))
 
     def _transfer_ccr(self, t_s):
         for i in range(4):
@@ -210,13 +212,15 @@ class Timer(Peripheral):
         self._catch_up()
         self.store(f"CCR{i + 1}", v)
         ccmr = self["CCMR1" if i < 2 else "CCMR2"] >> (8 * (i % 2))
-        if not ccmr & 0x08:
+        if not ccmr & 0x08 and self.ccr_active[i] != self[f"CCR{i + 1}"]:
             self.ccr_active[i] = self[f"CCR{i + 1}"]
             self.twin.outputs_changed(self, self.twin.now_s())
 
     def on_write_CCER(self, v, _l):
+        old = self["CCER"]
         self.store("CCER", v)
-        self.twin.outputs_changed(self, self.twin.now_s())
+        if self["CCER"] != old:
+            self.twin.outputs_changed(self, self.twin.now_s())
 
     def on_write_CCMR1(self, v, _l):
         self._ccmr("CCMR1", v)
@@ -247,7 +251,8 @@ class Timer(Peripheral):
         self["BDTR"] = new & 0xFFFF
         if new & 0x8000 and self._break_active():
             self["BDTR"] &= ~0x8000  # MOE cannot be set while the break input is active
-        self.twin.outputs_changed(self, self.twin.now_s())
+        if self["BDTR"] != old:
+            self.twin.outputs_changed(self, self.twin.now_s())
 
     def _break_active(self):
         if not self["BDTR"] & 0x1000:  # BKE

@@ -108,6 +108,7 @@ class Usart(Peripheral):
             if self.enabled() and self["CR1"] & 0x4:
                 if self["SR"] & 0x20:
                     self["SR"] |= 0x8  # overrun: RDR keeps the old byte
+                    self.twin.usart_overruns += 1
                 else:
                     self["DR"] = b
                     self["SR"] |= 0x20

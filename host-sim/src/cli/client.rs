@@ -103,7 +103,15 @@ impl<T: Transport> Client<T> {
                 Feed::NeedMore => break,
                 Feed::Frame { result, rest: r } => {
                     rest = r;
-                    let Ok(frame) = result else { continue };
+                    let frame = match result {
+                        Ok(f) => f,
+                        Err(e) => {
+                            if std::env::var_os("GANTRY_DEBUG_FRAMES").is_some() {
+                                eprintln!("frame dropped: {e:?}");
+                            }
+                            continue;
+                        }
+                    };
                     match self.link.on_frame(frame, now) {
                         Ok(HostEvent::Telemetry {
                             sample, arrival, ..

@@ -49,25 +49,45 @@ pub enum SimModels {
     Factory,
 }
 
+/// The simulated physical gantry of `gantry --sim` (host-sim/scenarios/gcode.toml: travel
+/// ±150/±150/±50 mm around where it starts) with limit switches where `settings`' homing
+/// expects them, at `rate_hz` (default: the scenario's), and its control rate. Also the
+/// board twin's plant (`twin-plant`), which passes `board_amplifier`: the amplifier
+/// applies the duty the board's timer drives, unquantised here (the timer's own
+/// resolution is the board's quantisation).
+pub fn gantry_world(
+    settings: &Settings,
+    rate_hz: Option<u32>,
+    board_amplifier: bool,
+) -> Result<(World, u32)> {
+    let (run, _) = machine_and_planner(None)?;
+    let mut wcfg = run.world;
+    wcfg.switches = SwitchConfig::for_homing(settings);
+    let rate_hz = rate_hz.unwrap_or(run.servo.rate_hz);
+    let mut servo_cfg = settings
+        .servo_config(rate_hz)
+        .map_err(|e| anyhow!("settings: {e:?}"))?;
+    if board_amplifier {
+        for a in &mut servo_cfg.amplifiers {
+            a.resolution_bits = 0;
+        }
+    }
+    let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
+    Ok((world, rate_hz))
+}
+
 impl SimMachine {
     /// The physical gantry (host-sim/scenarios/gcode.toml: travel ±150/±150/±50 mm
     /// around where it starts) with limit switches where the factory homing expects
     /// them; telemetry every `telemetry_periods` control periods.
     pub fn new(models: SimModels, telemetry_periods: u32) -> Result<Self> {
-        let (run, _) = machine_and_planner(None)?;
         let mut settings: Settings = FACTORY;
         if models == SimModels::Designed {
             for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
                 a.model = Some(m);
             }
         }
-        let mut wcfg = run.world;
-        wcfg.switches = SwitchConfig::for_homing(&settings);
-        let rate_hz = run.servo.rate_hz;
-        let servo_cfg = settings
-            .servo_config(rate_hz)
-            .map_err(|e| anyhow!("settings: {e:?}"))?;
-        let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
+        let (world, rate_hz) = gantry_world(&settings, None, false)?;
         let mut machine = Machine::new(
             &settings,
             rate_hz,

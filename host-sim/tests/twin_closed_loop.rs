@@ -1,0 +1,176 @@
+//! The release firmware closed-loop on the board twin (firmware/twin, docs/board-twin.md):
+//! `gantry run` of the square and the arcs programs over the twin's USART2, TIM1's duty
+//! and the DIR pins driving the simulated gantry of `gantry --sim` (the `twin-plant`
+//! helper), its counts back in the encoder timers; the same program on `gantry --sim` with
+//! the same settings and telemetry rate. The twin's run completes, with its contour max
+//! within 10 % of `--sim`'s and its tracking figures alike.
+//!
+//! Needs `cargo fw` (the ELF), `cargo build -p host-sim --release --bin twin-plant` and the
+//! twin's Python packages (.ci/run installs them); one twin per program, in parallel.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use controller_core::machine::messages::Request;
+use host_sim::cli::client::{expect_done, Client};
+use host_sim::cli::port::BoardPort;
+use host_sim::cli::sim::{SimMachine, SimModels};
+use host_sim::cli::{self, Transport, AXES};
+use host_sim::studies::gcode::GcodeReport;
+
+/// Telemetry every 50 control periods (200 Hz at 10 kHz) on both machines: the contour
+/// figures are taken from it. (1 kHz, `gantry`'s default, works too: every telemetry
+/// byte is a UART interrupt the twin emulates, 5x the wall time.)
+const DECIMATION: u32 = 50;
+/// Machine seconds a twin serves at most (the arcs take 35).
+const TWIN_SECONDS: u32 = 120;
+/// How far the twin's contour max may be from `--sim`'s.
+const CONTOUR_RATIO_BOUND: f64 = 0.10;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The settings both machines run: the designed axis models entered (a fresh board has
+/// none and refuses to arm), homing off (the axes count as homed where they are armed:
+/// the twin's run stays short).
+fn prepare<T: Transport>(c: &mut Client<T>) {
+    for a in AXES {
+        cli::set(c, &format!("axis.{a}.model.known"), "true").unwrap();
+        cli::set(c, &format!("axis.{a}.homing.enabled"), "false").unwrap();
+    }
+}
+
+fn subscribe<T: Transport>(c: &mut Client<T>) {
+    expect_done(
+        "subscribe",
+        c.exec(Request::Subscribe {
+            every_periods: DECIMATION,
+            signals: heapless::Vec::new(),
+        })
+        .unwrap(),
+    )
+    .unwrap();
+}
+
+/// `firmware/twin/run --serve`, stopped (SIGTERM) when dropped.
+struct Served {
+    child: Child,
+    pty: String,
+}
+
+impl Served {
+    fn start(tag: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("gantry_twin_{}_{tag}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pty = dir.join("tty").display().to_string();
+        let child = Command::new(root().join("firmware/twin/run"))
+            .args([
+                "--serve",
+                &pty,
+                "--seconds",
+                &TWIN_SECONDS.to_string(),
+                "--log-dir",
+            ])
+            .arg(&dir)
+            .stdout(Stdio::null())
+            .spawn()
+            .expect("firmware/twin/run");
+        let clock = format!("{pty}.clock");
+        let t0 = Instant::now();
+        while !Path::new(&clock).exists() {
+            assert!(
+                t0.elapsed() < Duration::from_secs(60),
+                "the twin did not come up"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        Self { child, pty }
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .arg(self.child.id().to_string())
+            .status();
+        let _ = self.child.wait();
+    }
+}
+
+fn on_twin(program: &Path) -> (GcodeReport, f64) {
+    let tag = program.file_stem().unwrap().to_string_lossy().to_string();
+    let served = Served::start(&tag);
+    let mut c = Client::connect(BoardPort::open_twin(&served.pty).unwrap()).unwrap();
+    prepare(&mut c);
+    subscribe(&mut c);
+    let t0 = Instant::now();
+    let r = cli::run_program(&mut c, program, f64::from(DECIMATION) / 1e4, false, None).unwrap();
+    (r, t0.elapsed().as_secs_f64())
+}
+
+fn on_sim(program: &Path) -> GcodeReport {
+    let mut c = Client::connect(SimMachine::new(SimModels::Designed, DECIMATION).unwrap()).unwrap();
+    prepare(&mut c);
+    cli::run_program(&mut c, program, f64::from(DECIMATION) / 1e4, false, None).unwrap()
+}
+
+#[test]
+#[ignore = "needs `cargo fw`, the twin-plant helper and the twin's Python packages; fails today: the board build's status replies go out as malformed frames while a program runs (docs/board-twin.md), so it is not in .ci/run yet"]
+fn square_and_arcs_on_the_twin_match_the_simulated_machine() {
+    let programs = ["square", "arcs"].map(|p| root().join(format!("host-sim/programs/{p}.nc")));
+    let twins: Vec<_> = programs
+        .iter()
+        .cloned()
+        .map(|p| std::thread::spawn(move || on_twin(&p)))
+        .collect();
+    let mut rows = Vec::new();
+    for (p, t) in programs.iter().zip(twins) {
+        let (twin, wall_s) = t.join().expect("the twin's run");
+        let sim = on_sim(p);
+        let name = p.file_stem().unwrap().to_string_lossy().to_string();
+        println!(
+            "{name}: twin contour max {:.5} mm rms {:.5} mm, {:.3} s, {} segments ({:.0} s wall, {:.3}x real time); \
+             --sim contour max {:.5} mm rms {:.5} mm, {:.3} s, {} segments",
+            twin.contour_max_mm, twin.contour_rms_mm, twin.duration_s, twin.segments, wall_s,
+            twin.duration_s / wall_s, sim.contour_max_mm, sim.contour_rms_mm, sim.duration_s, sim.segments,
+        );
+        assert_eq!(
+            twin.status, "completed",
+            "{name} on the twin: {:?}",
+            twin.error
+        );
+        assert!(twin.program_done, "{name}: {}", twin.program_end);
+        assert_eq!(twin.segments, sim.segments, "{name}: segments executed");
+        let ratio = twin.contour_max_mm / sim.contour_max_mm;
+        assert!(
+            (ratio - 1.0).abs() <= CONTOUR_RATIO_BOUND,
+            "{name}: contour max twin {} mm vs --sim {} mm (ratio {ratio:.3})",
+            twin.contour_max_mm,
+            sim.contour_max_mm
+        );
+        // the same program at the same feeds: the durations agree within a few periods of
+        // telemetry
+        assert!(
+            (twin.duration_s - sim.duration_s).abs() <= 0.05,
+            "{name}: duration twin {} s vs --sim {} s",
+            twin.duration_s,
+            sim.duration_s
+        );
+        rows.push(serde_json::json!({
+            "program": name,
+            "twin_contour_max_mm": twin.contour_max_mm,
+            "sim_contour_max_mm": sim.contour_max_mm,
+            "contour_ratio": ratio,
+            "twin_contour_rms_mm": twin.contour_rms_mm,
+            "sim_contour_rms_mm": sim.contour_rms_mm,
+            "twin_duration_s": twin.duration_s,
+            "sim_duration_s": sim.duration_s,
+            "twin_wall_s": wall_s,
+        }));
+    }
+    if let Ok(out) = std::env::var("GANTRY_TWIN_JSON") {
+        std::fs::write(out, serde_json::to_string_pretty(&rows).unwrap()).unwrap();
+    }
+}
