@@ -159,15 +159,7 @@ fn scenario<T: Transport + EstopPanel>(mut c: Client<T>, tag: &str) -> Figures {
     for a in ["x", "y", "z"] {
         cli::set(&mut c, &format!("axis.{a}.homing.enabled"), "false").unwrap();
     }
-    expect_done(
-        "subscribe",
-        c.exec(Request::Subscribe {
-            every_periods: DECIMATION,
-            signals: heapless::Vec::new(),
-        })
-        .unwrap(),
-    )
-    .unwrap();
+    cli::subscribe(&mut c, DECIMATION).unwrap();
 
     // saved to the machine's flash with the outputs off
     expect_done("save", c.exec(Request::SettingsSave).unwrap()).unwrap();

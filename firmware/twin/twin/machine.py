@@ -485,12 +485,13 @@ class Twin:
         prio = 256
         for e in self.scs.active:
             prio = min(prio, self.scs.group(self.scs.priority(e)))
-        basepri = uc.reg_read(UC_ARM_REG_BASEPRI) & 0xF0
+        basepri, primask, faultmask = uc.reg_read_batch((UC_ARM_REG_BASEPRI, UC_ARM_REG_PRIMASK, UC_ARM_REG_FAULTMASK))
+        basepri &= 0xF0
         if basepri:
             prio = min(prio, self.scs.group(basepri))
-        if uc.reg_read(UC_ARM_REG_PRIMASK) & 1:
+        if primask & 1:
             prio = min(prio, 0)
-        if uc.reg_read(UC_ARM_REG_FAULTMASK) & 1:
+        if faultmask & 1:
             prio = min(prio, -1)
         return prio
 
@@ -627,6 +628,11 @@ class Twin:
             self._hard_fault(pc, what)
             return
         self.pc = self.resume_pc if self.resume_pc is not None else self.uc.reg_read(UC_ARM_REG_PC)
+        if self.replay is not None and self.pc != self.replay[0][0]:
+            # the store that ended the chunk completed (unicorn resumes after it): nothing
+            # to skip. Kept, the next store of the same value from the same place (two
+            # equal bytes into USART2's DR) was dropped as its replay.
+            self.replay = None
 
     def _hard_fault(self, pc, what):
         self.faults.append((self.t_s, what, pc))

@@ -60,6 +60,9 @@ class Plant:
         """The drive the pins give now: enables, brakes, and per axis the duty signed by DIR
         (high drives towards negative positions, firmware/src/drive.rs)."""
         t = self.twin
+        # the pins change far less often than the plant steps
+        if self._drive is not None and self._drive[0] == t.pin_generation:
+            return self._drive[1]
         en = br = 0
         duty = []
         for i, a in enumerate(board.AXES):
@@ -72,7 +75,10 @@ class Plant:
             d = t.tim["TIM1"].channel_duty(ch) if g.mode(pin) == 2 and g.af(pin) == 1 else 0.0
             port, pin = board.DIRECTION[a]
             duty.append(-d if t.gpio[port].level(pin) else d)
+        self._drive = (t.pin_generation, (en, br, duty))
         return en, br, duty
+
+    _drive = None
 
     def control_update(self, rate_hz):
         """TIM4's update: one period of the plant. Its answer is taken when the board next

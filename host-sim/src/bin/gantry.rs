@@ -266,13 +266,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
 /// A session with the machine behind `t`, telemetry every `decimation` periods.
 fn subscribed<T: Transport>(t: T, decimation: u32) -> Result<Client<T>> {
     let mut c = Client::connect(t)?;
-    expect_done(
-        "telemetry subscription",
-        c.exec(Request::Subscribe {
-            every_periods: decimation,
-            signals: heapless::Vec::new(),
-        })?,
-    )?;
+    cli::subscribe(&mut c, decimation)?;
     Ok(c)
 }
 

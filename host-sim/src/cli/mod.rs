@@ -165,6 +165,18 @@ fn get_f64<T: Transport>(c: &mut Client<T>, key: &str) -> Result<f64> {
         .with_context(|| format!("setting {key} = {v} is not a number"))
 }
 
+/// Telemetry with the default signals every `every_periods` control periods.
+pub fn subscribe<T: Transport>(c: &mut Client<T>, every_periods: u32) -> Result<()> {
+    expect_done(
+        "telemetry subscription",
+        c.exec(Request::Subscribe {
+            every_periods,
+            signals: heapless::Vec::new(),
+        })?,
+    )?;
+    Ok(())
+}
+
 /// Change one setting (value as text).
 pub fn set<T: Transport>(c: &mut Client<T>, key: &str, value: &str) -> Result<()> {
     let k = heapless::String::try_from(key).map_err(|_| anyhow::anyhow!("key too long: {key}"))?;
