@@ -141,6 +141,9 @@ pub struct CommandSender<C, const WINDOW: usize> {
     credits: u16,
     /// A negative ack asked for a go-back at the next poll.
     go_back: bool,
+    /// Retransmissions go on without counting towards `max_retries` (the host expects
+    /// the device to be silent: [`super::host::HostLink::expect_silence`]).
+    retries_held: bool,
     stats: SenderStats,
 }
 
@@ -163,8 +166,15 @@ impl<C, const WINDOW: usize> CommandSender<C, WINDOW> {
             last_ack: first.prev(),
             credits: 0,
             go_back: false,
+            retries_held: false,
             stats: SenderStats::default(),
         })
+    }
+
+    /// While `held`, unacknowledged commands are retransmitted at their timeout but never
+    /// given up.
+    pub fn hold_retries(&mut self, held: bool) {
+        self.retries_held = held;
     }
 
     /// Counters.
@@ -245,7 +255,7 @@ impl<C, const WINDOW: usize> CommandSender<C, WINDOW> {
         };
         let go_back = timed_out || self.go_back;
         self.go_back = false;
-        if go_back {
+        if go_back && !self.retries_held {
             if let Some(head) = self.pending.front_mut() {
                 if head.retries >= self.config.max_retries {
                     return Err(CommandError::RetriesExhausted { seq: head.seq });

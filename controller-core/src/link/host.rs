@@ -175,8 +175,14 @@ pub struct HostLink<C, const WINDOW: usize> {
     telemetry: TelemetryReceiver,
     watchdog: Watchdog,
     last_tx_ms: Option<u32>,
+    /// End of a silence the host was told to expect ([`HostLink::expect_silence`]).
+    quiet_until_ms: Option<u32>,
     stats: HostStats,
 }
+
+/// Longest silence [`HostLink::expect_silence`] accepts, ms (a settings save that erases
+/// both store sectors at DS8626's worst case takes 8 s).
+pub const MAX_SILENCE_MS: u32 = 60_000;
 
 impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
     /// A link for the message set with `schema_hash`, opening session `session` (use a
@@ -207,8 +213,34 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
             telemetry: TelemetryReceiver::new(),
             watchdog: Watchdog::new(&config.watchdog)?,
             last_tx_ms: None,
+            quiet_until_ms: None,
             stats: HostStats::default(),
         })
+    }
+
+    /// The device may go silent for up to `ms` (at most [`MAX_SILENCE_MS`]) from
+    /// `now_ms`: a settings save that erases a flash sector stalls the board, its UART
+    /// included, for seconds (the F407 has one flash bank). Until then neither the
+    /// watchdog nor unanswered retransmissions and real-time repetitions fail the link;
+    /// both go on being sent. A device still silent when the window ends fails it as
+    /// before (the watchdog: [`LinkError::LinkLost`]).
+    pub fn expect_silence(&mut self, now_ms: u32, ms: u32) {
+        self.quiet_until_ms = Some(now_ms.wrapping_add(ms.min(MAX_SILENCE_MS)));
+    }
+
+    /// Inside an expected silence at `now_ms` (the window ends itself).
+    fn quiet(&mut self, now_ms: u32) -> bool {
+        // the window is at most MAX_SILENCE_MS long: time left beyond it is time past
+        let quiet = self.quiet_until_ms.is_some_and(|t| {
+            let left = t.wrapping_sub(now_ms);
+            left != 0 && left <= MAX_SILENCE_MS
+        });
+        if !quiet {
+            self.quiet_until_ms = None;
+        }
+        self.realtime.hold_retries(quiet);
+        self.commands.hold_retries(quiet);
+        quiet
     }
 
     /// State.
@@ -272,6 +304,7 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
         mut emit: F,
     ) -> Result<(), LinkError> {
         let mut sent = false;
+        let quiet = self.quiet(now_ms);
         let rt = self.realtime.poll(now_ms, |id, req| {
             sent = true;
             emit(ToDevice::Realtime { id, req });
@@ -298,7 +331,7 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
                 }
             }
             HostState::Ready => {
-                if self.watchdog.expired(now_ms) {
+                if self.watchdog.expired(now_ms) && !quiet {
                     self.fail(LinkError::LinkLost);
                 } else {
                     let polled = self.commands.poll(now_ms, |seq, cmd| {

@@ -72,6 +72,9 @@ pub struct RealtimeSender {
     next_id: Seq,
     outstanding: Option<Outstanding>,
     repeats: u32,
+    /// Repetitions go on without counting towards `max_retries` (the host expects the
+    /// device to be silent: [`super::host::HostLink::expect_silence`]).
+    retries_held: bool,
 }
 
 impl RealtimeSender {
@@ -88,7 +91,13 @@ impl RealtimeSender {
             next_id: first,
             outstanding: None,
             repeats: 0,
+            retries_held: false,
         })
+    }
+
+    /// While `held`, a request is repeated at its timeout but never given up.
+    pub fn hold_retries(&mut self, held: bool) {
+        self.retries_held = held;
     }
 
     /// Queue `req` (sent by the next [`RealtimeSender::poll`]); replaces an unanswered one.
@@ -131,15 +140,18 @@ impl RealtimeSender {
         match o.sent_at_ms {
             None => {}
             Some(t) if now_ms.wrapping_sub(t) >= self.config.retry_timeout_ms => {
-                if o.retries >= self.config.max_retries {
+                if self.retries_held {
+                    // repeated, not counted
+                } else if o.retries >= self.config.max_retries {
                     let e = RealtimeUnanswered {
                         id: o.id,
                         req: o.req,
                     };
                     self.outstanding = None;
                     return Err(e);
+                } else {
+                    o.retries = o.retries.saturating_add(1);
                 }
-                o.retries = o.retries.saturating_add(1);
                 self.repeats = self.repeats.saturating_add(1);
             }
             Some(_) => return Ok(()),

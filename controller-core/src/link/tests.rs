@@ -540,3 +540,69 @@ fn a_borrowed_command_frame_encodes_to_the_same_bytes() {
     let n = encode(&owned.as_ref(), &mut a).unwrap();
     assert_eq!(&a[..n], &EXAMPLE_COMMAND_FRAME[..]);
 }
+
+#[test]
+fn an_expected_silence_holds_the_watchdog_and_the_repeats_until_it_ends() {
+    // a settings save that erases flash stalls the board for seconds: 5 s here
+    let silent_ms = 5_000;
+    let silent_poll = |expect: bool| {
+        let (mut host, _dev) = connected();
+        host.request(RealtimeRequest::Status);
+        if expect {
+            host.expect_silence(0, silent_ms);
+        }
+        let mut requests = 0;
+        let failed = (0..silent_ms).find_map(|now| {
+            host.poll(now, |f| {
+                if matches!(f, ToDevice::Realtime { .. }) {
+                    requests += 1;
+                }
+            })
+            .err()
+            .map(|e| (now, e))
+        });
+        (host, failed, requests)
+    };
+    // not expected: the unanswered request and the watchdog give up long before
+    let (_, failed, _) = silent_poll(false);
+    let (at, _) = failed.expect("a silent device fails the link");
+    assert!(
+        at < DEFAULT_HOST_LINK_CONFIG.watchdog.timeout_ms + 1,
+        "failed at {at} ms"
+    );
+    // expected: nothing fails while it lasts, the request keeps being repeated
+    let (mut host, failed, requests) = silent_poll(true);
+    assert_eq!(failed, None);
+    let every = DEFAULT_HOST_LINK_CONFIG.realtime.retry_timeout_ms;
+    assert!(requests >= silent_ms / every, "{requests} repetitions");
+    // still silent once it ends: the link is lost
+    assert_eq!(host.poll(silent_ms, |_| {}), Err(LinkError::LinkLost));
+}
+
+#[test]
+fn a_device_back_within_the_expected_silence_keeps_the_link() {
+    let (mut host, mut dev) = connected();
+    host.expect_silence(0, 5_000);
+    for now in 0..3_000 {
+        assert_eq!(host.poll(now, |_| {}), Ok(()));
+    }
+    // from 3 s on the device answers again: the link goes on through the window's end.
+    // The stalled board's clock stood still (its tick interrupt could not run): it saw
+    // no silence.
+    let timeout = DEFAULT_HOST_LINK_CONFIG.watchdog.timeout_ms;
+    for now in 3_000..5_000 + 4 * timeout {
+        let dev_now = now - 2_999;
+        let frames = host_frames(&mut host, now);
+        for f in frames {
+            if let Some(reply) = dev.on_frame(f, dev_now, 10).reply {
+                host.on_frame::<ExampleTelemetry, ExampleStatus>(reply.into_frame(), now)
+                    .unwrap();
+            }
+        }
+        if let Some(reply) = dev.poll(dev_now, 10).reply {
+            host.on_frame::<ExampleTelemetry, ExampleStatus>(reply.into_frame(), now)
+                .unwrap();
+        }
+        assert_eq!(host.state(), HostState::Ready, "at {now} ms");
+    }
+}

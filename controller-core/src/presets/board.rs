@@ -29,6 +29,12 @@ use crate::servo::monitor::SafetyConfig;
 use crate::servo::{PathPlan, ServoConfig};
 use crate::sysid::IDENTIFY_DEFAULTS;
 
+/// Worst-case erase of one 128 KiB flash sector of the STM32F407 at the 8-bit
+/// parallelism the HAL programs with, ms (DS8626, flash programming characteristics: 2 s
+/// typical). The whole chip stalls for it (one flash bank): the firmware stretches its
+/// watchdog above it, the host expects that much silence from the link around a save.
+pub const FLASH_SECTOR_ERASE_MAX_MS: u32 = 4_000;
+
 /// Default control rate of the board, Hz (`GANTRY_CONTROL_HZ` overrides it at build time).
 pub const BOARD_RATE_HZ: u32 = 10_000;
 

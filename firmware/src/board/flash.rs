@@ -51,7 +51,7 @@ pub const STORE_BYTES: u32 = 2 * SECTOR_BYTES;
 /// Flash of the STM32F407VG.
 pub const FLASH_BYTES: u32 = 1024 * 1024;
 /// Worst-case erase of one 128 KiB sector at 8-bit parallelism, ms (DS8626: 2 s typical).
-pub const SECTOR_ERASE_MAX_MS: u32 = 4_000;
+pub const SECTOR_ERASE_MAX_MS: u32 = controller_core::presets::board::FLASH_SECTOR_ERASE_MAX_MS;
 
 const _: () = assert!(STORE_OFFSET == 0x000C_0000);
 const _: () =
@@ -133,12 +133,58 @@ impl NorFlash for InternalFlash {
     // (firmware/tools/check-no-panic, ALLOWED), not by the link task's.
     #[inline(never)]
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        NorFlash::erase(&mut self.flash.unlocked(), from, to)
+        clear_error_flags();
+        let r = NorFlash::erase(&mut self.flash.unlocked(), from, to);
+        // even a failed erase may have cleared part of a sector
+        flush_caches();
+        r
     }
 
     #[inline(never)]
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        clear_error_flags();
         NorFlash::write(&mut self.flash.unlocked(), offset, bytes)
+    }
+}
+
+/// FLASH_SR's error flags (PGSERR, PGPERR, PGAERR, WRPERR, OPERR) and EOP, cleared before
+/// each erase and program: the HAL checks them after an operation but never clears them,
+/// and the flash starts no operation while one is set (RM0090 3.6.4), so one stray flag
+/// (a stray store into the flash array sets PGSERR) would fail every later save.
+fn clear_error_flags() {
+    // SAFETY: the HAL's `LockedFlash` owns FLASH but is not in the middle of an operation
+    // here (called between its calls, on the link task, the only user of the flash after
+    // `init`); the write-1-to-clear bits touch nothing else.
+    let flash = unsafe { &*pac::FLASH::ptr() };
+    flash.sr().write(|w| {
+        w.eop().clear_bit_by_one();
+        w.operr().clear_bit_by_one();
+        w.wrperr().clear_bit_by_one();
+        w.pgaerr().clear_bit_by_one();
+        w.pgperr().clear_bit_by_one();
+        w.pgserr().clear_bit_by_one()
+    });
+}
+
+/// After an erase, the ART accelerator's caches may hold lines of the old contents (the
+/// HAL turns both on at clock set-up and never flushes them): each enabled cache is
+/// turned off, reset (its reset bit may only be written with it off, RM0090 3.5.2) and
+/// turned on again, as ST's `FLASH_FlushCaches` does after `HAL_FLASHEx_Erase`.
+fn flush_caches() {
+    // SAFETY: as in `clear_error_flags`; ACR's latency and prefetch bits are kept.
+    let flash = unsafe { &*pac::FLASH::ptr() };
+    let acr = flash.acr().read();
+    if acr.icen().bit_is_set() {
+        flash.acr().modify(|_, w| w.icen().clear_bit());
+        flash.acr().modify(|_, w| w.icrst().set_bit());
+        flash.acr().modify(|_, w| w.icrst().clear_bit());
+        flash.acr().modify(|_, w| w.icen().set_bit());
+    }
+    if acr.dcen().bit_is_set() {
+        flash.acr().modify(|_, w| w.dcen().clear_bit());
+        flash.acr().modify(|_, w| w.dcrst().set_bit());
+        flash.acr().modify(|_, w| w.dcrst().clear_bit());
+        flash.acr().modify(|_, w| w.dcen().set_bit());
     }
 }
 

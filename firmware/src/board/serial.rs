@@ -74,15 +74,28 @@ impl HostUart {
     /// The interrupt handler's work (see the module docs).
     #[inline]
     pub fn service(&mut self) {
-        while self.serial.is_rx_not_empty() {
-            match embedded_hal_nb::serial::Read::read(&mut self.serial) {
-                Ok(b) => {
-                    if self.rx.enqueue(b).is_err() {
-                        self.lost = self.lost.wrapping_add(1);
+        loop {
+            if self.serial.is_rx_not_empty() {
+                match embedded_hal_nb::serial::Read::read(&mut self.serial) {
+                    Ok(b) => {
+                        if self.rx.enqueue(b).is_err() {
+                            self.lost = self.lost.wrapping_add(1);
+                        }
                     }
+                    // the HAL clears the error flags by the read; the link's CRC drops the
+                    // frame
+                    Err(_) => self.lost = self.lost.wrapping_add(1),
                 }
-                // the HAL clears the error flags by the read; the link's CRC drops the frame
-                Err(_) => self.lost = self.lost.wrapping_add(1),
+            } else if self.serial.flags().contains(serial::Flag::Overrun) {
+                // ORE with RXNE clear: a byte completed between the read of SR and the
+                // read of DR above, so that read cleared RXNE but not ORE (RM0090 30.6.1:
+                // SR then DR). RXNEIE also raises the interrupt on ORE: left set, the
+                // line never drops and the handler, above the control interrupt, runs
+                // again at once until the watchdog resets the chip. SR then DR clears it.
+                self.serial.clear_idle_interrupt();
+                self.lost = self.lost.wrapping_add(1);
+            } else {
+                break;
             }
         }
         while self.serial.is_tx_empty() {

@@ -38,6 +38,8 @@ def main(argv=None):
             return 2
         from .serve import serve
         t, wall = serve(a.elf, a.serve, a.seconds, os.path.join(a.log_dir, "serve.log"), a.flash)
+        t.flash._cache_check()
+        print(f"twin: {t.flash.summary()}")
         print(f"twin: served {t.t_s:.3f} machine s in {wall:.1f} s")
         return 0
     names = a.scenario or sorted(scenarios.ALL)

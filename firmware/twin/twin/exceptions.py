@@ -11,7 +11,6 @@ from unicorn.arm_const import (
     UC_ARM_REG_FPSCR,
     UC_ARM_REG_LR,
     UC_ARM_REG_MSP,
-    UC_ARM_REG_PC,
     UC_ARM_REG_R0,
     UC_ARM_REG_R1,
     UC_ARM_REG_R2,
@@ -22,6 +21,7 @@ from unicorn.arm_const import (
     UC_ARM_REG_XPSR,
 )
 
+from .fastregs import Batch
 from .regs import TwinError
 
 BASIC = (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12, UC_ARM_REG_LR)
@@ -30,11 +30,28 @@ BASIC = (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_
 # read in one batch at entry (unicorn's per-register calls dominate the twin's cost)
 ENTRY_READ = (UC_ARM_REG_CONTROL, UC_ARM_REG_XPSR, UC_ARM_REG_SP, *BASIC,
               *(UC_ARM_REG_S0 + i for i in range(16)), UC_ARM_REG_FPSCR)
+ENTRY_WRITE = (UC_ARM_REG_SP, UC_ARM_REG_LR, UC_ARM_REG_CONTROL, UC_ARM_REG_XPSR)
+EXIT_READ = (UC_ARM_REG_MSP, UC_ARM_REG_CONTROL)
+FP_REGS = (*(UC_ARM_REG_S0 + i for i in range(16)), UC_ARM_REG_FPSCR)
+TAIL = (UC_ARM_REG_SP, UC_ARM_REG_CONTROL, UC_ARM_REG_XPSR)
+EXIT_WRITE = (*BASIC, *TAIL)
+EXIT_WRITE_FP = (*BASIC, *FP_REGS, *TAIL)
+
+
+class Registers:
+    """The register batches of entry and return for one engine (twin/fastregs.py)."""
+
+    def __init__(self, uc):
+        self.entry_read = Batch(uc, ENTRY_READ)
+        self.entry_write = Batch(uc, ENTRY_WRITE)
+        self.exit_read = Batch(uc, EXIT_READ)
+        self.exit_write = Batch(uc, EXIT_WRITE)
+        self.exit_write_fp = Batch(uc, EXIT_WRITE_FP)
 
 
 def enter(twin, exc, return_pc):
     uc = twin.uc
-    control, xpsr, sp, *rest = uc.reg_read_batch(ENTRY_READ)
+    control, xpsr, sp, *rest = twin.xregs.entry_read.read()
     if control & 2 and (xpsr & 0x1FF) == 0:
         raise TwinError("exception entry from a thread on the PSP: not modelled (the firmware uses the MSP)")
     fp = bool(control & 4)
@@ -51,12 +68,7 @@ def enter(twin, exc, return_pc):
     exc_return = 0xFFFF_FFE1 if fp else 0xFFFF_FFF1
     if not handler:
         exc_return |= 8
-    uc.reg_write_batch([
-        (UC_ARM_REG_SP, frame),
-        (UC_ARM_REG_LR, exc_return),
-        (UC_ARM_REG_CONTROL, control & ~4),
-        (UC_ARM_REG_XPSR, (xpsr & ~0x1FF & ~0x0600_FC00) | exc | (1 << 24)),
-    ])
+    twin.xregs.entry_write.write((frame, exc_return, control & ~4, (xpsr & ~0x1FF & ~0x0600_FC00) | exc | (1 << 24)))
     vector = twin.read_u32(twin.scs["VTOR"] + 4 * exc)
     if not vector & 1:
         raise TwinError(f"vector {exc} = 0x{vector:08x} is not a thumb address")
@@ -69,21 +81,18 @@ def exit_(twin, exc_return):
     if exc_return & 4:
         raise TwinError("exception return to the PSP: not modelled (the firmware uses the MSP)")
     fp = not exc_return & 0x10
-    sp, control = uc.reg_read_batch((UC_ARM_REG_MSP, UC_ARM_REG_CONTROL))
+    sp, control = twin.xregs.exit_read.read()
     size = 0x68 if fp else 0x20
     raw = bytes(uc.mem_read(sp, size))
     words = struct.unpack_from("<8I", raw)
-    regs = list(zip(BASIC, words[:6]))
+    values = list(words[:6])
     if fp:
-        s = struct.unpack_from("<18I", raw, 0x20)
-        regs += [(UC_ARM_REG_S0 + i, s[i]) for i in range(16)]
-        regs.append((UC_ARM_REG_FPSCR, s[16]))
+        values += struct.unpack_from("<17I", raw, 0x20)
     xpsr = words[7]
     sp += size + ((xpsr >> 9 & 1) << 2)
     to_thread = bool(exc_return & 8)
     if to_thread != ((xpsr & 0x1FF) == 0):
         raise TwinError(f"exception return 0x{exc_return:08x} to a frame of exception {xpsr & 0x1FF}")
-    regs += [(UC_ARM_REG_SP, sp), (UC_ARM_REG_CONTROL, (control & ~4) | (4 if fp else 0)),
-             (UC_ARM_REG_XPSR, xpsr & ~(1 << 9))]
-    uc.reg_write_batch(regs)
+    values += (sp, (control & ~4) | (4 if fp else 0), xpsr & ~(1 << 9))
+    (twin.xregs.exit_write_fp if fp else twin.xregs.exit_write).write(values)
     return words[6]

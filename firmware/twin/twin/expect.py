@@ -6,8 +6,6 @@ mismatch (a fixed defect whose entry stays fails too, so the table stays true)."
 import os
 import tomllib
 
-from . import board
-from .regs import TwinError
 
 TABLE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "expect.toml")
 

@@ -48,16 +48,30 @@ class Flash(Peripheral):
 
     def on_write_ACR(self, v, _l):
         acr = v & 0x1F07
-        # ICRST/DCRST may only be set with the cache off (RM0090 3.5.2)
-        if acr & (1 << 11) and acr & (1 << 10):
+        # ICRST (bit 11) / DCRST (bit 12) may only be set with their cache, ICEN (bit 9) /
+        # DCEN (bit 10), off (RM0090 3.5.2, 3.9.1)
+        if acr & (1 << 12) and acr & (1 << 10):
             raise TwinError("FLASH: ACR.DCRST set with the data cache on (RM0090 3.5.2)")
-        if acr & (1 << 12) and acr & (1 << 9):
+        if acr & (1 << 11) and acr & (1 << 9):
             raise TwinError("FLASH: ACR.ICRST set with the instruction cache on (RM0090 3.5.2)")
         self["ACR"] = acr
-        if acr & (1 << 11):
+        if acr & (1 << 12):
             self.dcache_flushed = True
 
     dcache_flushed = True
+    # erases after which the core went on to another flash operation, or stopped, with
+    # the data cache (on during the erase) never reset: lines of the erased sector may
+    # still be served from it (board review D4; the twin does not model the stale reads)
+    unflushed_erases = 0
+
+    def _cache_check(self):
+        if not self.dcache_flushed and self.erases and self.erases[-1][2]:
+            self.unflushed_erases += 1
+        self.dcache_flushed = True
+
+    def summary(self):
+        return (f"flash: {len(self.erases)} sector erase(s), {self.unflushed_erases} not followed by a data "
+                f"cache reset, {self.writes} program(s), SR 0x{self['SR']:02x}")
 
     def on_write_KEYR(self, v, _l):
         if self.locked_until_reset:
@@ -111,6 +125,7 @@ class Flash(Peripheral):
         if snb >= len(SECTORS):
             raise TwinError(f"FLASH: erase of sector {snb} (a 1 MiB part has 0-11)")
         start, size = SECTORS[snb]
+        self._cache_check()
         self.twin.flash_mem[start : start + size] = b"\xff" * size
         dc = bool(self["ACR"] & (1 << 10))
         ic = bool(self["ACR"] & (1 << 9))
@@ -137,6 +152,7 @@ class Flash(Peripheral):
             self["SR"] |= 0x20  # PGAERR
             self.twin.flash_mem[off : off + size] = old
             return
+        self._cache_check()
         new = value.to_bytes(size, "little")
         self.twin.flash_mem[off : off + size] = bytes(a & b for a, b in zip(old, new))
         self.writes += 1

@@ -38,6 +38,7 @@ from unicorn.arm_const import (
 )
 
 from . import board, exceptions
+from .fastregs import Batch
 from .counter import Counter
 from .exti import Exti, Syscfg
 from .flash import FLASH_BASE, FLASH_SIZE, OPTCR_FACTORY, Flash
@@ -145,6 +146,9 @@ class Twin:
             ccm = bytes(self.uc.mem_read(CCM_BASE, CCM_SIZE))
         self.uc = uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.counter = Counter(uc)
+        self.xregs = exceptions.Registers(uc)
+        self.pc_sp = Batch(uc, (UC_ARM_REG_PC, UC_ARM_REG_SP))
+        self.masks = Batch(uc, (UC_ARM_REG_BASEPRI, UC_ARM_REG_PRIMASK, UC_ARM_REG_FAULTMASK))
         self.in_chunk = False
         self.sleeping = False
         self.reset_pending = None
@@ -301,7 +305,7 @@ class Twin:
         if self.replay is not None:
             # the restarted store is the one at that pc on that stack: an exception taken
             # at the chunk's end runs its handler first, whose stores are not it
-            here = tuple(uc.reg_read_batch((UC_ARM_REG_PC, UC_ARM_REG_SP)))
+            here = tuple(self.pc_sp.read())
             if here == self.replay[0]:
                 again = self.replay[1] == (addr, value)
                 self.replay = None
@@ -314,7 +318,7 @@ class Twin:
             self._fail(e)
         if self.want_stop and self.in_chunk:
             self.want_stop = False
-            self.replay = (tuple(uc.reg_read_batch((UC_ARM_REG_PC, UC_ARM_REG_SP))), (addr, value))
+            self.replay = (tuple(self.pc_sp.read()), (addr, value))
             uc.emu_stop()
 
     def _mmio_write(self, uc, off, size, value, region):
@@ -481,11 +485,10 @@ class Twin:
             self.irq_lines.discard(irq)
 
     def _exec_priority(self):
-        uc = self.uc
         prio = 256
         for e in self.scs.active:
             prio = min(prio, self.scs.group(self.scs.priority(e)))
-        basepri, primask, faultmask = uc.reg_read_batch((UC_ARM_REG_BASEPRI, UC_ARM_REG_PRIMASK, UC_ARM_REG_FAULTMASK))
+        basepri, primask, faultmask = self.masks.read()
         basepri &= 0xF0
         if basepri:
             prio = min(prio, self.scs.group(basepri))
@@ -529,12 +532,11 @@ class Twin:
         self.first_entry.setdefault(exc, self.t_s)
 
     def check_stack(self, frame, exc):
-        lo = self.symbols.get("__ebss", SRAM_BASE)
         if not (SRAM_BASE <= frame < SRAM_BASE + SRAM_SIZE):
             raise TwinError(f"exception {exc}: stack frame at 0x{frame:08x} outside SRAM")
 
     def _intr(self, uc, intno, _u):
-        pc = uc.reg_read(UC_ARM_REG_PC)
+        pc = self.pc_sp.read()[0]
         if intno == EXCP_EXCEPTION_EXIT:
             exc_return = 0xFFFF_FF00 | (pc & 0xFF) | 1
             try:
@@ -627,7 +629,7 @@ class Twin:
             _, pc, what = self.resume_pc
             self._hard_fault(pc, what)
             return
-        self.pc = self.resume_pc if self.resume_pc is not None else self.uc.reg_read(UC_ARM_REG_PC)
+        self.pc = self.resume_pc if self.resume_pc is not None else self.pc_sp.read()[0]
         if self.replay is not None and self.pc != self.replay[0][0]:
             # the store that ended the chunk completed (unicorn resumes after it): nothing
             # to skip. Kept, the next store of the same value from the same place (two

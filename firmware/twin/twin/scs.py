@@ -2,7 +2,7 @@
 debug control block and the FPU's control registers; and the exception model that uses
 them (priorities, pending, active, BASEPRI/PRIMASK masking)."""
 
-from .regs import Peripheral, TwinError
+from .regs import Peripheral
 
 # STM32F4 implements 4 priority bits (PM0214 4.3.7)
 PRIO_MASK = 0xF0

@@ -4,6 +4,7 @@ release firmware over the very path it takes to a board's UART. The bytes cross 
 UART's own timing (BRR from PCLK1): the host sees the board's link, only slower in wall
 time (the twin runs at about 0.1 x real time)."""
 
+import json
 import os
 import signal
 import time
@@ -11,6 +12,7 @@ import tty
 
 from .machine import Twin
 from .plant import Plant
+from .regs import TwinError
 from .rtt import RttReader
 
 # machine time between two looks at the pty (a byte at 921,600 baud takes 10.9 µs: 1 ms
@@ -41,6 +43,86 @@ def save_store(path, t):
     os.replace(tmp, path)
 
 
+class Control:
+    """`PTY.ctl`: what the outside does to the board while it serves, one command a line,
+    appended by a test and read at every poll (machine time: a command lands within
+    POLL_S of the machine time its line was read at):
+
+        drive B12 1                     the e-stop (or any input pin) driven high / low
+        inject {"encoder_stuck": {"axis": "x"}}
+                                        a fault in the machine (controller-core's
+                                        `Injection` as JSON, to the plant)
+        flash-sr 0x80                   FLASH_SR error bits set, as a stray store leaves them
+
+    Each command is echoed to `PTY.ctl.done` as `t_s command` once it has landed (or `t_s
+    error: …` naming the line: a bad line changes nothing). `PTY.outputs` gets every change
+    of a machine output from boot on, `t_s signal value` a line (the twin's output log)."""
+
+    def __init__(self, pty_path):
+        self.path = pty_path + ".ctl"
+        self.done_path = pty_path + ".ctl.done"
+        self.outputs_path = pty_path + ".outputs"
+        for p in (self.path, self.done_path, self.outputs_path):
+            if os.path.exists(p):
+                os.remove(p)
+        self.offset = 0
+        self.partial = b""
+        self.line_no = 0
+        self.logged = 0
+        self.done = open(self.done_path, "w")
+        self.outputs = open(self.outputs_path, "w")
+
+    def poll(self, tw):
+        for tt, k, v in tw.log[self.logged:]:
+            self.outputs.write(f"{tt:.9f} {k} {v}\n")
+        if len(tw.log) > self.logged:
+            self.logged = len(tw.log)
+            self.outputs.flush()
+        try:
+            with open(self.path, "rb") as f:
+                f.seek(self.offset)
+                data = f.read()
+        except FileNotFoundError:
+            return
+        self.offset += len(data)
+        data = self.partial + data
+        *lines, self.partial = data.split(b"\n")
+        for raw in lines:
+            self.line_no += 1
+            line = raw.decode(errors="replace").strip()
+            if not line:
+                continue
+            try:
+                self.apply(tw, line)
+                self.done.write(f"{tw.t_s:.9f} {line}\n")
+            except (ValueError, KeyError, TwinError) as e:
+                self.done.write(f"{tw.t_s:.9f} error: {self.path} line {self.line_no}: {line!r}: {e}\n")
+        self.done.flush()
+
+    @staticmethod
+    def apply(tw, line):
+        cmd, _, arg = line.partition(" ")
+        if cmd == "drive":
+            pin, level = arg.split()
+            port, n = pin[0].upper(), int(pin[1:])
+            if port not in "ABCDE" or not 0 <= n <= 15 or level not in ("0", "1"):
+                raise ValueError("want `drive <A-E><0-15> <0|1>`")
+            tw.drive((port, n), int(level))
+        elif cmd == "inject":
+            tw.plant.inject(json.loads(arg))
+        elif cmd == "flash-sr":
+            bits = int(arg, 0)
+            if bits & ~0xF2:
+                raise ValueError("FLASH_SR error bits are 0xF2 (OPERR, WRPERR, PGAERR, PGPERR, PGSERR)")
+            tw.flash["SR"] |= bits
+        else:
+            raise ValueError("unknown command (drive, inject, flash-sr)")
+
+    def close(self):
+        self.done.close()
+        self.outputs.close()
+
+
 class _Stop:
     """SIGTERM: the run stops at its next poll. (Raised from the signal handler, the
     exception would land inside one of unicorn's callbacks, which ctypes swallows.)"""
@@ -67,6 +149,8 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
     out = bytearray()
     t.usart2_sink = out.append
     rtt = RttReader(t, elf, log_path)
+    # before the clock appears (a test takes the clock as "up" and writes commands)
+    ctl = Control(pty_path)
     # the machine clock gantry --twin counts its timeouts in (ms, u32 little-endian)
     clock_path = pty_path + ".clock"
     clock = os.open(clock_path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
@@ -88,6 +172,7 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
             stats["next_s"] += 1.0
             print(f"twin: {tw.t_s:.0f} s: host bytes in {stats['in']}, out {stats['out']}, overruns {tw.usart_overruns}", flush=True)
         rtt.poll()
+        ctl.poll(tw)
         os.pwrite(clock, (int(tw.t_s * 1000) & 0xFFFF_FFFF).to_bytes(4, "little"), 0)
         if out:
             try:
@@ -115,6 +200,7 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
             # the power goes off: the flash keeps what was written
             save_store(flash_path, t)
         rtt.close()
+        ctl.close()
         t.plant.close()
         if os.environ.get("TWIN_DUMP_TX"):
             with open(os.environ["TWIN_DUMP_TX"], "wb") as f:

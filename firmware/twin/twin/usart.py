@@ -43,6 +43,10 @@ class Usart(Peripheral):
     def enabled(self):
         return self["CR1"] & (1 << 13)
 
+    # a scenario's overrun race: the next byte arrives after the handler's read of SR
+    # (which saw RXNE, no ORE) and before its read of DR
+    race_after_sr = False
+
     def on_read_SR(self):
         self._advance()
         self.ore_read_sr = bool(self["SR"] & 0x8)
@@ -56,6 +60,10 @@ class Usart(Peripheral):
 
     def on_read_DR(self):
         self._advance()
+        if self.race_after_sr and self["SR"] & 0x20 and not self.ore_read_sr:
+            self.race_after_sr = False
+            self["SR"] |= 0x8  # the arrival with RXNE set: an overrun
+            self.twin.usart_overruns += 1
         v = self["DR"]
         sr = self["SR"] & ~0x20  # RXNE cleared by the read
         if self.ore_read_sr:

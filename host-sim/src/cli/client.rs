@@ -24,6 +24,11 @@ const WINDOW: usize = 8;
 const MAX_RETRIES: u8 = 30;
 /// Give up waiting for the device after this much (device) time, ms.
 const REPLY_TIMEOUT_MS: u32 = 5_000;
+/// Silence to expect from the board after a settings save or repair, ms: each erases up
+/// to both store sectors, and the whole chip, its UART included, stalls for an erase
+/// (`presets::board::FLASH_SECTOR_ERASE_MAX_MS` at worst each), plus a second of margin.
+pub const SAVE_SILENCE_MS: u32 =
+    2 * controller_core::presets::board::FLASH_SECTOR_ERASE_MAX_MS + 1_000;
 
 /// A connected session.
 pub struct Client<T: Transport> {
@@ -39,6 +44,8 @@ pub struct Client<T: Transport> {
     pub telemetry_gaps: u32,
     /// The newest control period number seen in a status or telemetry frame.
     last_period: u32,
+    /// Extra time a reply may take while a save's silence is expected, ms.
+    reply_grace_ms: u32,
 }
 
 impl<T: Transport> Client<T> {
@@ -64,6 +71,7 @@ impl<T: Transport> Client<T> {
             telemetry: Vec::new(),
             telemetry_gaps: 0,
             last_period: 0,
+            reply_grace_ms: 0,
         };
         while c.link.state() == HostState::Handshaking {
             c.pump()?;
@@ -192,7 +200,7 @@ impl<T: Transport> Client<T> {
                     return Ok(s.clone());
                 }
             }
-            if self.transport.now_ms().wrapping_sub(t0) > REPLY_TIMEOUT_MS {
+            if self.transport.now_ms().wrapping_sub(t0) > REPLY_TIMEOUT_MS + self.reply_grace_ms {
                 bail!("no status from the machine");
             }
             self.transport.wait()?;
@@ -200,9 +208,20 @@ impl<T: Transport> Client<T> {
     }
 
     /// Send `req` and wait until the machine executed it; its outcome.
+    ///
+    /// A settings save or repair may stall the board for seconds (a flash erase): the link
+    /// is told to expect that silence ([`HostLink::expect_silence`]) and the replies until
+    /// the outcome may take that long.
     pub fn exec(&mut self, req: Request) -> Result<Outcome> {
-        self.send(req)?;
-        self.wait_executed()
+        let stalls = matches!(req, Request::SettingsSave | Request::SettingsRepair);
+        if stalls {
+            self.link
+                .expect_silence(self.transport.now_ms(), SAVE_SILENCE_MS);
+            self.reply_grace_ms = SAVE_SILENCE_MS;
+        }
+        let r = self.send(req).and_then(|()| self.wait_executed());
+        self.reply_grace_ms = 0;
+        r
     }
 
     /// Wait until every request sent so far was executed; the last outcome.
