@@ -12,6 +12,7 @@ import struct
 
 from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
 
+from .fastregs import engine_handle
 from .regs import TwinError
 
 _OFFSET = None
@@ -32,16 +33,11 @@ def _probe(adds):
     return uc
 
 
-def _handle(uc):
-    h = uc._uch
-    return h.value if hasattr(h, "value") else int(h)
-
-
 def offset():
     global _OFFSET
     if _OFFSET is None:
         uc = _probe(37)
-        raw = ctypes.string_at(_handle(uc), 1 << 16)
+        raw = ctypes.string_at(engine_handle(uc), 1 << 16)
         found = [
             off
             for off in range(0, len(raw) - 16, 8)
@@ -51,7 +47,7 @@ def offset():
             raise TwinError(f"unicorn: emu_counter not found ({len(found)} candidates)")
         _OFFSET = found[0]
         uc2 = _probe(91)
-        if struct.unpack_from("<Q", ctypes.string_at(_handle(uc2) + _OFFSET, 8))[0] != 92:
+        if struct.unpack_from("<Q", ctypes.string_at(engine_handle(uc2) + _OFFSET, 8))[0] != 92:
             raise TwinError("unicorn: emu_counter check failed")
     return _OFFSET
 
@@ -60,7 +56,7 @@ class Counter:
     """Instructions started in the current run of `uc` (the one executing included)."""
 
     def __init__(self, uc):
-        self.addr = _handle(uc) + offset()
+        self.addr = engine_handle(uc) + offset()
 
     def read(self):
         return ctypes.c_uint64.from_address(self.addr).value

@@ -15,7 +15,8 @@ from unicorn.unicorn_py3.unicorn import uclib
 from .regs import TwinError
 
 
-def _handle(uc):
+def engine_handle(uc):
+    """The `uc_engine *` behind a Python `Uc` (also what counter.py reads the counter from)."""
     h = uc._uch
     return h.value if hasattr(h, "value") else int(h)
 
@@ -25,7 +26,7 @@ class Batch:
 
     def __init__(self, uc, regs):
         n = len(regs)
-        self.uch = ctypes.c_void_p(_handle(uc))
+        self.uch = ctypes.c_void_p(engine_handle(uc))
         self.n = ctypes.c_int(n)
         self.ids = (ctypes.c_int * n)(*regs)
         self.vals = (ctypes.c_uint32 * n)()
