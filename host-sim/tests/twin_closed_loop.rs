@@ -3,7 +3,9 @@
 //! and the DIR pins driving the simulated gantry of `gantry --sim` (the `twin-plant`
 //! helper), its counts back in the encoder timers; the same program on `gantry --sim` with
 //! the same settings and telemetry rate. The twin's run completes, with its contour max
-//! within 10 % of `--sim`'s and its tracking figures alike.
+//! within 10 % of `--sim`'s and its tracking figures alike. Once a program is done its
+//! twin takes faults at its pins: on the square's, the e-stop (PB12) and then an encoder
+//! that sticks while X moves; on the arcs', a limit switch.
 //!
 //! Needs `cargo fw` (the ELF), `cargo build -p host-sim --release --bin twin-plant` and the
 //! twin's Python packages (.ci/run installs them); one twin per program, in parallel.
@@ -12,7 +14,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use controller_core::machine::messages::{MachineState, Outcome, Request};
+use controller_core::machine::messages::{MachineState, Outcome, Request, Status};
+use controller_core::motion::planner::Segment;
 use host_sim::cli::client::Client;
 use host_sim::cli::port::BoardPort;
 use host_sim::cli::sim::{SimMachine, SimModels};
@@ -87,7 +90,11 @@ impl Drop for Served {
     }
 }
 
-fn on_twin(program: &Path, then_estop: bool) -> (GcodeReport, f64, Option<Estop>) {
+/// What a twin does once its program is done: scenarios that assert their bounds and
+/// return their figures (rows of `GANTRY_TWIN_JSON`).
+type After = fn(&mut Client<BoardPort>, &Served) -> Vec<serde_json::Value>;
+
+fn on_twin(program: &Path, after: After) -> (GcodeReport, f64, Vec<serde_json::Value>) {
     let tag = program.file_stem().unwrap().to_string_lossy().to_string();
     let served = Served::start(&tag);
     let mut c = Client::connect(BoardPort::open_twin(&served.pty).unwrap()).unwrap();
@@ -96,8 +103,10 @@ fn on_twin(program: &Path, then_estop: bool) -> (GcodeReport, f64, Option<Estop>
     let t0 = Instant::now();
     let r = cli::run_program(&mut c, program, f64::from(DECIMATION) / 1e4, false, None).unwrap();
     let wall_s = t0.elapsed().as_secs_f64();
-    let estop = then_estop.then(|| estop(&mut c, &served));
-    (r, wall_s, estop)
+    // the program's own checks come first (a fault scenario needs it done)
+    assert_eq!(r.status, "completed", "{tag} on the twin: {:?}", r.error);
+    let rows = after(&mut c, &served);
+    (r, wall_s, rows)
 }
 
 /// TIM1's PWM period (20 kHz, firmware/src/board/pwm.rs): the e-stop's bound.
@@ -105,15 +114,6 @@ const PWM_PERIOD_S: f64 = 1.0 / 20_000.0;
 /// Control periods the firmware takes to drive the enables low after the e-stop.
 const ESTOP_ENABLES_PERIODS: f64 = 2.0;
 const CONTROL_PERIOD_S: f64 = 1.0 / 10_000.0;
-
-/// The e-stop test's figures.
-#[derive(Debug)]
-struct Estop {
-    moe_after_s: f64,
-    enables_after_s: f64,
-    fault: String,
-    reset_while_active: String,
-}
 
 /// Append a command to the twin's `PTY.ctl` and wait (pumping the link) until it landed:
 /// its machine time.
@@ -150,21 +150,30 @@ fn output_at(served: &Served, signal: &str, value: &str, t0_s: f64) -> Option<f6
     })
 }
 
+/// The latest time any of the axes' enables went low at or after `t0_s` (each must).
+fn enables_low_at(served: &Served, t0_s: f64) -> f64 {
+    AXES.iter()
+        .map(|a| output_at(served, &format!("enable.{a}"), "0", t0_s).expect("enable driven low"))
+        .fold(0.0f64, f64::max)
+}
+
+/// Wait for the fault a scenario caused: its `first_fault` text.
+fn fault_of(c: &mut Client<BoardPort>) -> String {
+    let s = cli::wait_while(c, |s| s.state != MachineState::Fault).unwrap();
+    s.first_fault.as_deref().unwrap_or("none").to_string()
+}
+
 /// Armed and holding: the e-stop input (PB12, TIM1's break) goes active. TIM1's MOE
 /// clears in hardware within one PWM cycle, the firmware drives the enables low and
 /// latches `estop`; a reset is refused while the input is still active and clears the
 /// fault once it is released.
-fn estop(c: &mut Client<BoardPort>, served: &Served) -> Estop {
+fn estop(c: &mut Client<BoardPort>, served: &Served) -> serde_json::Value {
     let s = cli::ready(c, false).unwrap();
     assert_eq!(s.state, MachineState::Idle, "armed before the e-stop");
     let t0 = twin_ctl(c, served, "drive B12 1");
-    let s = cli::wait_while(c, |s| s.state != MachineState::Fault).unwrap();
-    let fault = s.first_fault.as_deref().unwrap_or("none").to_string();
-    let moe = output_at(served, "moe", "0", t0).expect("MOE cleared after the e-stop");
-    let enables = AXES
-        .iter()
-        .map(|a| output_at(served, &format!("enable.{a}"), "0", t0).expect("enable driven low"))
-        .fold(0.0f64, f64::max);
+    let fault = fault_of(c);
+    let moe_after_s = output_at(served, "moe", "0", t0).expect("MOE cleared after the e-stop") - t0;
+    let enables_after_s = enables_low_at(served, t0) - t0;
     let reset_while_active = match c.exec(Request::Reset).unwrap() {
         Outcome::Refused(why) => why.to_string(),
         o => format!("{o:?}"),
@@ -186,12 +195,149 @@ fn estop(c: &mut Client<BoardPort>, served: &Served) -> Estop {
         MachineState::Disabled,
         "after the reset: disarmed, not armed"
     );
-    Estop {
-        moe_after_s: moe - t0,
-        enables_after_s: enables - t0,
-        fault,
-        reset_while_active,
+    println!(
+        "e-stop on the twin: MOE cleared {:.1} µs after PB12 (bound: one PWM cycle, {:.0} µs), \
+         enables low after {:.1} µs (bound {:.0} µs), fault {fault:?}, reset while active: {reset_while_active:?}",
+        moe_after_s * 1e6,
+        PWM_PERIOD_S * 1e6,
+        enables_after_s * 1e6,
+        ESTOP_ENABLES_PERIODS * CONTROL_PERIOD_S * 1e6,
+    );
+    assert!(moe_after_s <= PWM_PERIOD_S, "MOE after {moe_after_s} s");
+    assert!(
+        enables_after_s <= ESTOP_ENABLES_PERIODS * CONTROL_PERIOD_S,
+        "enables after {enables_after_s} s"
+    );
+    assert_eq!(fault, "estop", "the fault latched");
+    assert!(
+        matches!(
+            reset_while_active.as_str(),
+            s if !s.is_empty() && !s.starts_with("Done")
+        ),
+        "a reset with the e-stop active is refused: {reset_while_active}"
+    );
+    serde_json::json!({
+        "scenario": "estop",
+        "moe_cleared_after_s": moe_after_s,
+        "enables_low_after_s": enables_after_s,
+        "fault": fault,
+        "reset_while_active": reset_while_active,
+    })
+}
+
+/// Periods from a stuck encoder on a moving axis to its outputs off: detected within 2
+/// periods at 10 mm/s and more (docs/safety.md, the counts-due check), outputs off in
+/// the period of detection, and the injection lands mid-period (one more).
+const STUCK_OUTPUTS_OFF_PERIODS: f64 = 3.0;
+/// Periods from a limit switch closing to the outputs off: the switch is read in the
+/// next period (the plant's step sets the pin at TIM4's update), an immediate fault.
+const LIMIT_OUTPUTS_OFF_PERIODS: f64 = 2.0;
+/// X's speed the stuck encoder needs for its 2-period bound, mm/s.
+const STUCK_MIN_SPEED_MM_S: f32 = 10.0;
+
+/// Armed, X moving 20 mm at the rapid rate: its encoder stops counting. The firmware
+/// latches `encoder_stuck on x` and drives every enable low within
+/// [`STUCK_OUTPUTS_OFF_PERIODS`]; a reset (which runs the encoder check) leaves the
+/// machine in fault while the encoder is still stuck.
+fn stuck_encoder(c: &mut Client<BoardPort>, served: &Served) -> serde_json::Value {
+    let s = cli::ready(c, false).unwrap();
+    assert_eq!(s.state, MachineState::Idle, "armed before the move");
+    // towards the middle of the travel, whichever side X stands on
+    let dx = if s.pos_mm[0] > 0.0 { -20.0 } else { 20.0 };
+    let target = [s.pos_mm[0] + dx, s.pos_mm[1], s.pos_mm[2]];
+    for (what, r) in [
+        ("run", Request::Run),
+        ("segment", Request::Segment(Segment::rapid(target, 1))),
+        ("end", Request::EndProgram),
+    ] {
+        assert_eq!(c.exec(r).unwrap(), Outcome::Done, "the move's {what}");
     }
+    let moving = |s: &Status| s.vel_mm_s[0].abs() >= STUCK_MIN_SPEED_MM_S;
+    let s = cli::wait_while(c, |s| {
+        !moving(s) && !s.program_done && s.state != MachineState::Fault
+    })
+    .unwrap();
+    assert!(moving(&s), "X moves before its encoder sticks: {s:?}");
+    let speed_mm_s = s.vel_mm_s[0].abs();
+    let t0 = twin_ctl(c, served, r#"inject {"encoder_stuck": {"axis": "x"}}"#);
+    let fault = fault_of(c);
+    let enables_after_s = enables_low_at(served, t0) - t0;
+    let s = c.status().unwrap();
+    let stopped_after_mm = (s.pos_mm[0] - target[0] + dx).abs();
+    // the reset runs the encoder check, which a still-stuck encoder fails
+    let reset = format!("{:?}", c.exec(Request::Reset).unwrap());
+    let s = cli::wait_while(c, |s| s.state == MachineState::EncoderCheck).unwrap();
+    println!(
+        "stuck encoder on the twin: X at {speed_mm_s:.1} mm/s or more, fault {fault:?}, enables low \
+         after {:.1} µs (bound {:.0} µs), X read {stopped_after_mm:.3} mm into its move; reset: {reset}, then {:?}",
+        enables_after_s * 1e6,
+        STUCK_OUTPUTS_OFF_PERIODS * CONTROL_PERIOD_S * 1e6,
+        s.state,
+    );
+    assert_eq!(fault, "encoder_stuck on x", "the fault latched");
+    assert!(
+        enables_after_s <= STUCK_OUTPUTS_OFF_PERIODS * CONTROL_PERIOD_S,
+        "enables after {enables_after_s} s"
+    );
+    assert_eq!(
+        s.state,
+        MachineState::Fault,
+        "a reset while the encoder is stuck leaves the fault"
+    );
+    serde_json::json!({
+        "scenario": "stuck_encoder",
+        "speed_mm_s": speed_mm_s,
+        "fault": fault,
+        "enables_low_after_s": enables_after_s,
+        "state_after_reset": format!("{:?}", s.state),
+    })
+}
+
+/// Armed and holding: Y's high limit switch closes. The firmware latches `limit_max on
+/// y` and drives every enable low within [`LIMIT_OUTPUTS_OFF_PERIODS`]; a reset is
+/// refused while the switch is closed.
+fn limit_switch(c: &mut Client<BoardPort>, served: &Served) -> serde_json::Value {
+    let s = cli::ready(c, false).unwrap();
+    assert_eq!(s.state, MachineState::Idle, "armed before the limit");
+    let t0 = twin_ctl(
+        c,
+        served,
+        r#"inject {"limit": {"axis": "y", "high": true}}"#,
+    );
+    let fault = fault_of(c);
+    let enables_after_s = enables_low_at(served, t0) - t0;
+    let reset = match c.exec(Request::Reset).unwrap() {
+        Outcome::Refused(why) => why.to_string(),
+        o => format!("{o:?}"),
+    };
+    let state = c.status().unwrap().state;
+    println!(
+        "limit switch on the twin: fault {fault:?}, enables low after {:.1} µs (bound {:.0} µs), \
+         reset while closed: {reset:?}, then {state:?}",
+        enables_after_s * 1e6,
+        LIMIT_OUTPUTS_OFF_PERIODS * CONTROL_PERIOD_S * 1e6,
+    );
+    assert_eq!(fault, "limit_max on y", "the fault latched");
+    assert!(
+        enables_after_s <= LIMIT_OUTPUTS_OFF_PERIODS * CONTROL_PERIOD_S,
+        "enables after {enables_after_s} s"
+    );
+    assert_eq!(state, MachineState::Fault, "reset with the switch closed");
+    serde_json::json!({
+        "scenario": "limit_switch",
+        "fault": fault,
+        "enables_low_after_s": enables_after_s,
+        "reset_while_closed": reset,
+    })
+}
+
+/// The square's twin: the e-stop, then the stuck encoder (it leaves X faulted for good).
+fn estop_then_stuck_encoder(c: &mut Client<BoardPort>, served: &Served) -> Vec<serde_json::Value> {
+    vec![estop(c, served), stuck_encoder(c, served)]
+}
+
+fn limit_only(c: &mut Client<BoardPort>, served: &Served) -> Vec<serde_json::Value> {
+    vec![limit_switch(c, served)]
 }
 
 fn on_sim(program: &Path) -> GcodeReport {
@@ -204,50 +350,18 @@ fn on_sim(program: &Path) -> GcodeReport {
 #[ignore = "needs `cargo fw`, the twin-plant helper and the twin's Python packages; .ci/run runs it"]
 fn square_and_arcs_on_the_twin_match_the_simulated_machine() {
     let programs = ["square", "arcs"].map(|p| root().join(format!("host-sim/programs/{p}.nc")));
-    // the square's twin finishes first: the e-stop runs on it while the arcs go on
+    // the square's twin finishes first: its fault scenarios run while the arcs go on
+    let afters: [After; 2] = [estop_then_stuck_encoder, limit_only];
     let twins: Vec<_> = programs
         .iter()
         .cloned()
-        .enumerate()
-        .map(|(i, p)| std::thread::spawn(move || on_twin(&p, i == 0)))
+        .zip(afters)
+        .map(|(p, after)| std::thread::spawn(move || on_twin(&p, after)))
         .collect();
     let mut rows = Vec::new();
     for (p, t) in programs.iter().zip(twins) {
-        let (twin, wall_s, estop) = t.join().expect("the twin's run");
-        if let Some(e) = estop {
-            println!(
-                "e-stop on the twin: MOE cleared {:.1} µs after PB12 (bound: one PWM cycle, {:.0} µs), \
-                 enables low after {:.1} µs (bound {:.0} µs), fault {:?}, reset while active: {:?}",
-                e.moe_after_s * 1e6,
-                PWM_PERIOD_S * 1e6,
-                e.enables_after_s * 1e6,
-                ESTOP_ENABLES_PERIODS * CONTROL_PERIOD_S * 1e6,
-                e.fault,
-                e.reset_while_active
-            );
-            assert!(
-                e.moe_after_s <= PWM_PERIOD_S,
-                "MOE after {} s",
-                e.moe_after_s
-            );
-            assert!(
-                e.enables_after_s <= ESTOP_ENABLES_PERIODS * CONTROL_PERIOD_S,
-                "enables after {} s",
-                e.enables_after_s
-            );
-            assert_eq!(e.fault, "estop", "the fault latched");
-            assert!(
-                !e.reset_while_active.is_empty(),
-                "a reset with the e-stop active is refused"
-            );
-            rows.push(serde_json::json!({
-                "scenario": "estop",
-                "moe_cleared_after_s": e.moe_after_s,
-                "enables_low_after_s": e.enables_after_s,
-                "fault": e.fault,
-                "reset_while_active": e.reset_while_active,
-            }));
-        }
+        let (twin, wall_s, fault_rows) = t.join().expect("the twin's run");
+        rows.extend(fault_rows);
         let sim = on_sim(p);
         let name = p.file_stem().unwrap().to_string_lossy().to_string();
         println!(
