@@ -49,6 +49,8 @@ fn prepare<T: Transport>(c: &mut Client<T>) {
 struct Served {
     child: Child,
     pty: String,
+    /// The decoded defmt log (`--log-dir`'s serve.log).
+    log: PathBuf,
 }
 
 impl Served {
@@ -77,7 +79,8 @@ impl Served {
             );
             std::thread::sleep(Duration::from_millis(100));
         }
-        Self { child, pty }
+        let log = dir.join("serve.log");
+        Self { child, pty, log }
     }
 }
 
@@ -100,13 +103,95 @@ fn on_twin(program: &Path, after: After) -> (GcodeReport, f64, Vec<serde_json::V
     let mut c = Client::connect(BoardPort::open_twin(&served.pty).unwrap()).unwrap();
     prepare(&mut c);
     cli::subscribe(&mut c, DECIMATION).unwrap();
+    let before = isr_samples(&served).len();
     let t0 = Instant::now();
     let r = cli::run_program(&mut c, program, f64::from(DECIMATION) / 1e4, false, None).unwrap();
     let wall_s = t0.elapsed().as_secs_f64();
+    let isr = IsrFigures::of(&isr_samples(&served)[before..]);
     // the program's own checks come first (a fault scenario needs it done)
     assert_eq!(r.status, "completed", "{tag} on the twin: {:?}", r.error);
-    let rows = after(&mut c, &served);
+    println!(
+        "{tag} on the twin: the control interrupt (the firmware's DWT count, one cycle an \
+         instruction) {:.0} cycles mean, {} the largest of {} samples ({:.1} % / {:.1} % of \
+         the 10 kHz period at {} MHz), overruns {:?} over the program",
+        isr.mean_cycles,
+        isr.max_cycles,
+        isr.samples,
+        100.0 * isr.mean_cycles / PERIOD_CYCLES,
+        100.0 * f64::from(isr.max_cycles) / PERIOD_CYCLES,
+        SYSCLK_HZ / 1e6,
+        isr.overruns,
+    );
+    assert!(
+        isr.samples > 0,
+        "{tag}: no status line in the twin's log while it ran"
+    );
+    assert_eq!(
+        isr.overruns.0, isr.overruns.1,
+        "{tag}: the control interrupt overran its deadline while the program streamed"
+    );
+    let mut rows = vec![serde_json::json!({
+        "program": tag,
+        "isr_cycles_mean": isr.mean_cycles,
+        "isr_cycles_max_sampled": isr.max_cycles,
+        "isr_samples": isr.samples,
+        "overruns_before_after": [isr.overruns.0, isr.overruns.1],
+    })];
+    rows.extend(after(&mut c, &served));
     (r, wall_s, rows)
+}
+
+/// The core clock (firmware/src/board/clock.rs) and its cycles in a 10 kHz period.
+const SYSCLK_HZ: f64 = 168e6;
+const PERIOD_CYCLES: f64 = SYSCLK_HZ / 1e4;
+
+/// One status line of the firmware's log (firmware/src/logger.rs, one a telemetry period):
+/// `isr_cyc=LAST/MAX` (the control interrupt's DWT cycles: the last period's and the
+/// largest since boot) and `overruns=N`.
+#[derive(Clone, Copy, Debug)]
+struct IsrSample {
+    last_cycles: u32,
+    overruns: u32,
+}
+
+fn isr_samples(served: &Served) -> Vec<IsrSample> {
+    let text = std::fs::read_to_string(&served.log).unwrap_or_default();
+    let field = |l: &str, key: &str| -> Option<String> {
+        let rest = &l[l.find(key)? + key.len()..];
+        Some(rest.split([' ', '/']).next()?.to_string())
+    };
+    text.lines()
+        .filter_map(|l| {
+            Some(IsrSample {
+                last_cycles: field(l, "isr_cyc=")?.parse().ok()?,
+                overruns: field(l, "overruns=")?.parse().ok()?,
+            })
+        })
+        .collect()
+}
+
+/// The control interrupt over a program, from the status lines logged while it ran.
+struct IsrFigures {
+    samples: usize,
+    mean_cycles: f64,
+    max_cycles: u32,
+    /// Overruns counted at the first and at the last sample.
+    overruns: (u32, u32),
+}
+
+impl IsrFigures {
+    fn of(s: &[IsrSample]) -> Self {
+        let n = s.len().max(1) as f64;
+        Self {
+            samples: s.len(),
+            mean_cycles: s.iter().map(|x| f64::from(x.last_cycles)).sum::<f64>() / n,
+            max_cycles: s.iter().map(|x| x.last_cycles).max().unwrap_or(0),
+            overruns: (
+                s.first().map_or(0, |x| x.overruns),
+                s.last().map_or(0, |x| x.overruns),
+            ),
+        }
+    }
 }
 
 /// TIM1's PWM period (20 kHz, firmware/src/board/pwm.rs): the e-stop's bound.

@@ -10,7 +10,7 @@
 //! outputs on again (BDTR values in [`super::shutdown`]).
 
 use stm32f4xx_hal::{
-    gpio::{AnyPin, Output, PinState},
+    gpio::{AnyPin, Output, PinExt, PinState},
     pac,
     timer::{ErasedChannel, PwmHzManager},
 };
@@ -18,16 +18,21 @@ use stm32f4xx_hal::{
 use controller_core::axes::AXES;
 use firmware::drive::DriveCommand;
 
-use super::shutdown::{BDTR_ON, BDTR_SAFE};
+use super::shutdown::{self, BDTR_ON, BDTR_SAFE};
 
 /// TIM1's three PWM channels, direction, enable and brake pins.
 #[cfg_attr(feature = "qemu", allow(dead_code))]
 pub struct ServoOutputs {
     pwm: [ErasedChannel<pac::TIM1>; AXES],
     direction: [AnyPin<Output>; AXES],
-    enable: [AnyPin<Output>; AXES],
-    /// Brake coils X, Y, Z (high = released).
-    brake: [AnyPin<Output>; AXES],
+    /// The drive enables and the brake coils (X, Y, Z; high = enabled / released): owned
+    /// here, driven together through GPIOD BSRR (`shutdown`'s pin masks, one store for
+    /// all of them).
+    _enable: [AnyPin<Output>; AXES],
+    _brake: [AnyPin<Output>; AXES],
+    /// The enable and brake pins are the GPIOD pins `shutdown`'s masks name (checked in
+    /// `new`; if not, the outputs never turn on).
+    pins_as_wired: bool,
     max_duty_counts: u16,
     /// The direction each pin drives now (true = negative).
     reverse: [bool; AXES],
@@ -52,12 +57,25 @@ impl ServoOutputs {
             ch.enable();
         }
         compare_preload_off();
+        let on_port_d = |pins: &[AnyPin<Output>; AXES], ids: [u8; AXES]| {
+            pins.iter()
+                .zip(ids)
+                .all(|(p, id)| p.port_id() == shutdown::GPIOD_PORT_ID && p.pin_id() == id)
+        };
+        let pins_as_wired = on_port_d(&enable, shutdown::ENABLE_PIN_IDS)
+            && on_port_d(&brake, shutdown::BRAKE_PIN_IDS);
+        if !pins_as_wired {
+            defmt::error!(
+                "servo outputs: the enable/brake pins are not PD0-2/PD4-6: outputs stay off"
+            );
+        }
         let mut s = Self {
             max_duty_counts: timer.get_max_duty(),
             pwm,
             direction,
-            enable,
-            brake,
+            _enable: enable,
+            _brake: brake,
+            pins_as_wired,
             reverse: [false; AXES],
             active: true,
             _timer: timer,
@@ -86,41 +104,36 @@ impl ServoOutputs {
             }
             pwm.set_duty(c.duty_counts);
         }
-        if !self.active {
-            for en in self.enable.iter_mut() {
-                en.set_high();
-            }
+        if !self.active && self.pins_as_wired {
+            shutdown::gpiod_set_reset(shutdown::ENABLE_PINS, 0);
             tim1_main_output(true);
             self.active = true;
         }
     }
 
-    /// Main output off first (all three PWM pins to idle low in one write), then duties
-    /// to zero, drive enables low and every brake gripping (an axis whose amplifier is off
-    /// must never hang on an open brake, whatever the servo commanded). Cheap enough to
-    /// call every period.
+    /// The fault path's stores ([`shutdown::outputs_off_raw`]): main output off first
+    /// (all three PWM pins to idle low in one write), duties to zero, then every drive
+    /// enable low and every brake gripping in one GPIOD store (an axis whose amplifier is
+    /// off must never hang on an open brake, whatever the servo commanded). Five stores:
+    /// cheap enough to call every period.
     #[inline]
     pub fn disable(&mut self) {
-        tim1_main_output(false);
-        for pwm in self.pwm.iter_mut() {
-            pwm.set_duty(0);
-        }
-        for en in self.enable.iter_mut() {
-            en.set_low();
-        }
-        for b in self.brake.iter_mut() {
-            b.set_low();
-        }
+        shutdown::outputs_off_raw();
         self.active = false;
     }
 
     /// The brake coils: `released[i]` energises axis i's (brake open), `false` lets it
-    /// grip. Only while the output stage is on: with it off every brake stays gripping.
+    /// grip; all three in one GPIOD store. Only while the output stage is on: with it off
+    /// every brake stays gripping.
     #[inline]
     pub fn write_brakes(&mut self, released: [bool; AXES]) {
-        for (pin, r) in self.brake.iter_mut().zip(released) {
-            pin.set_state(PinState::from(r && self.active));
+        let mut open = 0;
+        for (id, r) in shutdown::BRAKE_PIN_IDS.into_iter().zip(released) {
+            if r && self.active {
+                open |= 1 << id;
+            }
         }
+        shutdown::gpiod_set_reset(open, shutdown::BRAKE_PINS & !open);
     }
 }
 

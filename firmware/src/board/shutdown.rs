@@ -63,17 +63,36 @@ pub const BDTR_SAFE: u32 = BDTR_OSSI | BDTR_OSSR | BDTR_BKE | BDTR_BKP | BDTR_LO
 /// TIM1 BDTR with the outputs on.
 pub const BDTR_ON: u32 = BDTR_SAFE | BDTR_MOE;
 
-/// The drive enables PD0, PD1, PD2 (X, Y, Z) as GPIOD bit positions.
-pub const ENABLE_PINS: u32 = 0b111;
-/// The holding-brake outputs PD4, PD5, PD6 (X, Y, Z) as GPIOD bit positions (high =
-/// released).
-pub const BRAKE_PINS: u32 = 0b111 << 4;
+/// The drive enables' GPIOD pin numbers (X, Y, Z: PD0, PD1, PD2; board::mod's pin table,
+/// checked by `ServoOutputs::new`).
+pub const ENABLE_PIN_IDS: [u8; 3] = [0, 1, 2];
+/// The holding-brake outputs' GPIOD pin numbers (X, Y, Z: PD4, PD5, PD6; high = released).
+pub const BRAKE_PIN_IDS: [u8; 3] = [4, 5, 6];
+/// GPIOD's port number (the HAL's `PinExt::port_id`: A is 0).
+pub const GPIOD_PORT_ID: u8 = 3;
+/// The drive enables as GPIOD bit positions.
+pub const ENABLE_PINS: u32 = pin_mask(ENABLE_PIN_IDS);
+/// The holding brakes as GPIOD bit positions.
+pub const BRAKE_PINS: u32 = pin_mask(BRAKE_PIN_IDS);
+
+const fn pin_mask(ids: [u8; 3]) -> u32 {
+    (1 << ids[0]) | (1 << ids[1]) | (1 << ids[2])
+}
+
+/// One store to GPIOD BSRR: the pins of `set` high and those of `reset` low together
+/// (RM0090 8.4.7; a pin in both is set). No other pin of the port changes.
+#[inline(always)]
+pub fn gpiod_set_reset(set: u32, reset: u32) {
+    // SAFETY: one store to GPIOD BSRR (fixed address, checked by `addresses_match`): an
+    // atomic set/reset of the port's output bits that touches no other pin.
+    unsafe { (GPIOD_BSRR as usize as *mut u32).write_volatile((set & 0xFFFF) | (reset << 16)) }
+}
 /// Every GPIOD pin a fault drives low: the drive enables off and the brakes gripping.
 pub const OFF_PINS: u32 = ENABLE_PINS | BRAKE_PINS;
 
 /// Every servo output off: TIM1 main output off, duties zero, drive enables low, brakes
-/// gripping. Callable
-/// from any context, before `init` and in fault handlers; idempotent. (The naked
+/// gripping. Callable from any context, before `init` and in fault handlers; idempotent.
+/// The control interrupt's own disable (`ServoOutputs::disable`) is this too. (The naked
 /// exception entries below do the same stores in assembly.)
 #[inline(always)]
 pub fn outputs_off_raw() {

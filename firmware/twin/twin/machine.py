@@ -15,7 +15,6 @@ from capstone import CS_ARCH_ARM, CS_MODE_MCLASS, CS_MODE_THUMB, Cs
 from elftools.elf.elffile import ELFFile
 from unicorn import (
     UC_ARCH_ARM,
-    UC_HOOK_CODE,
     UC_HOOK_INTR,
     UC_HOOK_MEM_WRITE,
     UC_MODE_MCLASS,
@@ -27,6 +26,7 @@ from unicorn import (
     Uc,
     UcError,
 )
+from unicorn import arm_const
 from unicorn.arm_const import (
     UC_ARM_REG_BASEPRI,
     UC_ARM_REG_MSP,
@@ -60,6 +60,25 @@ MAX_CHUNK = 2_000_000
 EXCP_UDEF, EXCP_SWI, EXCP_BKPT, EXCP_EXCEPTION_EXIT = 1, 2, 7, 8
 HARDFAULT = 3
 
+
+
+_SPECIAL = {"basepri": UC_ARM_REG_BASEPRI, "primask": UC_ARM_REG_PRIMASK, "faultmask": UC_ARM_REG_FAULTMASK}
+_REG_ALIASES = {"sb": "r9", "sl": "r10", "fp": "r11", "ip": "r12"}
+
+
+def _exit_instruction(ins):
+    """What the twin executes itself (`Twin._at_exit`) at this instruction, or None: every
+    instruction that may lower the execution priority (CPSIE; MSR to BASEPRI, PRIMASK or
+    FAULTMASK: a pending exception is taken at once after it; BASEPRI_MAX only raises).
+    ("msr", special register, source register, size) or ("cpsie", flags, size)."""
+    if ins.mnemonic == "cpsie":
+        return ("cpsie", ins.op_str.strip(), ins.size)
+    if ins.mnemonic == "msr":
+        special, _, reg = ins.op_str.replace(" ", "").partition(",")
+        if special in _SPECIAL:
+            reg = _REG_ALIASES.get(reg, reg)
+            return ("msr", _SPECIAL[special], getattr(arm_const, f"UC_ARM_REG_{reg.upper()}"), ins.size)
+    return None
 
 class Twin:
     def __init__(self, elf, hse_hz=8_000_000, lsi_hz=LSI_TYPICAL_HZ, flash_image=None, option_bytes=OPTCR_FACTORY):
@@ -106,18 +125,15 @@ class Twin:
                 if s.name:
                     self.symbols[s.name] = s["st_value"]
             text = elf.get_section_by_name(".text")
-            self.wfi_addrs = []
             md = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
             md.skipdata = True
-            self.unmask_addrs = []
+            self.exits = {}
             for ins in md.disasm(text.data(), text["sh_addr"]):
-                if ins.mnemonic == "wfi":
-                    self.wfi_addrs.append(ins.address)
-                # after an instruction that may lower the execution priority, a pending
-                # exception is taken at once
-                op = ins.op_str.replace(" ", "")
-                if ins.mnemonic == "cpsie" or (ins.mnemonic == "msr" and op.split(",")[0] in ("basepri", "primask", "faultmask")):
-                    self.unmask_addrs.append(ins.address + ins.size)
+                exit_ = _exit_instruction(ins)
+                if exit_ is not None:
+                    self.exits[ins.address] = exit_
+            self.wfi_addrs = {ins.address for ins in md.disasm(text.data(), text["sh_addr"]) if ins.mnemonic == "wfi"}
+            self.all_exits = sorted(self.exits)
         self._check_layout()
         if flash_image is not None:
             for off, data in flash_image:
@@ -175,10 +191,16 @@ class Twin:
         uc.mem_write(0x1FFF_7A22, (1024).to_bytes(2, "little"))  # flash size in KiB
         uc.hook_add(UC_HOOK_INTR, self._intr)
         uc.hook_add(UC_HOOK_MEM_WRITE, self._flash_store, begin=FLASH_BASE, end=FLASH_BASE + FLASH_SIZE - 1)
-        for a in self.wfi_addrs:
-            uc.hook_add(UC_HOOK_CODE, self._wfi, begin=a, end=a)
-        for a in self.unmask_addrs:
-            uc.hook_add(UC_HOOK_CODE, self._unmasked, begin=a, end=a)
+        # the core stops before each unmasking instruction (`_at_exit`): unicorn checks
+        # exits when it translates, where a code hook at each (35 in the release ELF)
+        # cost every instruction a walk over all hooks (10 instead of 50 million
+        # instructions a second). But every run invalidates the translated code at each
+        # exit (it is retranslated with the check), so they are exits only while an
+        # exception waits to be taken (`_chunk`): only then can they let one in. (A WFI
+        # needs neither: unicorn ends the run after it.)
+        uc.ctl_exits_enabled(True)
+        self.no_exits = self.exits_now = []
+        uc.ctl_set_exits(self.exits_now)
         sp = self.read_u32(0)
         pc = self.read_u32(4)
         uc.reg_write(UC_ARM_REG_MSP, sp)
@@ -244,6 +266,12 @@ class Twin:
 
     def request_reset(self, cause):
         self.reset_pending = cause
+        self._stop()
+
+    def _stop(self):
+        """End the core's run at this instruction (a run that ends early otherwise halted
+        at a WFI, `_chunk`)."""
+        self.stopped = True
         self.uc.emu_stop()
 
     # --- time -------------------------------------------------------------------
@@ -318,8 +346,10 @@ class Twin:
             self._fail(e)
         if self.want_stop and self.in_chunk:
             self.want_stop = False
-            self.replay = (tuple(self.pc_sp.read()), (addr, value))
-            uc.emu_stop()
+            # (and the exception depth it was made at: handlers taken before it resumes
+            # run chunks of their own)
+            self.replay = (tuple(self.pc_sp.read()), (addr, value), len(self.scs.active))
+            self._stop()
 
     def _mmio_write(self, uc, off, size, value, region):
         addr = region + off
@@ -360,7 +390,7 @@ class Twin:
     def _fail(self, e):
         if self.stop_reason is None:
             self.stop_reason = e
-        self.uc.emu_stop()
+        self._stop()
 
     def read_u32(self, addr):
         return int.from_bytes(self.uc.mem_read(addr, 4), "little")
@@ -546,25 +576,34 @@ class Twin:
                 self._fail(TwinError(f"exception return at 0x{pc:08x}: {e}"))
                 return
             self.resume_pc = self.pc
-            uc.emu_stop()
+            self._stop()
             return
         if intno in (EXCP_UDEF, EXCP_BKPT):
             # no debugger attached: UsageFault / DebugMonitor escalate to HardFault
             self.fault_pc = pc
             self.resume_pc = ("fault", pc, "udf" if intno == EXCP_UDEF else "bkpt")
-            uc.emu_stop()
+            self._stop()
             return
         self._fail(TwinError(f"CPU exception {intno} at 0x{pc:08x}"))
 
-    def _unmasked(self, uc, addr, _size, _u):
-        if (self.scs.pending or self.irq_lines) and self._preempting() is not None:
-            self.resume_pc = addr
-            uc.emu_stop()
-
-    def _wfi(self, uc, addr, _size, _u):
-        self.sleeping = True
-        self.resume_pc = addr + 2
-        uc.emu_stop()
+    def _at_exit(self):
+        """The core stands at an instruction that may lower the execution priority
+        (`_exit_instruction`): the twin executes it, so that a pending exception it
+        unmasks is taken before the next instruction."""
+        what = self.exits[self.pc]
+        if what[0] == "cpsie":
+            for flag in what[1]:
+                self.uc.reg_write(UC_ARM_REG_PRIMASK if flag == "i" else UC_ARM_REG_FAULTMASK, 0)
+        else:
+            _, special, reg, _size = what
+            v = self.uc.reg_read(reg)
+            # BASEPRI keeps its 8 bits (the unimplemented low ones read as written, as
+            # unicorn's own MSR does); PRIMASK and FAULTMASK are one bit
+            self.uc.reg_write(special, v & (0xFF if special == UC_ARM_REG_BASEPRI else 1))
+        self.pc += what[-1]
+        hz = self.rcc.hclk_hz()
+        self.cycles += 1
+        self.t_s += 1 / hz
 
     # --- the run loop ---------------------------------------------------------------------
     def _next_event(self):
@@ -583,6 +622,8 @@ class Twin:
                 continue
             for p in self.periphs:
                 p.tick(self.t_s)
+            if not self.sleeping and self.pc in self.exits:
+                self._at_exit()
             while self._take_pending():
                 pass
             ev = self._next_event()
@@ -606,6 +647,15 @@ class Twin:
     def _chunk(self, n, hz):
         self.chunk_t0, self.chunk_c0, self.chunk_n, self.chunk_hz = self.t_s, self.cycles, n, hz
         self.resume_pc = None
+        # nothing waits (what pends an exception from here on ends the chunk: a store to
+        # the NVIC, a peripheral's event): no exit. (A run can still stop at an unmasking
+        # instruction translated while they were exits; `_at_exit` executes it all the
+        # same.)
+        exits = self.all_exits if self.scs.pending or self.irq_lines else self.no_exits
+        if exits is not self.exits_now:
+            self.uc.ctl_set_exits(exits)
+            self.exits_now = exits
+        self.stopped = False
         self.in_chunk = True
         err = None
         try:
@@ -630,10 +680,18 @@ class Twin:
             self._hard_fault(pc, what)
             return
         self.pc = self.resume_pc if self.resume_pc is not None else self.pc_sp.read()[0]
-        if self.replay is not None and self.pc != self.replay[0][0]:
+        if not self.stopped and executed < n and self.pc not in self.exits:
+            # unicorn ends a run after a WFI by itself (and for nothing else the twin does
+            # not ask for)
+            if self.pc - 2 not in self.wfi_addrs:
+                raise TwinError(f"the core stopped at 0x{self.pc:08x} for no reason the twin knows")
+            self.sleeping = True
+        if self.replay is not None and len(self.scs.active) <= self.replay[2] and self.pc != self.replay[0][0]:
             # the store that ended the chunk completed (unicorn resumes after it): nothing
             # to skip. Kept, the next store of the same value from the same place (two
-            # equal bytes into USART2's DR) was dropped as its replay.
+            # equal bytes into USART2's DR) was dropped as its replay. A chunk of a handler
+            # taken before the store resumed (it stops at a WFI or an unmasking
+            # instruction, `_at_exit`) says nothing about it.
             self.replay = None
 
     def _hard_fault(self, pc, what):
