@@ -155,8 +155,11 @@ fn first_fault() -> bool {
 }
 
 /// HardFault: outputs off before anything else (the entry is naked: two scratch
-/// registers, five stores, nothing pushed), then [`exception_report`]. A stack overflow that caused the
-/// HardFault cannot stop the outputs going off.
+/// registers, five stores, nothing pushed), then [`exception_report`]. A stack overflow
+/// that caused the HardFault cannot stop the outputs going off: the stack sits at the
+/// bottom of SRAM (firmware/memory.x), a push below it is a bus fault, and its exception
+/// entry still reaches this handler with the stacking lost; the report then runs on the
+/// top of the stack.
 #[unsafe(naked)]
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn HardFault() -> ! {
@@ -167,6 +170,19 @@ pub unsafe extern "C" fn HardFault() -> ! {
         "ite eq",
         "mrseq r0, msp",
         "mrsne r0, psp",
+        // a stack that overflowed (or nearly: the report needs some) leaves MSP at or
+        // below the stack's bottom: the report runs on the top of the stack instead (the
+        // frames there are abandoned; the firmware stops)
+        "movw r2, :lower16:{stack_bottom}",
+        "movt r2, :upper16:{stack_bottom}",
+        "adds r2, r2, #{report_stack}",
+        "mrs r3, msp",
+        "cmp r3, r2",
+        "bhs 1f",
+        "movw r3, :lower16:{stack_top}",
+        "movt r3, :upper16:{stack_top}",
+        "msr msp, r3",
+        "1:",
         "b {report}",
         tim1_lo = const TIM1_BASE & 0xFFFF,
         tim1_hi = const TIM1_BASE >> 16,
@@ -181,8 +197,21 @@ pub unsafe extern "C" fn HardFault() -> ! {
         en_lo = const (OFF_PINS << 16) & 0xFFFF,
         en_hi = const (OFF_PINS << 16) >> 16,
         report = sym exception_report,
+        stack_bottom = sym _stack_end,
+        stack_top = sym _stack_start,
+        report_stack = const REPORT_STACK_BYTES,
     )
 }
+
+extern "C" {
+    /// The stack's top and bottom (firmware/memory.x: the bottom is the start of SRAM).
+    static _stack_start: u32;
+    static _stack_end: u32;
+}
+
+/// Stack the exception report needs (its frame and defmt's), with margin: with less left
+/// above the bottom the report moves to the top of the stack.
+const REPORT_STACK_BYTES: u32 = 1024;
 
 /// Every other exception and interrupt without a handler of its own (MemManage, BusFault,
 /// UsageFault, SVCall, DebugMonitor, PendSV and unused interrupts; the NMI too in the QEMU
@@ -204,7 +233,12 @@ extern "C" fn exception_report(frame: *const u32, exception: u32) -> ! {
     let exception = exception & 0x1FF;
     if first_fault() {
         let pc = stacked_pc(frame);
-        if exception == HARD_FAULT {
+        if (frame as usize) < core::ptr::addr_of!(_stack_end) as usize {
+            defmt::error!(
+                "stack overflow (frame at {=u32:#x}, below the stack): outputs off",
+                frame as u32
+            );
+        } else if exception == HARD_FAULT {
             defmt::error!("HardFault at pc={=u32:#x}: outputs off", pc);
         } else {
             defmt::error!(

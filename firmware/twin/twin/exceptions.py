@@ -59,12 +59,20 @@ def enter(twin, exc, return_pc):
     size = 0x68 if fp else 0x20
     align = sp >> 2 & 1
     frame = (sp - size) & ~(align << 2)
-    twin.check_stack(frame, exc)
     words = rest[:6] + [return_pc & ~1, (xpsr & ~(1 << 9)) | (align << 9)]
     data = struct.pack("<8I", *words)
     if fp:
         data += struct.pack("<16I", *rest[6:22]) + struct.pack("<2I", rest[22], 0)
-    uc.mem_write(frame, data)
+    if twin.in_sram(frame, len(data)):
+        uc.mem_write(frame, data)
+    else:
+        # a stack that ran out of SRAM: the words outside it are lost (a bus error each),
+        # the entry goes on with SP at the frame (Cortex-M4 TRM 5.12.1: a fault on
+        # stacking does not stop the handler; its stacked values are corrupt)
+        twin.stacking_fault(frame, exc)
+        for i in range(0, len(data), 4):
+            if twin.in_sram(frame + i, 4):
+                uc.mem_write(frame + i, data[i : i + 4])
     exc_return = 0xFFFF_FFE1 if fp else 0xFFFF_FFF1
     if not handler:
         exc_return |= 8

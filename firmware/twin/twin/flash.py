@@ -7,7 +7,7 @@ While an erase or a program runs, every fetch from flash stalls the CPU (the pro
 runs from flash): the twin stalls the core for the busy time, with the peripherals,
 timers and the watchdog running on."""
 
-from .regs import Peripheral, TwinError
+from .regs import Peripheral, PowerCut, TwinError
 
 FLASH_BASE = 0x0800_0000
 FLASH_SIZE = 0x10_0000
@@ -35,6 +35,10 @@ class Flash(Peripheral):
         self.locked_until_reset = False
         self.erases = []  # (time, sector, dcache on, icache on)
         self.writes = 0
+        # a power cut a scenario has armed: ("erase",) cuts the next sector erase half way
+        # through, ("program", n) the n-th program from now (`power_cut`)
+        self.cut = None
+        self.power_cuts = []  # (t_s, what)
         super().__init__(twin, base)
 
     def define(self):
@@ -126,6 +130,13 @@ class Flash(Peripheral):
             raise TwinError(f"FLASH: erase of sector {snb} (a 1 MiB part has 0-11)")
         start, size = SECTORS[snb]
         self._cache_check()
+        if self.cut == ("erase",):
+            # half the busy time, then the power goes: an interrupted erase leaves the
+            # sector undefined; here its first half erased, the rest as it was
+            self.twin.flash_mem[start : start + size // 2] = b"\xff" * (size // 2)
+            self.twin.stall(ERASE_S[size] / 2, f"erase of sector {snb}")
+            self._power_cut(f"half way through the erase of sector {snb}")
+            return
         self.twin.flash_mem[start : start + size] = b"\xff" * size
         dc = bool(self["ACR"] & (1 << 10))
         ic = bool(self["ACR"] & (1 << 9))
@@ -154,10 +165,37 @@ class Flash(Peripheral):
             return
         self._cache_check()
         new = value.to_bytes(size, "little")
+        if self.cut is not None and self.cut[0] == "program":
+            if self.cut[1] <= 1:
+                # a torn program: the power goes while the word is programmed, its first
+                # half programmed, the rest as it was
+                half = max(1, size // 2)
+                self.twin.flash_mem[off : off + size] = old
+                self.twin.flash_mem[off : off + half] = bytes(a & b for a, b in zip(old[:half], new[:half]))
+                self.twin.stall(PROGRAM_S / 2, None)
+                self._power_cut(f"while programming the word at 0x{addr:08x}")
+                return
+            self.cut = ("program", self.cut[1] - 1)
         self.twin.flash_mem[off : off + size] = bytes(a & b for a, b in zip(old, new))
         self.writes += 1
         self.twin.stall(PROGRAM_S * max(1, size // 4 if size >= 4 else 1), None)
         self["SR"] |= 1 if cr & (1 << 24) else 0
+
+    def power_cut(self, what):
+        """Arm a power cut: `erase` (the next sector erase, half way through) or `program N`
+        (the N-th program from now, half its bytes programmed)."""
+        kind, *n = what.split()
+        if kind == "erase" and not n:
+            self.cut = ("erase",)
+        elif kind == "program" and len(n) == 1 and n[0].isdigit() and int(n[0]) >= 1:
+            self.cut = ("program", int(n[0]))
+        else:
+            raise ValueError("want `power-cut erase` or `power-cut program N` (N >= 1)")
+
+    def _power_cut(self, what):
+        self.cut = None
+        self.power_cuts.append((self.twin.now_s(), what))
+        self.twin.fail(PowerCut(f"power cut {what}"))
 
     def on_write_OPTCR(self, v, _l):
         cur = self["OPTCR"]

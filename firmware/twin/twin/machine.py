@@ -97,6 +97,18 @@ class Twin:
         self.cycles = 0
         self.log = []  # (t_s, signal, value): every change of a machine output
         self.faults = []  # (t_s, exception, pc)
+        self.stack_faults = []  # (t_s, exception, frame): frames stacked outside SRAM
+        # one-shot scenario hooks, called right after an exception's entry (its handler's
+        # first instruction not yet run): exception number -> fn(twin)
+        self.on_enter = {}
+        # what a scenario does after this many more instructions: (n, fn(twin)), e.g. a
+        # fault it injects
+        self.call_after_insns = None
+        self.panicked_at_s = None  # when a scenario made the core call the panic path
+        # (t_s, register, value) of every write to the registers named in `trace_regs`
+        # (the outputs-off stores of a fault handler, which change nothing at rest)
+        self.trace_regs = set()
+        self.trace = []
         self.external = {}  # (port, pin) -> level driven by the outside
         for p, lv in board.HEALTHY_INPUTS:
             self.external[p] = lv
@@ -323,7 +335,7 @@ class Twin:
             lane = addr & 3
             return (v >> (8 * lane)) & ((1 << (8 * size)) - 1)
         except TwinError as e:
-            self._fail(e)
+            self.fail(e)
             return 0
 
     def _store(self, uc, addr, value, apply):
@@ -343,7 +355,7 @@ class Twin:
             self._apply_stores()
             apply()
         except TwinError as e:
-            self._fail(e)
+            self.fail(e)
         if self.want_stop and self.in_chunk:
             self.want_stop = False
             # (and the exception depth it was made at: handlers taken before it resumes
@@ -359,6 +371,8 @@ class Twin:
             lane = addr & 3
             mask = ((1 << (8 * size)) - 1) << (8 * lane)
             p.write32((addr - p.base) & ~3, (value << (8 * lane)) & 0xFFFFFFFF, mask)
+            if addr in self.trace_regs:
+                self.trace.append((self.now_s(), addr, value))
 
         self._store(uc, addr, value, apply)
 
@@ -374,7 +388,7 @@ class Twin:
             p = self._periph_at(addr)
             return p.read32(addr - p.base)
         except TwinError as e:
-            self._fail(e)
+            self.fail(e)
             return 0
 
     def _bb_write(self, uc, off, size, value, _u):
@@ -387,7 +401,7 @@ class Twin:
 
         self._store(uc, BITBAND_BASE + off, value, apply)
 
-    def _fail(self, e):
+    def fail(self, e):
         if self.stop_reason is None:
             self.stop_reason = e
         self._stop()
@@ -555,15 +569,33 @@ class Twin:
         return True
 
     def _enter(self, exc, return_pc):
+        self.escalate_after_entry = False
         self.pc = exceptions.enter(self, exc, return_pc)
         self.scs.active.append(exc)
         self.sleeping = False
         self.entries[exc] = self.entries.get(exc, 0) + 1
         self.first_entry.setdefault(exc, self.t_s)
+        if self.escalate_after_entry:
+            # the stacking BusFault, escalated, arrives late: HardFault is taken before
+            # the handler's first instruction
+            self.hard_fault(self.pc, "bus fault on exception entry (stacking)")
+            return
+        hook = self.on_enter.pop(exc, None)
+        if hook is not None:
+            hook(self)
 
-    def check_stack(self, frame, exc):
-        if not (SRAM_BASE <= frame < SRAM_BASE + SRAM_SIZE):
-            raise TwinError(f"exception {exc}: stack frame at 0x{frame:08x} outside SRAM")
+    @staticmethod
+    def in_sram(addr, size):
+        return SRAM_BASE <= addr and addr + size <= SRAM_BASE + SRAM_SIZE
+
+    def stacking_fault(self, frame, exc):
+        """Exception entry stacked (part of) its frame outside SRAM: BFSR.STKERR, and a
+        BusFault that escalates to HardFault (BusFault is not enabled) unless HardFault is
+        the exception being entered (a fault of the same kind does not escalate again)."""
+        self.stack_faults.append((self.t_s, exc, frame))
+        self.scs["CFSR"] |= 1 << 12
+        if exc != HARDFAULT:
+            self.escalate_after_entry = True
 
     def _intr(self, uc, intno, _u):
         pc = self.pc_sp.read()[0]
@@ -573,7 +605,7 @@ class Twin:
                 self.scs.active.pop()
                 self.pc = exceptions.exit_(self, exc_return)
             except (TwinError, IndexError) as e:
-                self._fail(TwinError(f"exception return at 0x{pc:08x}: {e}"))
+                self.fail(TwinError(f"exception return at 0x{pc:08x}: {e}"))
                 return
             self.resume_pc = self.pc
             self._stop()
@@ -584,7 +616,7 @@ class Twin:
             self.resume_pc = ("fault", pc, "udf" if intno == EXCP_UDEF else "bkpt")
             self._stop()
             return
-        self._fail(TwinError(f"CPU exception {intno} at 0x{pc:08x}"))
+        self.fail(TwinError(f"CPU exception {intno} at 0x{pc:08x}"))
 
     def _at_exit(self):
         """The core stands at an instruction that may lower the execution priority
@@ -642,6 +674,15 @@ class Twin:
             hz = self.rcc.hclk_hz()
             horizon = min(x for x in (ev, until_s, next_poll if poll else None) if x is not None)
             n = max(1, min(MAX_CHUNK, math.ceil((horizon - self.t_s) * hz)))
+            if self.call_after_insns is not None:
+                left, fn = self.call_after_insns
+                c0 = self.cycles
+                self._chunk(max(1, min(n, left)), hz)
+                left -= min(self.cycles - c0, left)
+                self.call_after_insns = (left, fn) if left else None
+                if not left:
+                    fn(self)
+                continue
             self._chunk(n, hz)
 
     def _chunk(self, n, hz):
@@ -673,11 +714,11 @@ class Twin:
             raise self.stop_reason
         if err is not None:
             pc = self.uc.reg_read(UC_ARM_REG_PC)
-            self._hard_fault(pc, f"bus fault ({err})")
+            self.hard_fault(pc, f"bus fault ({err})")
             return
         if isinstance(self.resume_pc, tuple):
             _, pc, what = self.resume_pc
-            self._hard_fault(pc, what)
+            self.hard_fault(pc, what)
             return
         self.pc = self.resume_pc if self.resume_pc is not None else self.pc_sp.read()[0]
         if not self.stopped and executed < n and self.pc not in self.exits:
@@ -694,7 +735,7 @@ class Twin:
             # instruction, `_at_exit`) says nothing about it.
             self.replay = None
 
-    def _hard_fault(self, pc, what):
+    def hard_fault(self, pc, what):
         self.faults.append((self.t_s, what, pc))
         if HARDFAULT in self.scs.active:
             raise TwinError(f"lockup: {what} at 0x{pc:08x} inside the HardFault handler")

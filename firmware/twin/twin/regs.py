@@ -6,6 +6,11 @@ class TwinError(Exception):
     """The run is invalid: an unmodelled access, a missing clock, a broken rule of RM0090."""
 
 
+class PowerCut(Exception):
+    """The board's power went off (a scenario's `power-cut`): the run ends, the flash keeps
+    what it held at that instant."""
+
+
 class Reg:
     """One 32-bit register: reset value, the bits software may write, the bits that read as
     the last written value. Behaviour beyond storage lives in the peripheral's hooks."""

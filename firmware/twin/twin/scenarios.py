@@ -1,10 +1,14 @@
 """Scenarios the board twin runs against the release ELF, each a list of checks with the
 measured value and its bound."""
 
+import struct
 import time
 
+from unicorn.arm_const import UC_ARM_REG_LR, UC_ARM_REG_R0, UC_ARM_REG_SP
+
 from . import expect
-from .machine import Twin
+from .machine import SRAM_BASE, Twin
+from .regs import TwinError
 from .rcc import CSR_BORRSTF, CSR_IWDGRSTF, CSR_PINRSTF, CSR_PORRSTF
 from .rtt import RttReader
 
@@ -152,4 +156,158 @@ def uart_overrun(elf, log_path):
     return out, {"machine_s": 0.25}
 
 
-ALL = {"boot": boot, "watchdog": watchdog, "uart_overrun": uart_overrun}
+# the registers a fault handler's outputs-off stores write (firmware board/shutdown.rs)
+TIM1_BDTR = 0x4001_0044
+GPIOD_BSRR = 0x4002_0C18
+BDTR_MOE = 1 << 15
+# the drive enables (PD0-2) and brakes (PD4-6): the pins the stores drive low
+OFF_PINS = 0b111_0111
+# the control interrupt is entered this long after power-on before a fault is injected
+FAULT_AT_S = 0.15
+# instructions into the control interrupt at which the injected faults happen (the
+# servo step is under way: about 1,400 instructions a period at rest)
+FAULT_AFTER_INSNS = 300
+# the outputs-off stores are the handler's first instructions: well under a microsecond
+OFF_STORES_BOUND_US = 1.0
+# after the fault: the watchdog's timeout, the reboot (0.11 s) and some periods
+FAULT_RUN_S = 0.4
+
+
+def _fault_scenario(elf, log_path, inject, logged, hard=True):
+    """Power on, inject a fault into the control interrupt at FAULT_AT_S (`inject(twin)`,
+    called at that interrupt's entry), and check what the board's fault path promises:
+    the HardFault or panic handler makes the outputs-off stores at once (TIM1 MOE off,
+    every drive enable and brake low), nothing is driven active, the firmware stops
+    feeding the IWDG, which resets the chip within its timeout, and it boots again with
+    `reset cause: watchdog`; the log names the fault (`logged`)."""
+    t = Twin(elf)
+    rtt = RttReader(t, elf, log_path)
+    t.run(FAULT_AT_S, poll=rtt.poll)
+    t.trace_regs = {TIM1_BDTR, GPIOD_BSRR}
+    injected = []
+
+    def at_entry(tw):
+        injected.append(tw.now_s())
+        inject(tw)
+
+    t.on_enter[TIM4_EXC] = at_entry
+    faults0 = len(t.faults)
+    t.run(FAULT_RUN_S, poll=rtt.poll)
+    rtt.poll()
+    lines = rtt.close()
+    out = []
+    faults = t.faults[faults0:]
+    if hard:
+        fault_s = faults[0][0] if faults else None
+    else:
+        fault_s = t.panicked_at_s
+    out.append(check("fault injected in the control interrupt", bool(injected), True, bool(injected)))
+    out.extend(_outputs_off_after(t, fault_s, "HardFault taken" if hard else "panic entered"))
+    resets = t.resets[1:]
+    iwdg = [r for r in resets if r[1] & CSR_IWDGRSTF]
+    out.append(check("resets after the fault", [hex(f) for _, f in resets], "one IWDG reset", len(resets) == 1 and len(iwdg) == 1))
+    if iwdg and fault_s is not None:
+        timeout_s = (t.iwdg["RLR"] + 1) * (4 << t.iwdg["PR"]) / LSI_MIN_HZ
+        after_ms = (iwdg[0][0] - fault_s) * 1e3
+        bound_ms = (timeout_s + 1 / CONTROL_HZ) * 1e3
+        out.append(check("IWDG reset after the fault, ms", round(after_ms, 3), f"<= {bound_ms:.3f} (RLR at 17 kHz + 1 period)", after_ms <= bound_ms))
+    active = sorted({k for _, k, v in t.log if (k.split(".")[0] in ("enable", "brake") or k == "moe") and v == 1}
+                    | {k for _, k, v in t.log if k.startswith("pwm.") and v not in (0, None, 0.0)})
+    out.append(check("outputs driven active", active or "none", "none", not active))
+    named = [l for l in lines if logged in l]
+    out.append(check(f"log names the fault ({logged!r})", len(named), 1, len(named) == 1))
+    cause = [l.split("reset cause: ")[1] for l in lines if "reset cause: " in l]
+    out.append(check("reset cause logged at each boot", cause, ["power-on", "watchdog"], cause == ["power-on", "watchdog"]))
+    after = t.entries.get(TIM4_EXC, 0) - t.entries_at_reset.get(TIM4_EXC, 0)
+    out.append(check("control interrupts after the reboot", after, "> 0", after > 0))
+    info = {"machine_s": FAULT_RUN_S, "fault_at_ms": None if fault_s is None else round(fault_s * 1e3, 4),
+            "faults": [(round(ts * 1e3, 4), what, hex(pc)) for ts, what, pc in faults]}
+    return out, info, t
+
+
+def _outputs_off_after(t, fault_s, taken):
+    """The first TIM1 BDTR and GPIOD BSRR stores after the fault: MOE off, every enable
+    and brake reset, each within OFF_STORES_BOUND_US."""
+    out = [check(taken, fault_s is not None, True, fault_s is not None)]
+    if fault_s is None:
+        return out
+    for reg, name, ok in ((TIM1_BDTR, "TIM1 BDTR store with MOE off", lambda v: not v & BDTR_MOE),
+                          (GPIOD_BSRR, "GPIOD BSRR store resetting every enable and brake", lambda v: (v >> 16) & OFF_PINS == OFF_PINS)):
+        after = [(ts, v) for ts, a, v in t.trace if a == reg and ts >= fault_s]
+        first = after[0] if after else None
+        us = None if first is None else round((first[0] - fault_s) * 1e6, 3)
+        good = first is not None and ok(first[1]) and us <= OFF_STORES_BOUND_US
+        out.append(check(f"{name} after the fault, µs", us, f"<= {OFF_STORES_BOUND_US}", good))
+    return out
+
+
+def hardfault(elf, log_path):
+    """An imprecise bus fault (a buffered store that errors), escalated to HardFault,
+    FAULT_AFTER_INSNS instructions into a control interrupt."""
+
+    def inject(tw):
+        tw.call_after_insns = (FAULT_AFTER_INSNS, lambda tw: tw.hard_fault(tw.pc, "injected: an imprecise bus fault"))
+
+    out, info, _ = _fault_scenario(elf, log_path, inject, "HardFault at pc=")
+    return out, info
+
+
+# where the panic scenario builds its core::panic::Location: the painted, never-reached
+# bottom of the stack (the deepest stack is 18 of its 40 KiB)
+PANIC_LOCATION_OFFSET = 0x100
+PANIC_FILE = b"injected-by-the-board-twin.rs"
+
+
+def panic(elf, log_path):
+    """A panic in the control interrupt: FAULT_AFTER_INSNS instructions in, the core calls
+    the release ELF's own `core::panicking::panic_const::panic_const_div_by_zero` (what a
+    division by zero there compiles to; the firmware has no path to it, check-no-panic)
+    with a `Location` the twin writes into unused RAM."""
+
+    def inject(tw):
+        def call_panic(tw):
+            names = [n for n in tw.symbols if "panic_const_div_by_zero" in n]
+            if not names:
+                raise TwinError("the ELF has no panic_const_div_by_zero")
+            loc = tw.symbols["_stack_end"] + PANIC_LOCATION_OFFSET
+            file_at = loc + 16
+            # Location { file: &str (pointer, length), line, col }
+            tw.uc.mem_write(loc, struct.pack("<4I", file_at, len(PANIC_FILE), 1, 1) + PANIC_FILE)
+            tw.uc.reg_write(UC_ARM_REG_R0, loc)
+            tw.uc.reg_write(UC_ARM_REG_LR, tw.pc | 1)
+            tw.pc = tw.symbols[names[0]] & ~1
+            tw.panicked_at_s = tw.now_s()
+
+        tw.call_after_insns = (FAULT_AFTER_INSNS, call_panic)
+
+    out, info, _ = _fault_scenario(elf, log_path, inject, f"panic: outputs off: panicked at {PANIC_FILE.decode()}:1:1", hard=False)
+    return out, info
+
+
+# the stack pointer a stack overflow scenario leaves the control interrupt's handler
+# with: this far above the stack's bottom, less than its first push
+OVERFLOW_SP_ABOVE_BOTTOM = 16
+
+
+def stack_overflow(elf, log_path):
+    """The stack has grown to within OVERFLOW_SP_ABOVE_BOTTOM bytes of its bottom when a
+    control interrupt comes: its handler's first pushes go below it. With the stack at the
+    bottom of SRAM that is a bus fault (the reserved region below SRAM): a HardFault with
+    the stacking lost, the outputs off, a reset; with the statics below the stack they
+    would be overwritten and nothing would notice."""
+    t_syms = {}
+
+    def inject(tw):
+        t_syms.update(bottom=tw.symbols["_stack_end"])
+        tw.uc.reg_write(UC_ARM_REG_SP, tw.symbols["_stack_end"] + OVERFLOW_SP_ABOVE_BOTTOM)
+
+    out, info, t = _fault_scenario(elf, log_path, inject, "stack overflow (frame at")
+    bottom = t.symbols.get("_stack_end")
+    out.insert(0, check("RAM below the stack's bottom", hex(bottom), f"none (0x{SRAM_BASE:08x})", bottom == SRAM_BASE))
+    stacked = [f for _, _, f in t.stack_faults]
+    out.insert(1, check("HardFault entry stacked below SRAM (BFSR.STKERR)", [hex(f) for f in stacked], "one frame", len(stacked) == 1))
+    return out, info
+
+
+ALL = {"boot": boot, "watchdog": watchdog, "uart_overrun": uart_overrun,
+       "hardfault": hardfault, "panic": panic, "stack_overflow": stack_overflow}

@@ -12,7 +12,7 @@ import tty
 
 from .machine import Twin
 from .plant import Plant
-from .regs import TwinError
+from .regs import PowerCut, TwinError
 from .rtt import RttReader
 
 # machine time between two looks at the pty (a byte at 921,600 baud takes 10.9 µs: 1 ms
@@ -53,6 +53,11 @@ class Control:
                                         a fault in the machine (controller-core's
                                         `Injection` as JSON, to the plant)
         flash-sr 0x80                   FLASH_SR error bits set, as a stray store leaves them
+        power-cut erase                 the power goes half way through the next sector
+                                        erase (its first half erased, the rest as it was)
+        power-cut program N             ... while the N-th word program from now runs
+                                        (half its bytes programmed): the twin stops, the
+                                        flash file keeps that state
 
     Each command is echoed to `PTY.ctl.done` as `t_s command` once it has landed (or `t_s
     error: …` naming the line: a bad line changes nothing). `PTY.outputs` gets every change
@@ -115,8 +120,10 @@ class Control:
             if bits & ~0xF2:
                 raise ValueError("FLASH_SR error bits are 0xF2 (OPERR, WRPERR, PGAERR, PGPERR, PGSERR)")
             tw.flash["SR"] |= bits
+        elif cmd == "power-cut":
+            tw.flash.power_cut(arg)
         else:
-            raise ValueError("unknown command (drive, inject, flash-sr)")
+            raise ValueError("unknown command (drive, inject, flash-sr, power-cut)")
 
     def close(self):
         self.done.close()
@@ -195,6 +202,8 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
         t.run(seconds, poll=poll, poll_every_s=POLL_S)
     except KeyboardInterrupt:
         print(f"twin: stopped at {t.t_s:.3f} machine s", flush=True)
+    except PowerCut as e:
+        print(f"twin: {e} at {t.t_s:.6f} machine s", flush=True)
     finally:
         if flash_path is not None:
             # the power goes off: the flash keeps what was written
