@@ -158,6 +158,28 @@ fn homing_finds_every_switch_and_repeats_to_a_count() {
 }
 
 #[test]
+fn a_forgotten_home_refuses_programs_until_homed_again() {
+    // the firmware forgets Z's home after a stall its 16-bit counter cannot follow
+    // (firmware/src/stall.rs): programs need Z homed again, the other axes keep theirs
+    let mut r = run([0.0, 5.0, -3.0]);
+    home(&mut r);
+    assert_eq!(r.servo().snapshot().homed, 0b111);
+    r.servo_mut().forget_home(Axis::Z);
+    assert_eq!(r.servo().snapshot().homed, 0b011);
+    assert_eq!(
+        step(&mut r, &[Command::Run], 1),
+        Some(Refusal::NotHomed { axis: Axis::Z })
+    );
+    assert_eq!(r.servo().state(), ServoState::Idle);
+    home(&mut r);
+    assert_eq!(r.servo().snapshot().homed, 0b111);
+    assert_ne!(
+        step(&mut r, &[Command::Run], 1),
+        Some(Refusal::NotHomed { axis: Axis::Z })
+    );
+}
+
+#[test]
 fn jog_stops_at_the_soft_limit_once_homed() {
     let mut r = run([0.0; 3]);
     home(&mut r);

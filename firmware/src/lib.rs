@@ -13,6 +13,8 @@
 //!   press and release on USART1);
 //! - [`watchdog`]: the independent watchdog's timeout for the control rate;
 //! - [`reset_cause`]: why the chip last reset (RCC_CSR), logged at boot;
+//! - [`stall`]: control-loop stalls (a flash erase) longer than a 16-bit encoder counter
+//!   can follow: that axis must be homed again;
 //! - [`encoder_filter`]: the encoder timers' input filter and the count rate it passes;
 //! - [`index_capture`]: an encoder index capture handed from its interrupt to the control
 //!   period (the board's Y axis), and the guard against a noisy index line.
@@ -30,5 +32,6 @@ pub mod panel;
 pub mod reset_cause;
 #[cfg(feature = "qemu")]
 pub mod scenarios;
+pub mod stall;
 pub mod telemetry;
 pub mod watchdog;

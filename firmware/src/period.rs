@@ -13,10 +13,18 @@ use controller_core::servo::snapshot::Snapshot;
 use controller_core::servo::Command;
 use heapless::spsc::Consumer;
 
-use crate::board::{clock, io::BoardIo, watchdog::Watchdog};
+use crate::board::{clock, io::BoardIo, watchdog::Watchdog, SYSCLK_HZ};
 use crate::link::LINK_CLOCK_MS;
 use crate::machine_slot::FwMachine;
+use controller_core::axes::Axis;
+use controller_core::estimator::CounterWidth;
+use controller_core::presets::gantry::GANTRY_ENCODERS;
+use firmware::stall::{alias_safe_s, StallWatch, POSITION_STALLS};
 use firmware::watchdog::IwdgSetting;
+
+/// Gaps between control interrupts up to this many periods are never a stall worth
+/// checking (an overrun or two).
+const QUICK_GAP_PERIODS: u32 = 4;
 
 /// Button commands the control task takes at most per period (the rest wait).
 pub const COMMANDS_PER_PERIOD: usize = 2;
@@ -33,6 +41,9 @@ pub struct BoardPeriod {
     /// Fed at the end of every period that ran on time, by nothing else.
     watchdog: Watchdog,
     rate_hz: u32,
+    /// Gaps between control interrupts: a stall too long for the 16-bit encoder counters
+    /// (firmware::stall) makes their axes' homes forgotten.
+    stall: StallWatch,
     /// The link's clock: ms, and periods' worth of ms beyond it (× rate).
     clock_ms: u32,
     clock_sub: u32,
@@ -54,6 +65,7 @@ impl BoardPeriod {
             commands,
             watchdog,
             rate_hz: rate_hz.max(1),
+            stall: StallWatch::new(),
             clock_ms: 0,
             clock_sub: 0,
         }
@@ -91,6 +103,22 @@ impl BoardPeriod {
         if clock::take_css_fault() {
             self.latch_board_fault(FaultKind::ClockFault);
         }
+        let quick = QUICK_GAP_PERIODS.saturating_mul(SYSCLK_HZ / self.rate_hz);
+        let machine = &self.machine;
+        let stalled = self
+            .stall
+            .entry(cortex_m::peripheral::DWT::cycle_count(), quick, || {
+                let s = machine.settings();
+                let shortest = AXES_16BIT
+                    .iter()
+                    .map(|a| alias_safe_s(s.axis[a.index()].encoder.counts_per_mm))
+                    .fold(f32::INFINITY, f32::min);
+                // (a float-to-int `as` saturates, and NaN gives 0: any gap is then a stall)
+                (shortest * SYSCLK_HZ as f32) as u32
+            });
+        if stalled {
+            self.position_lost();
+        }
         for _ in 0..COMMANDS_PER_PERIOD {
             match self.commands.dequeue() {
                 Some(c) => self.machine.local(c),
@@ -110,6 +138,17 @@ impl BoardPeriod {
         self.machine.servo().snapshot()
     }
 
+    /// A stall the 16-bit counters cannot have followed: their axes must be homed again.
+    #[cold]
+    #[inline(never)]
+    fn position_lost(&mut self) {
+        for a in AXES_16BIT {
+            self.machine.forget_home(a);
+        }
+        POSITION_STALLS.store(self.stall.stalls, Ordering::Relaxed);
+        STALL_LONGEST_CYCLES.store(self.stall.longest_cycles, Ordering::Relaxed);
+    }
+
     /// The last period's snapshot.
     pub fn snapshot(&self) -> &Snapshot {
         self.machine.servo().snapshot()
@@ -121,3 +160,17 @@ impl BoardPeriod {
         None
     }
 }
+
+/// The axes whose encoder timer counts in 16 bits (the board's Z, TIM3).
+const AXES_16BIT: [Axis; 1] = [Axis::Z];
+
+const _: () = {
+    // the list above is the preset's
+    assert!(matches!(GANTRY_ENCODERS[0].counter, CounterWidth::Bits32));
+    assert!(matches!(GANTRY_ENCODERS[1].counter, CounterWidth::Bits32));
+    assert!(matches!(GANTRY_ENCODERS[2].counter, CounterWidth::Bits16));
+};
+
+/// The longest stall behind [`POSITION_STALLS`], cycles (for the log).
+pub static STALL_LONGEST_CYCLES: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(0);

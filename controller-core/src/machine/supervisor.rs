@@ -302,6 +302,11 @@ where
         self.last = Outcome::None;
     }
 
+    /// `axis` must be homed again (`Servo::forget_home`).
+    pub fn forget_home(&mut self, axis: crate::axes::Axis) {
+        self.servo.forget_home(axis);
+    }
+
     pub fn servo(&self) -> &Servo<f32> {
         &self.servo
     }

@@ -671,6 +671,16 @@ impl<R: Real> Servo<R> {
         self.publish_faults();
     }
 
+    /// `axis`' position is no longer known for sure without a fault to latch (its counter
+    /// may have wrapped unseen while the control loop could not run: a flash erase's
+    /// stall, firmware `period::StallWatch`): it must be homed again before a program
+    /// runs. An axis that takes no part in homing keeps its (power-up) reference.
+    #[cold]
+    pub fn forget_home(&mut self, axis: Axis) {
+        self.homed &= !(1 << axis.index());
+        self.publish_faults();
+    }
+
     /// Fault injection for the fault matrix (simulator and QEMU test builds): corrupt the
     /// state of `axis`' law.
     pub fn inject_corrupt_state(&mut self, axis: usize) {
