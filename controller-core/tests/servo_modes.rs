@@ -158,6 +158,30 @@ fn homing_finds_every_switch_and_repeats_to_a_count() {
 }
 
 #[test]
+fn a_board_config_fault_is_never_reset_and_keeps_the_outputs_off() {
+    // the firmware's boot self-check latches it (firmware/src/board/self_check.rs): the
+    // board's registers are not what the table says, nothing a reset can change
+    let mut r = run([0.0; 3]);
+    r.servo_mut().latch_board_fault(FaultKind::BoardConfig);
+    step(&mut r, &[], 10);
+    assert_eq!(r.servo().state(), ServoState::Fault);
+    for _ in 0..3 {
+        step(&mut r, &[Command::Reset], 100);
+        assert_eq!(r.servo().state(), ServoState::Fault);
+        assert_eq!(
+            step(&mut r, &[Command::Arm], 10),
+            Some(Refusal::FaultLatched)
+        );
+        assert!(!r.world().outputs_on());
+    }
+    let f = r.servo().faults().first().expect("latched");
+    assert_eq!(
+        (f.fault.kind, f.fault.kind.name()),
+        (FaultKind::BoardConfig, "board_config")
+    );
+}
+
+#[test]
 fn a_forgotten_home_refuses_programs_until_homed_again() {
     // the firmware forgets Z's home after a stall its 16-bit counter cannot follow
     // (firmware/src/stall.rs): programs need Z homed again, the other axes keep theirs

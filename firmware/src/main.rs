@@ -259,6 +259,31 @@ mod app {
                 setting.timeout_us(firmware::watchdog::LSI_MAX_HZ),
                 setting.timeout_us(firmware::watchdog::LSI_TYP_HZ)
             );
+            // every peripheral is configured (the NVIC priorities were set before init):
+            // read the configuration back against the register table
+            let settled = board::watchdog::updates_settled();
+            match board::self_check::first_mismatch() {
+                None if settled => defmt::info!(
+                    "board configuration: {=usize} register fields as expected",
+                    board::self_check::entries()
+                ),
+                None => {
+                    defmt::error!("board configuration: the IWDG's PR/RLR never settled; board_config fault latched");
+                    period.latch_board_fault(FaultKind::BoardConfig);
+                }
+                Some((e, v)) => {
+                    defmt::error!(
+                        "board configuration: 0x{=u32:08x} bits {=u8}+{=u8} = {=u32:#x}, expected {=u32:#x} ({=str}); board_config fault latched",
+                        e.addr,
+                        e.shift,
+                        e.width,
+                        v,
+                        e.value,
+                        e.what
+                    );
+                    period.latch_board_fault(FaultKind::BoardConfig);
+                }
+            }
         }
         defmt::info!(
             "gantry firmware up: control {=u32} Hz, outputs disabled until armed",

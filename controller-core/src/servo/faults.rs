@@ -62,6 +62,10 @@ pub enum FaultKind {
     /// explain (`safety.index_max_correction_counts`): counts lost or gained in bulk (a
     /// slipping coupling, a damaged disk, a wrong `index_period_counts`).
     EncoderIndex = 17,
+    /// The board's peripheral configuration read back after init differs from its
+    /// register table (firmware/twin/expect.toml: a pin's function, a timer's mode, a
+    /// priority): the outputs never get enabled on such a board (cleared only by a reboot).
+    BoardConfig = 18,
 }
 
 /// How the machine stops on a fault.
@@ -78,7 +82,7 @@ pub enum StopCategory {
 
 impl FaultKind {
     /// Every kind, in code order.
-    pub const ALL: [FaultKind; 18] = [
+    pub const ALL: [FaultKind; 19] = [
         Self::EStop,
         Self::LimitMin,
         Self::LimitMax,
@@ -97,6 +101,7 @@ impl FaultKind {
         Self::HomingFailed,
         Self::SettingsCorrupt,
         Self::EncoderIndex,
+        Self::BoardConfig,
     ];
 
     pub const fn stop(self) -> StopCategory {
@@ -141,6 +146,7 @@ impl FaultKind {
             Self::HomingFailed => "homing_failed",
             Self::SettingsCorrupt => "settings_corrupt",
             Self::EncoderIndex => "encoder_index",
+            Self::BoardConfig => "board_config",
         }
     }
 

@@ -783,7 +783,10 @@ impl<R: Real> Servo<R> {
         if inputs.estop && still(FaultKind::EStop, None) {
             return false;
         }
-        if still(FaultKind::ConfigInvalid, None) || still(FaultKind::ClockFault, None) {
+        if still(FaultKind::ConfigInvalid, None)
+            || still(FaultKind::ClockFault, None)
+            || still(FaultKind::BoardConfig, None)
+        {
             return false;
         }
         for a in Axis::ALL {

@@ -48,7 +48,8 @@
 //! [`cycles`] (execution-time counter), [`io`] (the core's `ServoIo` for the board),
 //! [`clock`] (clock tree, crystal timeout, clock security system), [`brownout`] (the
 //! brown-out reset level in the option bytes), [`shutdown`] (outputs
-//! off from any context; panic and exception handlers), [`watchdog`] (the IWDG) and
+//! off from any context; panic and exception handlers), [`self_check`] (the
+//! configuration after init read back against the register table), [`watchdog`] (the IWDG) and
 //! [`flash`] (the settings store's sectors).
 
 #[cfg(not(feature = "qemu"))]
@@ -65,6 +66,8 @@ pub mod inputs;
 pub mod io;
 pub mod leds;
 pub mod pwm;
+#[cfg(not(feature = "qemu"))]
+pub mod self_check;
 pub mod serial;
 pub mod shutdown;
 pub mod tick;

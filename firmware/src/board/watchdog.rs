@@ -113,12 +113,25 @@ impl WatchdogStretch {
 
     /// No prescaler or reload update pending (bounded wait).
     fn settled(&self) -> bool {
-        for _ in 0..UPDATE_POLLS {
-            let sr = self.iwdg.sr().read();
-            if !sr.pvu().bit_is_set() && !sr.rvu().bit_is_set() {
-                return true;
-            }
-        }
-        false
+        settled(&self.iwdg)
     }
+}
+
+/// No prescaler or reload update pending (bounded wait).
+fn settled(iwdg: &pac::iwdg::RegisterBlock) -> bool {
+    for _ in 0..UPDATE_POLLS {
+        let sr = iwdg.sr().read();
+        if !sr.pvu().bit_is_set() && !sr.rvu().bit_is_set() {
+            return true;
+        }
+    }
+    false
+}
+
+/// The prescaler and reload written at start have reached the IWDG (bounded wait): PR and
+/// RLR then read back what was written (the boot self-check reads them).
+pub fn updates_settled() -> bool {
+    // SAFETY: only the status register is read (no side effects); the writers of PR/RLR
+    // (start, the save stretch) are not running during `init`.
+    settled(unsafe { &*pac::IWDG::ptr() })
 }

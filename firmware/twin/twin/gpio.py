@@ -78,6 +78,8 @@ class Gpio(Peripheral):
         self.twin.pins_changed(self.letter)
 
     def _store_changed(self, name, v):
+        if (self.name, name) in self.twin.frozen_regs:
+            return
         old = self[name]
         self.store(name, v)
         if self[name] != old:

@@ -108,6 +108,9 @@ class Twin:
         # (t_s, register, value) of every write to the registers named in `trace_regs`
         # (the outputs-off stores of a fault handler, which change nothing at rest)
         self.trace_regs = set()
+        # (peripheral, register) whose writes a scenario makes the chip ignore (a
+        # configuration that does not take; kept through resets: GPIO ports only)
+        self.frozen_regs = set()
         self.trace = []
         self.external = {}  # (port, pin) -> level driven by the outside
         for p, lv in board.HEALTHY_INPUTS:

@@ -66,9 +66,12 @@ def boot(elf, log_path):
     bor = [l.split("brown-out reset: ")[1] for l in lines if "brown-out reset: " in l]
     out.append(check("brown-out level at the factory option bytes", bor, "programmed to 2.7 V",
                      len(bor) == 1 and bor[0].startswith("programmed to 2.7 V")))
+    selfcheck = [l.split("board configuration: ")[1] for l in lines if "board configuration: " in l]
+    out.append(check("the firmware's boot self-check of the register table", selfcheck,
+                     "N register fields as expected", len(selfcheck) == 1 and selfcheck[0].endswith("register fields as expected")))
     errors = [l for l in lines if " ERROR " in l or l.startswith("ERROR")]
     out.append(check("defmt errors", errors or "none", "none", not errors))
-    out.extend(expect.check_after_boot(t))
+    out.extend(expect.check_after_boot(t, CONTROL_HZ))
     info = {
         "machine_s": BOOT_RUN_S,
         "boot_ms": round(first * 1e3, 3) if first is not None else None,
@@ -309,5 +312,27 @@ def stack_overflow(elf, log_path):
     return out, info
 
 
-ALL = {"boot": boot, "watchdog": watchdog, "uart_overrun": uart_overrun,
+def board_config(elf, log_path):
+    """A configuration that does not take: GPIOA's AFRH ignores every write (as on a port
+    whose configuration is locked), so PA15 (X encoder A) keeps its reset function. The
+    firmware's boot self-check (the register table, firmware/src/board/self_check.rs) must
+    name that field and latch `board_config`; the outputs stay off."""
+    t = Twin(elf)
+    t.frozen_regs.add(("GPIOA", "AFRH"))
+    rtt = RttReader(t, elf, log_path)
+    t.run(BOOT_RUN_S, poll=rtt.poll)
+    rtt.poll()
+    lines = rtt.close()
+    out = []
+    named = [l for l in lines if "board configuration: 0x40020024 bits 28+4 = 0x0, expected 0x1 (PA15 af" in l and "board_config fault latched" in l]
+    out.append(check("the self-check names GPIOA AFRH's PA15 field", len(named), 1, len(named) == 1))
+    ok_lines = [l for l in lines if "register fields as expected" in l]
+    out.append(check("no 'as expected' line", len(ok_lines), 0, not ok_lines))
+    active = sorted({k for _, k, v in t.log if (k.split(".")[0] in ("enable", "brake") or k == "moe") and v == 1})
+    out.append(check("outputs driven active", active or "none", "none", not active))
+    out.append(check("HardFaults", len(t.faults), 0, not t.faults))
+    return out, {"machine_s": BOOT_RUN_S}
+
+
+ALL = {"boot": boot, "board_config": board_config, "watchdog": watchdog, "uart_overrun": uart_overrun,
        "hardfault": hardfault, "panic": panic, "stack_overflow": stack_overflow}
