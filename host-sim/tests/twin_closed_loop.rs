@@ -418,7 +418,100 @@ fn limit_switch(c: &mut Client<BoardPort>, served: &Served) -> serde_json::Value
 
 /// The square's twin: the e-stop, then the stuck encoder (it leaves X faulted for good).
 fn estop_then_stuck_encoder(c: &mut Client<BoardPort>, served: &Served) -> Vec<serde_json::Value> {
-    vec![estop(c, served), stuck_encoder(c, served)]
+    vec![
+        estop(c, served),
+        stuck_encoder(c, served),
+        hardfault_while_moving(),
+    ]
+}
+
+/// The outputs-off stores are the HardFault entry's first instructions (the twin's
+/// `hardfault` scenario: 0.03 µs for MOE, 0.09 µs for the enables); the command lands at
+/// the twin's next poll and the fault one instruction later.
+const HARDFAULT_OUTPUTS_OFF_S: f64 = 2e-6;
+
+/// A fresh twin, armed, X moving: a HardFault. MOE and every enable go low at once (the
+/// naked entry's stores), the firmware stops feeding the IWDG and the chip resets, and
+/// the firmware boots again with `reset cause: watchdog` (outputs off through it).
+fn hardfault_while_moving() -> serde_json::Value {
+    let served = Served::start("hardfault");
+    let mut c = Client::connect(BoardPort::open_twin(&served.pty).unwrap()).unwrap();
+    prepare(&mut c);
+    let s = cli::ready(&mut c, false).unwrap();
+    assert_eq!(s.state, MachineState::Idle, "armed before the move");
+    let target = [s.pos_mm[0] + 20.0, s.pos_mm[1], s.pos_mm[2]];
+    for (what, r) in [
+        ("run", Request::Run),
+        ("segment", Request::Segment(Segment::rapid(target, 1))),
+        ("end", Request::EndProgram),
+    ] {
+        assert_eq!(c.exec(r).unwrap(), Outcome::Done, "the move's {what}");
+    }
+    let s = cli::wait_while(&mut c, |s| {
+        s.vel_mm_s[0].abs() < STUCK_MIN_SPEED_MM_S && !s.program_done
+    })
+    .unwrap();
+    let speed_mm_s = s.vel_mm_s[0].abs();
+    assert!(
+        speed_mm_s >= STUCK_MIN_SPEED_MM_S,
+        "X moves before the fault: {s:?}"
+    );
+    let t0 = twin_ctl(&mut c, &served, "hardfault");
+    // the board is silent from here on: wait for its reboot in its log
+    let t_wall = Instant::now();
+    let rebooted = loop {
+        let log = std::fs::read(&served.log).unwrap_or_default();
+        let log = String::from_utf8_lossy(&log);
+        if log.contains("reset cause: watchdog") {
+            break log.contains("HardFault at pc=");
+        }
+        assert!(
+            t_wall.elapsed() < Duration::from_secs(120),
+            "no reboot after the HardFault"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let moe_after_s = output_at(&served, "moe", "0", t0).expect("MOE cleared") - t0;
+    let enables_after_s = enables_low_at(&served, t0) - t0;
+    // nothing is driven active again through the reset and the boot
+    let log = std::fs::read_to_string(format!("{}.outputs", served.pty)).unwrap();
+    let active_again: Vec<&str> = log
+        .lines()
+        .filter(|l| {
+            let mut w = l.split(' ');
+            let t: f64 = w.next().and_then(|t| t.parse().ok()).unwrap_or(0.0);
+            let sig = w.next().unwrap_or("");
+            let v = w.next().unwrap_or("");
+            t > t0 + HARDFAULT_OUTPUTS_OFF_S
+                && (sig.starts_with("enable.") || sig == "moe")
+                && v == "1"
+        })
+        .collect();
+    println!(
+        "HardFault on the twin, X at {speed_mm_s:.1} mm/s: MOE off after {:.3} µs, enables low after {:.3} µs (bound {:.1} µs); the IWDG reset and a reboot logged `reset cause: watchdog`",
+        moe_after_s * 1e6,
+        enables_after_s * 1e6,
+        HARDFAULT_OUTPUTS_OFF_S * 1e6,
+    );
+    assert!(rebooted, "the HardFault was logged before the reboot");
+    assert!(
+        moe_after_s <= HARDFAULT_OUTPUTS_OFF_S,
+        "MOE after {moe_after_s} s"
+    );
+    assert!(
+        enables_after_s <= HARDFAULT_OUTPUTS_OFF_S,
+        "enables after {enables_after_s} s"
+    );
+    assert!(
+        active_again.is_empty(),
+        "outputs active after the fault: {active_again:?}"
+    );
+    serde_json::json!({
+        "scenario": "hardfault_while_moving",
+        "speed_mm_s": speed_mm_s,
+        "moe_off_after_s": moe_after_s,
+        "enables_low_after_s": enables_after_s,
+    })
 }
 
 fn limit_only(c: &mut Client<BoardPort>, served: &Served) -> Vec<serde_json::Value> {

@@ -43,10 +43,7 @@ def boot(elf, log_path):
     out.append(check("HardFaults", len(t.faults), 0, not t.faults))
     resets = [hex(f) for _, f in t.resets]
     out.append(check("resets (RCC_CSR flags)", resets, "power-on only", t.resets == [(0.0, CSR_PORRSTF | CSR_BORRSTF | CSR_PINRSTF)]))
-    active = sorted({k for _, k, v in t.log if k.split(".")[0] in ("enable", "brake") and v == 1}
-                    | {k for _, k, v in t.log if k.startswith("pwm.") and v not in (0, None, 0.0)}
-                    | {k for _, k, v in t.log if k == "moe" and v == 1})
-    out.append(check("outputs driven active from reset on", active or "none", "none", not active))
+    out.append(_no_output_active(t, "outputs driven active from reset on"))
     low = [tt for tt, k, v in t.log if k.startswith(("enable.", "brake.")) and v == 0]
     floating_s = min(low) if low else None
     out.append(check("enables and brakes floating after reset, ms",
@@ -99,18 +96,8 @@ def watchdog(elf, log_path):
     rtt.poll()
     lines = rtt.close()
     out = []
-    resets = t.resets[1:]
-    iwdg = [r for r in resets if r[1] & CSR_IWDGRSTF]
-    timeout_s = (t.iwdg["RLR"] + 1) * (4 << t.iwdg["PR"]) / LSI_MIN_HZ if iwdg else None
-    out.append(check("resets after the hang", [hex(f) for _, f in resets], "one IWDG reset", len(resets) == 1 and len(iwdg) == 1))
-    if iwdg:
-        after_ms = (iwdg[0][0] - hang_s) * 1e3
-        # the first update the control task misses is at most one period after the hang
-        bound_ms = (timeout_s + 1 / CONTROL_HZ) * 1e3
-        out.append(check("reset after the last feed, ms", round(after_ms, 3), f"<= {bound_ms:.3f} (RLR at 17 kHz + 1 period)", after_ms <= bound_ms))
-    active = sorted({k for _, k, v in t.log if (k.split(".")[0] in ("enable", "brake") or k == "moe") and v == 1}
-                    | {k for _, k, v in t.log if k.startswith("pwm.") and v not in (0, None, 0.0)})
-    out.append(check("outputs driven active", active or "none", "none", not active))
+    out.extend(_one_iwdg_reset(t, hang_s, "resets after the hang", "reset after the last feed, ms"))
+    out.append(_no_output_active(t))
     after = t.entries.get(TIM4_EXC, 0) - t.entries_at_reset.get(TIM4_EXC, 0)
     out.append(check("control interrupts after the reboot", after, "> 0", after > 0))
     ups = [l for l in lines if "firmware up" in l]
@@ -120,6 +107,28 @@ def watchdog(elf, log_path):
     bor = [l.split("brown-out reset: ")[1] for l in lines if "brown-out reset: " in l]
     out.append(check("brown-out level kept through the reset", bor[1:], ["2.7 V"], bor[1:] == ["2.7 V"]))
     return out, {"machine_s": 0.6, "hang_at_ms": round(hang_s * 1e3, 3)}
+
+
+def _one_iwdg_reset(t, since_s, resets_name, after_name):
+    """Exactly one reset after power-on, by the IWDG, within its timeout at the slowest LSI
+    plus one period (the first update the control task misses is at most one period
+    after `since_s`)."""
+    resets = t.resets[1:]
+    iwdg = [r for r in resets if r[1] & CSR_IWDGRSTF]
+    out = [check(resets_name, [hex(f) for _, f in resets], "one IWDG reset", len(resets) == 1 and len(iwdg) == 1)]
+    if iwdg and since_s is not None:
+        timeout_s = (t.iwdg["RLR"] + 1) * (4 << t.iwdg["PR"]) / LSI_MIN_HZ
+        after_ms = (iwdg[0][0] - since_s) * 1e3
+        bound_ms = (timeout_s + 1 / CONTROL_HZ) * 1e3
+        out.append(check(after_name, round(after_ms, 3), f"<= {bound_ms:.3f} (RLR at 17 kHz + 1 period)", after_ms <= bound_ms))
+    return out
+
+
+def _no_output_active(t, name="outputs driven active"):
+    """No enable, brake, MOE or PWM duty driven active at any time of the run."""
+    active = sorted({k for _, k, v in t.log if (k.split(".")[0] in ("enable", "brake") or k == "moe") and v == 1}
+                    | {k for _, k, v in t.log if k.startswith("pwm.") and v not in (0, None, 0.0)})
+    return check(name, active or "none", "none", not active)
 
 
 # USART2's interrupt (its handler runs above the control interrupt)
@@ -206,17 +215,8 @@ def _fault_scenario(elf, log_path, inject, logged, hard=True):
         fault_s = t.panicked_at_s
     out.append(check("fault injected in the control interrupt", bool(injected), True, bool(injected)))
     out.extend(_outputs_off_after(t, fault_s, "HardFault taken" if hard else "panic entered"))
-    resets = t.resets[1:]
-    iwdg = [r for r in resets if r[1] & CSR_IWDGRSTF]
-    out.append(check("resets after the fault", [hex(f) for _, f in resets], "one IWDG reset", len(resets) == 1 and len(iwdg) == 1))
-    if iwdg and fault_s is not None:
-        timeout_s = (t.iwdg["RLR"] + 1) * (4 << t.iwdg["PR"]) / LSI_MIN_HZ
-        after_ms = (iwdg[0][0] - fault_s) * 1e3
-        bound_ms = (timeout_s + 1 / CONTROL_HZ) * 1e3
-        out.append(check("IWDG reset after the fault, ms", round(after_ms, 3), f"<= {bound_ms:.3f} (RLR at 17 kHz + 1 period)", after_ms <= bound_ms))
-    active = sorted({k for _, k, v in t.log if (k.split(".")[0] in ("enable", "brake") or k == "moe") and v == 1}
-                    | {k for _, k, v in t.log if k.startswith("pwm.") and v not in (0, None, 0.0)})
-    out.append(check("outputs driven active", active or "none", "none", not active))
+    out.extend(_one_iwdg_reset(t, fault_s, "resets after the fault", "IWDG reset after the fault, ms"))
+    out.append(_no_output_active(t))
     named = [l for l in lines if logged in l]
     out.append(check(f"log names the fault ({logged!r})", len(named), 1, len(named) == 1))
     cause = [l.split("reset cause: ")[1] for l in lines if "reset cause: " in l]
@@ -328,8 +328,7 @@ def board_config(elf, log_path):
     out.append(check("the self-check names GPIOA AFRH's PA15 field", len(named), 1, len(named) == 1))
     ok_lines = [l for l in lines if "register fields as expected" in l]
     out.append(check("no 'as expected' line", len(ok_lines), 0, not ok_lines))
-    active = sorted({k for _, k, v in t.log if (k.split(".")[0] in ("enable", "brake") or k == "moe") and v == 1})
-    out.append(check("outputs driven active", active or "none", "none", not active))
+    out.append(_no_output_active(t))
     out.append(check("HardFaults", len(t.faults), 0, not t.faults))
     return out, {"machine_s": BOOT_RUN_S}
 

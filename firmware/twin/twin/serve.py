@@ -55,6 +55,8 @@ class Control:
         flash-sr 0x80                   FLASH_SR error bits set, as a stray store leaves them
         power-cut erase                 the power goes half way through the next sector
                                         erase (its first half erased, the rest as it was)
+        hardfault                       a HardFault (an imprecise bus fault) at the next
+                                        instruction, whatever the core is running
         power-cut program N             ... while the N-th word program from now runs
                                         (half its bytes programmed): the twin stops, the
                                         flash file keeps that state
@@ -122,8 +124,10 @@ class Control:
             tw.flash["SR"] |= bits
         elif cmd == "power-cut":
             tw.flash.power_cut(arg)
+        elif cmd == "hardfault" and not arg:
+            tw.call_after_insns = (1, lambda t: t.hard_fault(t.pc, "injected by PTY.ctl: an imprecise bus fault"))
         else:
-            raise ValueError("unknown command (drive, inject, flash-sr, power-cut)")
+            raise ValueError("unknown command (drive, inject, flash-sr, power-cut, hardfault)")
 
     def close(self):
         self.done.close()
