@@ -44,6 +44,9 @@ pub struct BoardPeriod {
     /// Gaps between control interrupts: a stall too long for the 16-bit encoder counters
     /// (firmware::stall) makes their axes' homes forgotten.
     stall: StallWatch,
+    /// Gaps up to this many cycles are never a stall ([`QUICK_GAP_PERIODS`]; computed
+    /// once, no division in the interrupt).
+    quick_gap_cycles: u32,
     /// The link's clock: ms, and periods' worth of ms beyond it (× rate).
     clock_ms: u32,
     clock_sub: u32,
@@ -66,6 +69,8 @@ impl BoardPeriod {
             watchdog,
             rate_hz: rate_hz.max(1),
             stall: StallWatch::new(),
+            quick_gap_cycles: QUICK_GAP_PERIODS
+                .saturating_mul(SYSCLK_HZ.checked_div(rate_hz).unwrap_or(SYSCLK_HZ)),
             clock_ms: 0,
             clock_sub: 0,
         }
@@ -103,7 +108,7 @@ impl BoardPeriod {
         if clock::take_css_fault() {
             self.latch_board_fault(FaultKind::ClockFault);
         }
-        let quick = QUICK_GAP_PERIODS.saturating_mul(SYSCLK_HZ / self.rate_hz);
+        let quick = self.quick_gap_cycles;
         let machine = &self.machine;
         let stalled = self
             .stall
