@@ -102,6 +102,11 @@ pub struct QemuMachine {
 
 impl QemuMachine {
     /// Boot `elf` in the link rig and connect to its USART2.
+    ///
+    /// A start that fails before the firmware has answered (QEMU could not listen on the
+    /// ports picked for it, because another process took one in the window between, or a
+    /// first connection failed) is tried once more on fresh ports; the error names both
+    /// attempts when the second fails too.
     pub fn boot(elf: &Path) -> Result<Self> {
         if !elf.is_file() {
             bail!(
@@ -109,6 +114,14 @@ impl QemuMachine {
                 elf.display()
             );
         }
+        match Self::boot_once(elf) {
+            Ok(m) => Ok(m),
+            Err(first) => Self::boot_once(elf)
+                .map_err(|second| anyhow!("{second:#} (and before, on other ports: {first:#})")),
+        }
+    }
+
+    fn boot_once(elf: &Path) -> Result<Self> {
         // free ports (QEMU listens on them; the tiny window between is harmless locally)
         let (port, panel_port) = free_ports()?;
         let log = elf.with_extension("link.defmt");
@@ -390,6 +403,9 @@ fn connect(port: u16, timeout: Duration) -> Result<TcpStream> {
     let t0 = Instant::now();
     loop {
         match TcpStream::connect(("127.0.0.1", port)) {
+            // (a connection to a local port nobody listens on yet can pick that very port
+            // as its own and connect to itself: QEMU could then never listen on it)
+            Ok(s) if is_self_connected(&s) => std::thread::sleep(Duration::from_millis(20)),
             Ok(s) => return Ok(s),
             Err(e) if t0.elapsed() > timeout => {
                 bail!("no connection to 127.0.0.1:{port} within {timeout:?}: {e}")
@@ -397,6 +413,11 @@ fn connect(port: u16, timeout: Duration) -> Result<TcpStream> {
             Err(_) => std::thread::sleep(Duration::from_millis(20)),
         }
     }
+}
+
+/// Whether `s` is connected to itself (TCP simultaneous open on a local port).
+fn is_self_connected(s: &TcpStream) -> bool {
+    matches!((s.local_addr(), s.peer_addr()), (Ok(l), Ok(p)) if l == p)
 }
 
 impl Drop for QemuMachine {
