@@ -122,7 +122,8 @@ impl QemuMachine {
     }
 
     fn boot_once(elf: &Path) -> Result<Self> {
-        // free ports (QEMU listens on them; the tiny window between is harmless locally)
+        // free ports (QEMU listens on them; another process may take one in the window between:
+        // `boot` then tries again)
         let (port, panel_port) = free_ports()?;
         let log = elf.with_extension("link.defmt");
         let out = std::fs::File::create(&log)
@@ -405,12 +406,14 @@ fn connect(port: u16, timeout: Duration) -> Result<TcpStream> {
         match TcpStream::connect(("127.0.0.1", port)) {
             // (a connection to a local port nobody listens on yet can pick that very port
             // as its own and connect to itself: QEMU could then never listen on it)
-            Ok(s) if is_self_connected(&s) => std::thread::sleep(Duration::from_millis(20)),
-            Ok(s) => return Ok(s),
+            Ok(s) if !is_self_connected(&s) => return Ok(s),
+            Ok(_) if t0.elapsed() > timeout => {
+                bail!("no connection to 127.0.0.1:{port} within {timeout:?}: only to itself")
+            }
             Err(e) if t0.elapsed() > timeout => {
                 bail!("no connection to 127.0.0.1:{port} within {timeout:?}: {e}")
             }
-            Err(_) => std::thread::sleep(Duration::from_millis(20)),
+            _ => std::thread::sleep(Duration::from_millis(20)),
         }
     }
 }
