@@ -3,6 +3,8 @@
 //! simulated machine are controller-core's (`servo`, `sim`); the binary (`main.rs`,
 //! `board/`, `qemu/`) adds the board glue and the RTIC tasks.
 //!
+//! - [`blank_static`]: the machine's large statics zero-filled and made blank in place
+//!   at boot (no initial image in flash);
 //! - [`config`]: the board's rates, scaling and servo configuration;
 //! - [`button`]: the debounced arm/reset button and the commands a press sends;
 //! - [`drive`]: effort to PWM duty and direction;
@@ -22,6 +24,7 @@
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which must give no output.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod blank_static;
 pub mod button;
 pub mod config;
 pub mod drive;

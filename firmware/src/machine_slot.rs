@@ -1,18 +1,21 @@
 //! Where the firmware keeps the machine (controller-core `machine::Machine`) and its
-//! planning task's half. The large parts live in statics initialised at reset from
-//! constants: the scope's buffer and the executor's half (`MachineMemory`, 8 KiB), the
-//! planning half (`MachineTaskPlanner`, 32 KiB) and the queues between the two halves
-//! (`PlannerChannels`, 10 KiB); the rest of the machine (6 KiB) is in a slot the caller
-//! owns. None of them is ever copied through the stack, which could not hold them.
+//! planning task's half. The large parts live in statics: the scope's buffer and the
+//! executor's half (`MachineMemory`, 8.7 KiB) and the planning half
+//! (`MachineTaskPlanner`, 61 KiB, in the CCM RAM) zero-filled and made blank in place at
+//! build (`firmware::blank_static`: no image of them in flash), and the queues between
+//! the two halves (`PlannerChannels`, 10 KiB); the rest of the machine (6 KiB) is in a
+//! slot the caller owns. None of them is ever copied through the stack, which could not
+//! hold them.
 
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use controller_core::machine::scope::Scope;
 use controller_core::machine::{
     Machine, MachineError, MachineMemory, MachineTaskPlanner, MACHINE_SEGMENTS, MACHINE_SPANS,
 };
 use controller_core::motion::planner::{PlannerChannels, SplitExecutor, SplitPlanner};
 use controller_core::settings::Settings;
+use firmware::blank_static;
 
 /// The control interrupt's half of the planner.
 type Executor = SplitExecutor<'static>;
@@ -23,14 +26,12 @@ pub type FwMachine = Machine<&'static mut MachineMemory<Executor>, Executor>;
 /// The planning half, run by the `plan` task after every control period.
 pub type PlanTask = SplitPlanner<'static, MACHINE_SEGMENTS, MACHINE_SPANS>;
 
-static mut MEMORY: MachineMemory<Executor> = MachineMemory {
-    planner: SplitExecutor::DETACHED,
-    scope: Scope::new(),
-};
-/// The planning half in the CCM RAM (core-coupled, otherwise unused: the look-ahead's
-/// queue is most of it). Its initial image is copied there by [`init_ccm`].
-#[cfg_attr(target_os = "none", link_section = ".ccmdata")]
-static mut PLANNER: MachineTaskPlanner = MachineTaskPlanner::BLANK;
+// Zero-filled, made blank in place by `build` (`firmware::blank_static`): no initial
+// image in flash. `MEMORY` is in `.bss`; `PLANNER` in the CCM RAM (core-coupled,
+// otherwise unused: the look-ahead's queue is most of it), `NOLOAD` (memory.x).
+static mut MEMORY: MaybeUninit<MachineMemory<Executor>> = MaybeUninit::uninit();
+#[cfg_attr(target_os = "none", link_section = ".ccmbss")]
+static mut PLANNER: MaybeUninit<MachineTaskPlanner> = MaybeUninit::uninit();
 static mut CHANNELS: PlannerChannels = PlannerChannels::new();
 static mut TASK: Option<PlanTask> = None;
 static MEMORY_TAKEN: AtomicBool = AtomicBool::new(false);
@@ -57,14 +58,12 @@ pub fn build(
     if MEMORY_TAKEN.swap(true, Ordering::AcqRel) {
         return Err(BuildError::Twice);
     }
-    // SAFETY: the first and only build, before anything has a reference to a CCM static.
-    unsafe { init_ccm() };
     // SAFETY: the flag above hands out the only references to `MEMORY`, `PLANNER`,
     // `CHANNELS` and `TASK` (before `take_plan_task` can see it), once.
     let (memory, planner, channels, task) = unsafe {
         (
-            &mut *core::ptr::addr_of_mut!(MEMORY),
-            &mut *core::ptr::addr_of_mut!(PLANNER),
+            blank_static::memory(core::ptr::addr_of_mut!(MEMORY)),
+            blank_static::planner(core::ptr::addr_of_mut!(PLANNER)),
             &mut *core::ptr::addr_of_mut!(CHANNELS),
             &mut *core::ptr::addr_of_mut!(TASK),
         )
@@ -85,26 +84,3 @@ pub fn take_plan_task() -> Option<PlanTask> {
     // `build` no longer holds its reference, and the flag above hands this one out once.
     unsafe { (*core::ptr::addr_of_mut!(TASK)).take() }
 }
-
-/// Copies the initial image of the `.ccmdata` statics from flash into the CCM RAM
-/// (memory.x): cortex-m-rt initialises `.data` only.
-///
-/// # Safety
-/// Once, before any reference to a `.ccmdata` static exists (`build` calls it first).
-#[cfg(target_os = "none")]
-unsafe fn init_ccm() {
-    extern "C" {
-        static mut __sccmdata: u32;
-        static __eccmdata: u32;
-        static __siccmdata: u32;
-    }
-    let start = core::ptr::addr_of_mut!(__sccmdata);
-    let end = core::ptr::addr_of!(__eccmdata);
-    let words = (end as usize - start as usize) / 4;
-    // word by word from the flash image (both 4-aligned by the linker script)
-    core::ptr::copy_nonoverlapping(core::ptr::addr_of!(__siccmdata), start, words);
-}
-
-/// On the host (unit tests) the statics are ordinary ones, already initialised.
-#[cfg(not(target_os = "none"))]
-unsafe fn init_ccm() {}

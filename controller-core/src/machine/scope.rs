@@ -216,6 +216,21 @@ impl Scope {
         }
     }
 
+    /// Makes this scope [`Scope::new`] in place, field by field (no image of its 8 KiB
+    /// buffer is copied from flash or through the stack): the firmware keeps the scope in
+    /// a zero-filled static and calls this at boot.
+    pub fn blank(&mut self) {
+        self.cfg = None;
+        self.state = ScopeState::Off;
+        self.buf.fill(0.0);
+        self.written = 0;
+        self.remaining = 0;
+        self.trigger_written = 0;
+        self.since = 0;
+        self.last = None;
+        self.fault_before = false;
+    }
+
     pub fn state(&self) -> ScopeState {
         self.state
     }
@@ -344,6 +359,37 @@ mod tests {
 
     use super::*;
     use crate::servo::faults::{Fault, FaultKind, FaultRecord};
+
+    /// Every field of `a` equals `b`'s (the scope has no `PartialEq`: its buffer is
+    /// compared bit for bit).
+    fn same(a: &Scope, b: &Scope) -> bool {
+        a.cfg.is_none() == b.cfg.is_none()
+            && a.state == b.state
+            && a.buf
+                .iter()
+                .zip(&b.buf)
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+            && (a.written, a.remaining, a.trigger_written, a.since)
+                == (b.written, b.remaining, b.trigger_written, b.since)
+            && a.last.map(f32::to_bits) == b.last.map(f32::to_bits)
+            && a.fault_before == b.fault_before
+    }
+
+    /// `blank` leaves exactly `Scope::new()` after a capture moved every field away
+    /// from it (the firmware's zero-filled static is blanked at boot the same way).
+    #[test]
+    fn blank_in_place_equals_new() {
+        let mut s = Scope::new();
+        s.arm(cfg(&[Signal::Pos(0)], 8, 1, 0, Trigger::Now))
+            .unwrap();
+        let p = PathSample::default();
+        for k in 0..20 {
+            s.record(&snap(k as f32 + 1.0), &p);
+        }
+        assert!(!same(&s, &Scope::new()));
+        s.blank();
+        assert!(same(&s, &Scope::new()));
+    }
 
     fn snap(x: f32) -> Snapshot {
         let mut s = Snapshot::boot();

@@ -236,7 +236,19 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 return Err(PlannerConfigError::NotFinite("start_mm"));
             }
         }
+        self.blank();
         self.set = set;
+        self.run_id = run;
+        self.end_pos = start_mm;
+        Ok(())
+    }
+
+    /// Makes this planner [`Planner::BLANK`] in place, field by field: no image of the
+    /// planner is copied, on the stack or from flash. The firmware keeps its planning
+    /// half in a zero-filled static (no initial image in flash) and calls this at boot;
+    /// `tests::blank_in_place_equals_blank` checks that it leaves exactly `BLANK`.
+    pub fn blank(&mut self) {
+        self.set = Settings::BLANK;
         self.pieces.clear();
         self.front_piece_id = 0;
         self.spans.reset();
@@ -245,16 +257,15 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.gen = GenState::at(1, 0.0);
         self.epoch = 0;
         self.path_gen = 0;
-        self.run_id = run;
+        self.run_id = 0;
         self.feed_override = 1.0;
         self.run = RunState::Run;
         self.hold_point = None;
         self.exec_mode = ExecMode::Idle;
-        self.end_pos = start_mm;
+        self.end_pos = [0.0; 3];
         self.slips = 0;
         self.scan = ScanCache::new();
         self.ahead = Ahead::new(0.0, 0.0, 0.0);
-        Ok(())
     }
 
     pub fn settings(&self) -> &Settings {
@@ -1319,5 +1330,32 @@ mod cache_tests {
         );
         assert!(c > 100_000, "{c} checks");
         assert_eq!(m, 0, "{m} of {c} periods decided differently");
+    }
+}
+
+#[cfg(test)]
+mod blank_tests {
+    use super::*;
+    use crate::machine::MachineTaskPlanner;
+    use crate::motion::planner::GANTRY_PLANNER;
+
+    /// `blank` leaves exactly `BLANK`, whatever the planner held: every field it must
+    /// reset is moved away from `BLANK` first. (The firmware's zero-filled static is
+    /// checked in firmware/src/machine_slot.rs: this crate has no unsafe code to make one.)
+    #[test]
+    fn blank_in_place_equals_blank() {
+        let mut p = MachineTaskPlanner::BLANK;
+        p.restart_run(&GANTRY_PLANNER, [1.0, 2.0, 3.0], 7).unwrap();
+        for k in 0..40u32 {
+            let x = 1.0 + 0.5 * (k + 1) as f32;
+            let y = if k % 2 == 0 { 2.0 } else { 2.5 };
+            if p.push(&Segment::line([x, y, 3.0], 20.0, k)).is_err() {
+                break;
+            }
+        }
+        p.set_feed_override(0.5).unwrap();
+        assert!(p != MachineTaskPlanner::BLANK);
+        p.blank();
+        assert!(p == MachineTaskPlanner::BLANK);
     }
 }
