@@ -62,8 +62,8 @@ except ImportError as exc:  # pragma: no cover - environment problem
     sys.exit(2)
 
 FLASH = (0x0800_0000, 1024 * 1024)
-# 192 KiB: the board's SRAM plus its CCM RAM (kernels/memory.x)
-RAM = (0x2000_0000, 192 * 1024)
+# 256 KiB at the SRAM's address: room for every kernel's state at once (kernels/memory.x)
+RAM = (0x2000_0000, 256 * 1024)
 # Private peripheral bus (SCB: CPACR for the FPU enable in the reset handler).
 PPB = (0xE000_0000, 0x10_0000)
 # Return address for called functions: an unused, mapped flash word (emulation stops
@@ -75,6 +75,10 @@ STACK_TOP = RAM[0] + RAM[1]
 REPLAY = (0x6000_0000, 16 * 1024 * 1024)
 REFILL = 3
 MAX_INSNS = 50_000_000
+# Instructions an uncounted setup may run: setups run without the counting hook, at the
+# emulator's own speed (the `machine_period_*` setups run the machine closed-loop on the
+# simulated world, its physics in soft-float f64, for thousands of periods).
+SETUP_MAX_INSNS = 2_000_000_000
 
 
 def load(path):
@@ -155,7 +159,19 @@ class Counter:
         self.uc = uc
         self.core = core
         self.cache = {}
+        self.handle = None
         self.reset()
+
+    def attach(self):
+        """Install the code hook (only around counted runs: a Python call per
+        instruction is what makes the emulator slow)."""
+        if self.handle is None:
+            self.handle = self.uc.hook_add(UC_HOOK_CODE, self.hook)
+
+    def detach(self):
+        if self.handle is not None:
+            self.uc.hook_del(self.handle)
+            self.handle = None
 
     def reset(self):
         self.insns = 0
@@ -292,7 +308,12 @@ class Counter:
             self.add_skipped()
 
 
-def call(uc, counter, addr, args=(), count=False, limit=MAX_INSNS):
+def call(uc, counter, addr, args=(), count=False, limit=None):
+    """Call the function at `addr`; counted (the hook installed) when `count`. `limit`:
+    instructions at most (default MAX_INSNS counted, SETUP_MAX_INSNS otherwise; 0: no
+    limit)."""
+    if limit is None:
+        limit = MAX_INSNS if count else SETUP_MAX_INSNS
     regs = [A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R3]
     for r, v in zip(regs, args):
         uc.reg_write(r, v)
@@ -300,8 +321,13 @@ def call(uc, counter, addr, args=(), count=False, limit=MAX_INSNS):
     uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
     counter.reset()
     counter.active = count
-    uc.emu_start(addr | 1, RET_ADDR, count=limit)
-    counter.active = False
+    if count:
+        counter.attach()
+    try:
+        uc.emu_start(addr | 1, RET_ADDR, count=limit)
+    finally:
+        counter.active = False
+        counter.detach()
     if uc.reg_read(A.UC_ARM_REG_PC) & ~1 != RET_ADDR:
         raise RuntimeError("function at 0x%08x did not return" % addr)
     return uc.reg_read(A.UC_ARM_REG_R0)
@@ -313,14 +339,17 @@ def core_of(elf_path):
         return "m4" if ELFFile(f)["e_flags"] & 0x400 else "m3"
 
 
-def boot(elf_path, hook=True):
-    """The emulator after the reset handler; `hook`: install the counting hook (a
-    replay runs without it, at the emulator's own speed)."""
+def boot(elf_path):
+    """The emulator after the reset handler. The counting hook is installed only while a
+    kernel is counted (`Counter.attach`); everything else runs at the emulator's own
+    speed. A panic (`core::panicking::panic_fmt`) or a HardFault stops the emulation (the
+    call then fails)."""
     segs, syms = load(elf_path)
     uc = make_emu(segs)
     counter = Counter(uc, core_of(elf_path))
-    if hook:
-        uc.hook_add(UC_HOOK_CODE, counter.hook)
+    stops = [a for n, a in syms.items() if n.endswith("9panicking9panic_fmt") or n == "HardFault"]
+    for a in stops:
+        uc.hook_add(UC_HOOK_CODE, lambda u, *_: u.emu_stop(), begin=a, end=a)
     # Reset handler up to main: initialises .data/.bss, enables the FPU.
     sp0, reset = struct.unpack("<II", bytes(uc.mem_read(FLASH[0], 8)))
     uc.reg_write(A.UC_ARM_REG_SP, sp0)
@@ -334,7 +363,11 @@ def cmd_count(elf_path):
     failed = False
     for name in names:
         setup = syms.get("insns_setup_" + name)
-        if setup is None or call(uc, counter, setup) != 1:
+        try:
+            built = setup is not None and call(uc, counter, setup) == 1
+        except RuntimeError:  # a panic, or the instruction limit
+            built = False
+        if not built:
             print("%s setup failed" % name)
             failed = True
             continue
@@ -356,9 +389,11 @@ def cmd_profile(elf_path, name, top=25):
     counter.profile = {}
     prof = counter.profile
     counter.active = True
+    counter.attach()
     uc.reg_write(A.UC_ARM_REG_SP, STACK_TOP)
     uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
     uc.emu_start(syms["insns_kernel_" + name] | 1, RET_ADDR, count=MAX_INSNS)
+    counter.detach()
     counter.active = False
     counter.finish()
     starts = [f[0] for f in FUNCS]
@@ -573,9 +608,11 @@ def cmd_parts(elf_path, name, root=PERIOD_ROOT, rules=PERIOD_PARTS, body=BODY_PA
     counter.attrib = attrib
     counter.parts = {}
     counter.active = True
+    counter.attach()
     uc.reg_write(A.UC_ARM_REG_SP, STACK_TOP)
     uc.reg_write(A.UC_ARM_REG_LR, RET_ADDR | 1)
     uc.emu_start(syms["insns_kernel_" + name] | 1, RET_ADDR, count=MAX_INSNS)
+    counter.detach()
     counter.active = False
     counter.finish()
     total = counter.insns
@@ -595,7 +632,7 @@ def cmd_parts(elf_path, name, root=PERIOD_ROOT, rules=PERIOD_PARTS, body=BODY_PA
 
 
 def cmd_replay(elf_path, name, in_path, n, out_path, in_rec=7, out_rec=9):
-    uc, counter, syms = boot(elf_path, hook=False)
+    uc, counter, syms = boot(elf_path)
     data = open(in_path, "rb").read()
     if len(data) != n * in_rec * 4:
         raise SystemExit("replay input has %d bytes, expected %d" % (len(data), n * in_rec * 4))

@@ -12,10 +12,13 @@
 //! - [`Estimator3`]: the estimator bank as the servo step runs it;
 //! - [`ServoPeriod`]: the whole control period as the board's interrupt runs it
 //!   ([`Servo::period`] with the board's configuration, `presets::board`);
-//! - [`parts`]: the blocks of that period one by one (`servo_part_*`).
+//! - [`parts`]: the blocks of that period one by one (`servo_part_*`);
+//! - [`machine_period`]: the core's whole control period behind the link
+//!   (`Machine::linked_period` of the board's machine, `machine_period_*`).
 #![no_std]
 
 pub mod link;
+pub mod machine_period;
 pub mod parts;
 pub mod plan_task;
 pub mod planner;

@@ -20,7 +20,8 @@ use controller_core::motion::planner::{
 
 type TaskPlanner = Planner<8, 32>;
 
-/// What the kernel's program sends.
+/// What the kernel's program sends (also the program the `machine_period_program`
+/// kernel streams, [`crate::machine_period`]).
 #[derive(Clone, Copy)]
 pub enum Program {
     /// 0.15 mm chords of a 60 mm circle at 25 mm/s.
@@ -39,17 +40,34 @@ const ARC_FEED_MM_S: f32 = 200.0;
 const WARMUP_PERIODS: u32 = 4000;
 
 impl Program {
-    fn start(self) -> [f32; 3] {
+    /// Where the program starts (segment `k` ends at the `k`-th point of its circle).
+    pub fn start(self) -> [f32; 3] {
         match self {
             Program::Chords => [CHORD_RADIUS_MM, 0.0, 0.0],
             Program::Arcs => [ARC_RADIUS_MM, 0.0, 0.0],
         }
     }
 
-    fn segment(self, k: u32) -> Segment {
+    /// Segment `k` (tag `k`, from 1) of the program started at [`Self::start`].
+    pub fn segment(self, k: u32) -> Segment {
+        self.segment_by(k, None)
+    }
+
+    /// Segment `k` of the program started at `start_mm` instead (its circle moved there).
+    pub fn segment_from(self, k: u32, start_mm: [f32; 3]) -> Segment {
+        let o = self.start();
+        self.segment_by(k, Some([0, 1, 2].map(|i| start_mm[i] - o[i])))
+    }
+
+    /// Segment `k`, its points moved by `by` mm.
+    fn segment_by(self, k: u32, by: Option<[f32; 3]>) -> Segment {
+        let shift = |p: [f32; 3]| match by {
+            Some(d) => [0, 1, 2].map(|i| p[i] + d[i]),
+            None => p,
+        };
         let at = |r: f32, n: u32, k: f32| {
             let th = 2.0 * core::f32::consts::PI * k / n as f32;
-            [r * libm::cosf(th), r * libm::sinf(th), 0.0]
+            shift([r * libm::cosf(th), r * libm::sinf(th), 0.0])
         };
         match self {
             Program::Chords => {

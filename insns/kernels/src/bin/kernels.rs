@@ -69,6 +69,7 @@ mod cortex_m4 {
     use super::*;
     use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
     use insns_kernels::link::{LinkDecode, LinkEncode};
+    use insns_kernels::machine_period::MachinePeriod;
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
     use insns_kernels::plan_task::{PlanTask, Program};
     use insns_kernels::planner::PlannerState;
@@ -172,6 +173,18 @@ mod cortex_m4 {
         PlanTask,
         PlanTask::setup_segment(Program::Arcs),
         |k| k.run()
+    );
+    kernel!(
+        machine_period_program,
+        MachinePeriod,
+        MachinePeriod::setup_program(),
+        |k| k.step()
+    );
+    kernel!(
+        machine_period_idle,
+        MachinePeriod,
+        MachinePeriod::setup_idle(),
+        |k| k.step()
     );
     kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
         .step());
