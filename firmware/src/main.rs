@@ -372,12 +372,13 @@ mod app {
         // Board: the next period's `Inputs::overrun`, and the watchdog is fed only if this
         // period ran on time. QEMU: see `Rig::end_of_period`.
         period.end_of_period(overran);
-        let snap = *period.snapshot();
+        // (one copy of the snapshot per period: into the telemetry's, under its lock)
+        let snap = period.snapshot();
         cx.local
             .leds
             .show(snap.outputs_on, snap.state == ServoState::Fault);
         cx.shared.telemetry.lock(|t| {
-            t.snapshot = snap;
+            t.snapshot = *snap;
             t.timing.record(cyc, overran);
         });
         if let Some(e) = end {

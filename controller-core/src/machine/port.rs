@@ -43,11 +43,14 @@ use super::REQUEST_QUEUE;
 use crate::link::{RealtimeRequest, Seq};
 use crate::settings::{Apply, Settings};
 
-/// What the link hands the machine.
+/// What the link hands the machine. No variant holds a settings tree (628 bytes): a
+/// change's tree waits in a queue of its own ([`Down::Apply`]), so that the control
+/// interrupt, which takes every event by value, copies 120 bytes per event, not 632
+/// (the segments of a streaming program: `cargo insns`' `machine_period_program`).
 #[derive(Clone, Debug, PartialEq)]
-// (a queue slot holds any of them: a settings tree is 584 bytes, so the queues are
-// 25 and 16 of those — 24 KiB of RAM, within the board's budget: firmware/README-firmware.md)
-#[allow(clippy::large_enum_variant)]
+// (a 32-bit tag: the payload then starts word-aligned and a move is a word copy; with a
+// byte tag sharing a word with it, each move was a byte-wise copy, 5 instructions a byte)
+#[repr(u32)]
 pub enum Down {
     /// A request of the reliable channel, for the machine's queue.
     Request(Request),
@@ -56,10 +59,9 @@ pub enum Down {
     Resolved(Outcome),
     /// A settings change validated on the link side: swap it in at a period boundary
     /// (only with the outputs off when `class` is not `None`), in the request's place.
-    Apply {
-        settings: Settings,
-        class: Option<Apply>,
-    },
+    /// Its tree is the next in the settings queue ([`ControlSide::take_settings`]),
+    /// enqueued before this event.
+    Apply { class: Option<Apply> },
     /// A new session: the old one's queued requests are dropped.
     SessionStarted,
     /// A real-time request: act at once, then answer with [`Up::Status`] and `id`.
@@ -133,11 +135,16 @@ pub const UP_QUEUE: usize = 8;
 /// Settings trees the machine took and save answers, on their way back to the link side.
 const ECHO_QUEUE: usize = 4;
 
+/// Settings trees on their way down ([`Down::Apply`]): one at a time, since a settings
+/// request goes down only once every request before it was executed.
+const APPLY_QUEUE: usize = 1;
+
 /// The queues and the credit counter.
 pub struct Channels {
     down: Queue<Down, { DOWN_QUEUE + 1 }>,
     up: Queue<Up, { UP_QUEUE + 1 }>,
     echo: Queue<Echo, { ECHO_QUEUE + 1 }>,
+    applies: Queue<Settings, { APPLY_QUEUE + 1 }>,
     /// Requests retired by the machine (control side writes).
     retired: AtomicU32,
 }
@@ -154,6 +161,7 @@ impl Channels {
             down: Queue::new(),
             up: Queue::new(),
             echo: Queue::new(),
+            applies: Queue::new(),
             retired: AtomicU32::new(0),
         }
     }
@@ -163,17 +171,20 @@ impl Channels {
         let (down_tx, down_rx) = self.down.split();
         let (up_tx, up_rx) = self.up.split();
         let (echo_tx, echo_rx) = self.echo.split();
+        let (apply_tx, apply_rx) = self.applies.split();
         (
             LinkEnds {
                 down: down_tx,
                 up: up_rx,
                 echo: echo_rx,
+                applies: apply_tx,
                 retired: &self.retired,
             },
             ControlSide {
                 down: down_rx,
                 up: up_tx,
                 echo: echo_tx,
+                applies: apply_rx,
                 retired: &self.retired,
                 dropped_up: 0,
             },
@@ -187,6 +198,7 @@ pub struct LinkEnds<'a> {
     down: Producer<'a, Down>,
     up: Consumer<'a, Up>,
     echo: Consumer<'a, Echo>,
+    applies: Producer<'a, Settings>,
     retired: &'a AtomicU32,
 }
 
@@ -320,6 +332,7 @@ impl<'a, 's> LinkSide<'a, 's> {
                 break;
             }
             let mut lock = None;
+            let mut tree = None;
             let d = if matches!(r, Request::SettingsSave | Request::SettingsRepair) {
                 if self.state.passed != retired {
                     break;
@@ -334,14 +347,23 @@ impl<'a, 's> LinkSide<'a, 's> {
                 }
                 match self.state.agent.resolve(r) {
                     Resolution::Outcome(o) => Down::Resolved(o),
-                    Resolution::Apply { settings, class } => Down::Apply { settings, class },
+                    Resolution::Apply { settings, class } => {
+                        tree = Some(settings);
+                        Down::Apply { class }
+                    }
                 }
             } else {
                 Down::Request(r.clone())
             };
-            if self.ends.down.enqueue(d).is_err() {
+            // (the tree first, and only with room for both: the machine takes it at its
+            // event; a full queue leaves the request held, resolved again next time)
+            if !self.ends.down.ready() || (tree.is_some() && !self.ends.applies.ready()) {
                 break;
             }
+            if let Some(t) = tree {
+                let _ = self.ends.applies.enqueue(t);
+            }
+            let _ = self.ends.down.enqueue(d);
             if let Some((token, repair)) = lock {
                 self.state.save_token = token;
                 self.state.save_repair = repair;
@@ -415,6 +437,7 @@ pub struct ControlSide<'a> {
     down: Consumer<'a, Down>,
     up: Producer<'a, Up>,
     echo: Producer<'a, Echo>,
+    applies: Consumer<'a, Settings>,
     retired: &'a AtomicU32,
     dropped_up: u32,
 }
@@ -423,6 +446,12 @@ impl ControlSide<'_> {
     /// The next event from the link.
     pub fn take(&mut self) -> Option<Down> {
         self.down.dequeue()
+    }
+
+    /// The tree of the [`Down::Apply`] just taken (`None` only if the link side broke
+    /// the order it enqueues them in).
+    pub fn take_settings(&mut self) -> Option<Settings> {
+        self.applies.dequeue()
     }
 
     /// Hand a reply or sample up; dropped (and counted) when the link task lags.

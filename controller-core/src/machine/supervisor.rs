@@ -33,7 +33,7 @@ use crate::link::RealtimeRequest;
 use crate::motion::planner::split::{SPLIT_SPANS, SPLIT_STEPS};
 use crate::motion::planner::{
     MotionPlanner, Offer, PathSample, Planner, PlannerConfig, PlannerConfigError, PlannerHandle,
-    RestartError, SegmentError,
+    RestartError, Segment, SegmentError,
 };
 use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoState};
@@ -146,6 +146,8 @@ fn refused(s: &str) -> Outcome {
 // (a queue slot holds any of them: a settings tree is 584 bytes, so the queues are
 // 25 and 16 of those — 24 KiB of RAM, within the board's budget: firmware/README-firmware.md)
 #[allow(clippy::large_enum_variant)]
+// (a 32-bit tag, word-aligned payload: moves are word copies, as for `Down`)
+#[repr(u32)]
 enum Queued {
     Request(Request),
     Resolved(Outcome),
@@ -369,7 +371,12 @@ where
             match d {
                 Down::Request(r) => self.submit(r),
                 Down::Resolved(o) => self.enqueue(Queued::Resolved(o)),
-                Down::Apply { settings, class } => self.enqueue(Queued::Apply { settings, class }),
+                Down::Apply { class } => match link.take_settings() {
+                    Some(settings) => self.enqueue(Queued::Apply { settings, class }),
+                    // (cannot happen: the tree is enqueued before its event) the
+                    // request still retires, refused
+                    None => self.enqueue(Queued::Resolved(refused("settings change lost"))),
+                },
                 Down::SessionStarted => self.session_started(),
                 Down::Realtime { id, req } => {
                     self.realtime(req);
@@ -461,8 +468,19 @@ where
                 }
                 segments += 1;
             }
-            let r = r.clone();
-            match self.execute(&r, &mut cmds) {
+            // (a streaming program's segments: the segment alone is copied, not the
+            // queue entry cloned, a byte-wise copy of its other variants' layout)
+            let step = match r {
+                Queued::Request(Request::Segment(seg)) => {
+                    let seg = *seg;
+                    self.segment(&seg)
+                }
+                _ => {
+                    let r = r.clone();
+                    self.execute(&r, &mut cmds)
+                }
+            };
+            match step {
                 Step::Done(o) => {
                     self.executed = self.executed.wrapping_add(1);
                     self.last = o;
@@ -542,6 +560,22 @@ where
         }
     }
 
+    /// A segment of the running program, offered to the planner.
+    fn segment(&mut self, seg: &Segment) -> Step {
+        if !self.program {
+            return Step::Done(refused("segment: no program running (send run first)"));
+        }
+        match self.mem.planner.offer(seg) {
+            Offer::Taken => Step::Done(Outcome::Done),
+            Offer::Later => Step::Wait,
+            Offer::Refused(e) => {
+                // a program with a bad segment cannot go on: stop on the path
+                self.stop_program(Some(Command::Stop), ProgramEnd::SegmentRefused);
+                Step::Done(refused(segment_refusal(&e)))
+            }
+        }
+    }
+
     fn execute(&mut self, q: &Queued, cmds: &mut heapless::Vec<Command, 4>) -> Step {
         let r = match q {
             Queued::Request(r) => r,
@@ -599,20 +633,7 @@ where
                 self.held = false;
                 servo(Command::Run)
             }
-            Request::Segment(seg) => {
-                if !self.program {
-                    return Step::Done(refused("segment: no program running (send run first)"));
-                }
-                match self.mem.planner.offer(seg) {
-                    Offer::Taken => Step::Done(Outcome::Done),
-                    Offer::Later => Step::Wait,
-                    Offer::Refused(e) => {
-                        // a program with a bad segment cannot go on: stop on the path
-                        self.stop_program(Some(Command::Stop), ProgramEnd::SegmentRefused);
-                        Step::Done(refused(segment_refusal(&e)))
-                    }
-                }
-            }
+            Request::Segment(seg) => self.segment(seg),
             Request::Subscribe {
                 every_periods,
                 signals,
