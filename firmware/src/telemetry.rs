@@ -4,13 +4,20 @@
 //! The interrupt only adds numbers here; the low-priority logger divides and formats.
 
 use controller_core::servo::snapshot::Snapshot;
+use controller_core::servo::ServoState;
 
-/// What the control interrupt publishes every period (plain copies) for the telemetry
-/// task.
+/// What the control interrupt publishes for the lower-priority tasks: its timing and
+/// state every period, the whole snapshot when the telemetry task asks for it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Telemetry {
-    /// The servo step's snapshot of the period.
+    /// The servo step's snapshot of the period in which `snapshot_wanted` was last seen
+    /// set (and of a QEMU run's last period).
     pub snapshot: Snapshot,
+    /// Set by the telemetry task; the control interrupt copies its snapshot at its next
+    /// period and clears it.
+    pub snapshot_wanted: bool,
+    /// The servo state of the last period (the arm button's commands depend on it).
+    pub state: ServoState,
     /// The interrupt's timing so far.
     pub timing: IsrTiming,
 }
@@ -20,6 +27,8 @@ impl Telemetry {
     pub const fn boot() -> Self {
         Self {
             snapshot: Snapshot::boot(),
+            snapshot_wanted: false,
+            state: Snapshot::boot().state,
             timing: IsrTiming::new(),
         }
     }

@@ -75,7 +75,7 @@ pub fn finish(t: &Telemetry, end: &End) -> ! {
     );
     let tm = &t.timing;
     defmt::info!(
-        "control ISR (servo step, QEMU -icount instructions): min={=u32} mean={=u32} max={=u32} over {=u32} periods, {=u32} overruns of the emulated period",
+        "control ISR (the whole handler but the simulated world's step, QEMU -icount instructions): min={=u32} mean={=u32} max={=u32} over {=u32} periods, {=u32} overruns of the emulated period",
         tm.min,
         tm.mean(),
         tm.max,
