@@ -15,7 +15,7 @@ use controller_core::settings::Apply;
 use host_sim::cli::sim::designed_settings;
 use host_sim::studies::machine_replay::{parse, record_on_host, replay, Recording};
 
-const PERIODS: u32 = 4_000;
+const PERIODS: u32 = 12_000;
 
 /// A 10 mm square at 60 mm/s after arming (homing off), one request per period as the
 /// link would pass them down.
@@ -73,7 +73,7 @@ fn first_period(why: &str) -> u32 {
 #[test]
 fn a_recording_replays_bit_exactly_and_one_changed_bit_is_found() {
     let rec = record_on_host(&inputs(), PERIODS).unwrap();
-    assert_eq!(rec.blocks.len(), 40);
+    assert_eq!(rec.blocks.len(), 120);
     let a = replay(&rec).unwrap().expect("the same inputs replay bit for bit");
     assert_eq!((a.periods, a.segments), (PERIODS, 4));
     // the program moved the machine
@@ -101,14 +101,17 @@ fn a_recording_replays_bit_exactly_and_one_changed_bit_is_found() {
     let why = replay(&bad).unwrap().unwrap_err();
     assert_eq!(first_period(&why), 2_500, "{why}");
 
-    // the planning half not run before period 20 (while the program is being planned)
+    // the planning half not run between periods 1000 and 1100 (the program running): one
+    // skipped run alone may change nothing (32 steps are buffered ahead)
     let mut bad = rec.clone();
-    bad.records.entry(20).or_default().push(Record::Plan {
-        runs: 0,
-        busy: false,
-    });
+    for p in 1_000..1_100 {
+        bad.records.entry(p).or_default().push(Record::Plan {
+            runs: 0,
+            busy: false,
+        });
+    }
     let why = replay(&bad).unwrap().unwrap_err();
-    assert!(first_period(&why) >= 20, "{why}");
+    assert!(first_period(&why) >= 1_000, "{why}");
 
     // a period that found the planning half running cannot be replayed
     let mut bad = rec.clone();
