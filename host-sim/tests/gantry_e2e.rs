@@ -402,8 +402,8 @@ fn the_scenario_against_the_firmware_in_qemu() {
     println!("--qemu: {}", f.line());
 }
 
-/// The firmware's machine equals host-sim's bit for bit: `square.nc` and `arcs.nc` run
-/// to completion on the QEMU link rig over the link, which records every input its
+/// The firmware's machine equals host-sim's bit for bit: `square.nc` (and `arcs.nc`, see
+/// below) run to completion on the QEMU link rig over the link, which records every input its
 /// machine takes, period by period, with a digest of each period's snapshot; host-sim
 /// replays the inputs into the same machine (supervisor, the planner split as the
 /// firmware splits it, servo step) and world and compares every period
@@ -421,8 +421,9 @@ fn the_firmware_machine_equals_host_sims_bit_for_bit() {
     }
     cli::subscribe(&mut c, DECIMATION).unwrap();
     expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
-    let programs = std::env::var("GANTRY_BITEXACT_PROGRAMS")
-        .unwrap_or_else(|_| "square.nc arcs.nc".into());
+    // (CI: square.nc, about 70 s of wall time; square.nc and arcs.nc together, 470,700
+    // periods, take about 230 s: GANTRY_BITEXACT_PROGRAMS="square.nc arcs.nc")
+    let programs = std::env::var("GANTRY_BITEXACT_PROGRAMS").unwrap_or_else(|_| "square.nc".into());
     for name in programs.split_whitespace() {
         let file = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("programs")
@@ -446,7 +447,7 @@ fn the_firmware_machine_equals_host_sims_bit_for_bit() {
     let rec = parse(&text).unwrap();
     match replay(&rec).unwrap() {
         Ok(a) => {
-            assert!(a.segments > 20, "{}", a.line());
+            assert!(a.segments >= 8, "{}", a.line());
             println!("qemu machine_replay ({programs}): {}", a.line());
         }
         Err(why) => panic!(

@@ -74,10 +74,15 @@ fn first_period(why: &str) -> u32 {
 fn a_recording_replays_bit_exactly_and_one_changed_bit_is_found() {
     let rec = record_on_host(&inputs(), PERIODS).unwrap();
     assert_eq!(rec.blocks.len(), 120);
-    let a = replay(&rec).unwrap().expect("the same inputs replay bit for bit");
+    let a = replay(&rec)
+        .unwrap()
+        .expect("the same inputs replay bit for bit");
     assert_eq!((a.periods, a.segments), (PERIODS, 4));
     // the program moved the machine
-    assert!(a.pos_mm[0].abs() < 0.05 && a.pos_mm[1].abs() < 0.05, "{a:?}");
+    assert!(
+        a.pos_mm[0].abs() < 0.05 && a.pos_mm[1].abs() < 0.05,
+        "{a:?}"
+    );
 
     // one bit of one segment's end point
     let mut bad = rec.clone();
@@ -97,7 +102,10 @@ fn a_recording_replays_bit_exactly_and_one_changed_bit_is_found() {
 
     // the e-stop pressed at period 2500: that period is the first to differ
     let mut bad = rec.clone();
-    bad.records.entry(2_500).or_default().push(Record::Estop(true));
+    bad.records
+        .entry(2_500)
+        .or_default()
+        .push(Record::Estop(true));
     let why = replay(&bad).unwrap().unwrap_err();
     assert_eq!(first_period(&why), 2_500, "{why}");
 

@@ -198,7 +198,9 @@ impl Digest {
             bits |= u32::from(s.brakes_released[a]) << (5 + 4 * a);
         }
         h.word(bits);
-        h.word(u32::from(s.homed) | u32::from(s.model_missing) << 8 | u32::from(s.outputs_on) << 16);
+        h.word(
+            u32::from(s.homed) | u32::from(s.model_missing) << 8 | u32::from(s.outputs_on) << 16,
+        );
         h.word(s.progress.to_bits());
         h.f32s(&s.pos);
         h.f32s(&s.vel);

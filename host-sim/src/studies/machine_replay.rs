@@ -297,9 +297,7 @@ fn run(
                         segments += 1;
                     }
                     if !ends.replay_down(d.clone()) {
-                        return Ok(Err(format!(
-                            "period {p}: more events than the queue holds"
-                        )));
+                        return Ok(Err(format!("period {p}: more events than the queue holds")));
                     }
                 }
                 Record::Settings(s) => {

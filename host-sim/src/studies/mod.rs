@@ -15,8 +15,8 @@ pub mod faults;
 pub mod gcode;
 pub mod generic;
 pub mod identify;
-pub mod paper;
 pub mod machine_replay;
+pub mod paper;
 pub mod qemu_verdict;
 pub mod seeds;
 
