@@ -154,15 +154,12 @@ impl Agreement {
 
 type Exec = SplitExecutor<'static>;
 type Task = SplitPlanner<'static, MACHINE_SEGMENTS, MACHINE_SPANS>;
+type SplitMachine = Machine<Box<MachineMemory<Exec>>, Exec>;
 
 /// The link rig's machine: factory settings with the designed axis models, the planner
 /// split as the firmware splits it (channels and planning half leaked: they live as long
 /// as the replay's caller), in the world of `gantry --sim`.
-fn machine() -> Result<(
-    Machine<Box<MachineMemory<Exec>>, Exec>,
-    Task,
-    controller_core::sim::world::World,
-)> {
+fn machine() -> Result<(SplitMachine, Task, controller_core::sim::world::World)> {
     let settings = designed_settings();
     let (world, rate_hz) = gantry_world(&settings, None, false)?;
     let ch: &'static mut PlannerChannels = Box::leak(Box::new(PlannerChannels::new()));
