@@ -412,7 +412,12 @@ mod app {
     #[task(priority = 3, local = [plan_task])]
     async fn plan(cx: plan::Context) {
         if let Some(t) = cx.local.plan_task {
+            // (QEMU's link rig records when the planning half ran: qemu::link_rig)
+            #[cfg(feature = "qemu")]
+            crate::qemu::link_rig::plan_started();
             t.run();
+            #[cfg(feature = "qemu")]
+            crate::qemu::link_rig::plan_finished();
         }
     }
 

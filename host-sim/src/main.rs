@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use host_sim::builtin;
 use host_sim::output::report::{paper_tables, write_json, write_trace_csv};
 use host_sim::output::{plots, seed_plots};
-use host_sim::studies::{estimators, generic, paper, qemu_verdict, seeds};
+use host_sim::studies::{estimators, generic, machine_replay, paper, qemu_verdict, seeds};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -168,6 +168,14 @@ enum Command {
         #[arg(long)]
         rate_hz: Option<u32>,
     },
+    /// Replay the QEMU link rig's recorded machine inputs (its decoded defmt log) into
+    /// host-sim's machine and compare bit for bit; prints `qemu machine_replay passed: …`
+    /// or `qemu machine_replay FAILED: <why>` (naming the first period that differs).
+    MachineReplay {
+        /// The decoded defmt log of the link rig (`defmt-print -e ELF < LOG`).
+        #[arg(long)]
+        log: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -224,6 +232,7 @@ fn main() -> ExitCode {
         Some(Command::QemuVerdict { file, log, rate_hz }) => {
             return run_verdict(&file, &log, rate_hz)
         }
+        Some(Command::MachineReplay { log }) => return run_machine_replay(&log),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -462,6 +471,29 @@ fn write_bench_programs(out: &Path, huge: bool) -> Result<()> {
 
 /// Largest QEMU log `qemu-verdict` reads (a scenario's defmt log is a few MiB at most).
 const QEMU_LOG_MAX_BYTES: u64 = 256 << 20;
+
+fn run_machine_replay(log: &Path) -> ExitCode {
+    let res = (|| {
+        let text = gantry_scenario::file::read_regular(log, QEMU_LOG_MAX_BYTES)
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("cannot read log {}", log.display()))?;
+        machine_replay::replay(&machine_replay::parse(&text)?)
+    })();
+    match res {
+        Ok(Ok(a)) => {
+            println!("qemu machine_replay passed: {}", a.line());
+            ExitCode::SUCCESS
+        }
+        Ok(Err(why)) => {
+            println!("qemu machine_replay FAILED: {why}");
+            ExitCode::FAILURE
+        }
+        Err(e) => {
+            println!("qemu machine_replay FAILED: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
 
 fn run_verdict(file: &Path, log: &Path, rate_hz: Option<u32>) -> ExitCode {
     let stem = file

@@ -402,6 +402,61 @@ fn the_scenario_against_the_firmware_in_qemu() {
     println!("--qemu: {}", f.line());
 }
 
+/// The firmware's machine equals host-sim's bit for bit: `square.nc` (and `arcs.nc`, see
+/// below) run to completion on the QEMU link rig over the link, which records every input its
+/// machine takes, period by period, with a digest of each period's snapshot; host-sim
+/// replays the inputs into the same machine (supervisor, the planner split as the
+/// firmware splits it, servo step) and world and compares every period
+/// (`host_sim::studies::machine_replay`; also `host-sim machine-replay --log LOG`).
+#[test]
+#[ignore = "needs qemu-system-arm, defmt-print and `cargo fw-qemu-build`; .ci/run runs it"]
+fn the_firmware_machine_equals_host_sims_bit_for_bit() {
+    use host_sim::studies::machine_replay::{parse, replay};
+    let elf = qemu_elf();
+    let m = QemuMachine::boot(&elf).unwrap();
+    let log = m.log().to_path_buf();
+    let mut c = Client::connect_session(m, 7).unwrap();
+    for a in ["x", "y", "z"] {
+        cli::set(&mut c, &format!("axis.{a}.homing.enabled"), "false").unwrap();
+    }
+    cli::subscribe(&mut c, DECIMATION).unwrap();
+    expect_done("arm", c.exec(Request::Arm).unwrap()).unwrap();
+    // (CI: square.nc, about 70 s of wall time; square.nc and arcs.nc together, 470,700
+    // periods, take about 230 s: GANTRY_BITEXACT_PROGRAMS="square.nc arcs.nc")
+    let programs = std::env::var("GANTRY_BITEXACT_PROGRAMS").unwrap_or_else(|_| "square.nc".into());
+    for name in programs.split_whitespace() {
+        let file = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("programs")
+            .join(name);
+        let r = cli::run_program(&mut c, &file, TELEMETRY_PERIOD_S, false, None).unwrap();
+        assert_eq!(r.status, "completed", "{name}: {r:?}");
+    }
+    // a last status: the machine at rest after the programs
+    c.status().unwrap();
+    // QEMU stops with the client (a last line cut off is ignored)
+    drop(c);
+    let out = std::process::Command::new("defmt-print")
+        .args(["--log-format", "{L} {s}", "-e"])
+        .arg(&elf)
+        .stdin(std::fs::File::open(&log).unwrap())
+        .output()
+        .expect("defmt-print (cargo install defmt-print --locked)");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let decoded = log.with_extension("log");
+    std::fs::write(&decoded, text.as_bytes()).unwrap();
+    let rec = parse(&text).unwrap();
+    match replay(&rec).unwrap() {
+        Ok(a) => {
+            assert!(a.segments >= 8, "{}", a.line());
+            println!("qemu machine_replay ({programs}): {}", a.line());
+        }
+        Err(why) => panic!(
+            "the firmware's machine and host-sim's differ: {why} (log {})",
+            decoded.display()
+        ),
+    }
+}
+
 /// Send `sig` (`STOP`, `CONT`, `KILL`) to process `pid`.
 fn signal(pid: u32, sig: &str) {
     let ok = std::process::Command::new("kill")

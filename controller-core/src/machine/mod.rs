@@ -12,6 +12,8 @@
 mod endpoint;
 pub mod messages;
 pub mod port;
+#[cfg(feature = "serde")]
+pub mod record;
 #[cfg(feature = "store")]
 pub mod save;
 pub mod scope;
@@ -26,6 +28,6 @@ pub use port::{
 pub use save::{save_blocking, save_due_into, write_blocking};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{
-    Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, MACHINE_SEGMENTS,
-    MACHINE_SPANS, REQUEST_QUEUE,
+    Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, Seen,
+    MACHINE_SEGMENTS, MACHINE_SPANS, REQUEST_QUEUE,
 };

@@ -48,6 +48,8 @@ use crate::settings::{Apply, Settings};
 /// interrupt, which takes every event by value, copies 120 bytes per event, not 632
 /// (the segments of a streaming program: `cargo insns`' `machine_period_program`).
 #[derive(Clone, Debug, PartialEq)]
+// (recorded and replayed by `super::record`)
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 // (a 32-bit tag: the payload then starts word-aligned and a move is a word copy; with a
 // byte tag sharing a word with it, each move was a byte-wise copy, 5 instructions a byte)
 #[repr(u32)]
@@ -200,6 +202,21 @@ pub struct LinkEnds<'a> {
     echo: Consumer<'a, Echo>,
     applies: Producer<'a, Settings>,
     retired: &'a AtomicU32,
+}
+
+impl LinkEnds<'_> {
+    /// Hand `d` down as it was recorded: a replay of a recorded session
+    /// ([`super::record`]); the link side's own logic is not involved. `false` when the
+    /// queue is full.
+    pub fn replay_down(&mut self, d: Down) -> bool {
+        self.down.enqueue(d).is_ok()
+    }
+
+    /// Hand a recorded [`Down::Apply`]'s tree down (before or after its event, within
+    /// the same period). `false` when the queue is full.
+    pub fn replay_settings(&mut self, s: Settings) -> bool {
+        self.applies.enqueue(s).is_ok()
+    }
 }
 
 /// What the link's endpoint needs of the machine.

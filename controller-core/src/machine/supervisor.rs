@@ -74,6 +74,15 @@ impl MachineMemory<MachinePlanner> {
     };
 }
 
+/// What [`Machine::linked_period_seen`] shows of the link's events it takes.
+#[derive(Clone, Copy, Debug)]
+pub enum Seen<'a> {
+    /// An event, as taken.
+    Down(&'a Down),
+    /// The tree of the [`Down::Apply`] just shown.
+    Settings(&'a Settings),
+}
+
 /// Why a machine could not be built.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MachineError {
@@ -366,13 +375,32 @@ where
 
     /// One control period behind the link: the link's events, the period, the replies
     /// and telemetry (see the module docs).
+    #[inline(always)]
     pub fn linked_period<IO: ServoIo<f32>>(&mut self, io: &mut IO, link: &mut ControlSide<'_>) {
+        self.linked_period_seen(io, link, |_| {});
+    }
+
+    /// [`Self::linked_period`], showing `seen` every event it takes from the link, as it
+    /// takes it (and a [`Down::Apply`]'s tree after the event): what a recording of the
+    /// machine's inputs needs (the QEMU link rig's, `super::record`). The one sequence of
+    /// the period: `linked_period` is this with nothing to see.
+    #[inline(always)]
+    pub fn linked_period_seen<IO: ServoIo<f32>>(
+        &mut self,
+        io: &mut IO,
+        link: &mut ControlSide<'_>,
+        mut seen: impl FnMut(Seen<'_>),
+    ) {
         while let Some(d) = link.take() {
+            seen(Seen::Down(&d));
             match d {
                 Down::Request(r) => self.submit(r),
                 Down::Resolved(o) => self.enqueue(Queued::Resolved(o)),
                 Down::Apply { class } => match link.take_settings() {
-                    Some(settings) => self.enqueue(Queued::Apply { settings, class }),
+                    Some(settings) => {
+                        seen(Seen::Settings(&settings));
+                        self.enqueue(Queued::Apply { settings, class })
+                    }
                     // (cannot happen: the tree is enqueued before its event) the
                     // request still retires, refused
                     None => self.enqueue(Queued::Resolved(refused("settings change lost"))),

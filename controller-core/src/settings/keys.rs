@@ -128,6 +128,7 @@ impl fmt::Display for Range {
 
 /// When a change may take effect.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Apply {
     /// Not a servo parameter (work offsets, tool table: the host's G-code interpreter
     /// reads them when it parses a program): taken at once, also while the machine moves.

@@ -10,9 +10,20 @@
 //! the world's e-stop input ([`World::set_estop`], as `gantry --sim`'s `SimMachine`
 //! does). The panel also answers the host's clock question with the link's clock
 //! ([`LINK_CLOCK_MS`]): `gantry --qemu` counts its link timeouts in it.
+//!
+//! Every input the machine takes is recorded, with a digest of what it did
+//! (controller-core `machine::record`): each period's records (the link's events as
+//! [`Machine::linked_period_seen`] shows them, the panel's e-stop, the planning half's
+//! runs when not exactly one) as a `machine-record <period> [bytes]` line, and every
+//! [`BLOCK_PERIODS`] periods a `machine-digest <period> <running digest> [tags]` line with
+//! each period's 16-bit tag. host-sim replays them into the same machine and world and
+//! compares bit for bit (`host-sim machine-replay`, firmware/README-firmware.md).
+//!
+//! [`Machine::linked_period_seen`]: controller_core::machine::Machine::linked_period_seen
 
-use core::sync::atomic::Ordering;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
+use controller_core::machine::record::{Digest, RecordRef, Recorder, BLOCK_PERIODS};
 use controller_core::machine::{save_due_into, ControlSide, LinkSide};
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
@@ -57,6 +68,25 @@ impl RamSaver {
     }
 }
 
+/// Runs of the planning half completed (the `plan` task, after each).
+static PLAN_RUNS: AtomicU32 = AtomicU32::new(0);
+/// The planning half is running (a control period that finds it so preempted it).
+static PLAN_BUSY: AtomicBool = AtomicBool::new(false);
+
+/// The `plan` task starts a run of the planning half.
+pub fn plan_started() {
+    PLAN_BUSY.store(true, Ordering::Release);
+}
+
+/// The `plan` task finished a run.
+pub fn plan_finished() {
+    PLAN_RUNS.fetch_add(1, Ordering::AcqRel);
+    PLAN_BUSY.store(false, Ordering::Release);
+}
+
+/// Bytes of one period's records (a settings tree is about 630).
+const RECORD_BYTES: usize = 2048;
+
 /// The control interrupt's state in the link rig.
 pub struct LinkRig {
     machine: &'static mut FwMachine,
@@ -66,6 +96,13 @@ pub struct LinkRig {
     control: ControlSide<'static>,
     rate_hz: u32,
     periods: u64,
+    /// This period's inputs, for the log.
+    recorder: Recorder<RECORD_BYTES>,
+    /// Runs of the planning half seen so far.
+    plan_seen: u32,
+    digest: Digest,
+    /// The block's per-period tags (u16, little-endian).
+    tags: [u8; 2 * BLOCK_PERIODS],
 }
 
 impl LinkRig {
@@ -123,6 +160,10 @@ impl LinkRig {
             control,
             rate_hz,
             periods: 0,
+            recorder: Recorder::new(),
+            plan_seen: 0,
+            digest: Digest::new(),
+            tags: [0; 2 * BLOCK_PERIODS],
         }
     }
 
@@ -134,11 +175,23 @@ impl LinkRig {
         let period = self.machine.servo().snapshot().period.wrapping_add(1);
         // (the link's clock as the link task reads it: the periods finished so far)
         let link_ms = LINK_CLOCK_MS.load(Ordering::Acquire);
+        // the planning half's runs since the last period (recorded when not exactly one)
+        let runs = PLAN_RUNS.load(Ordering::Acquire);
+        let busy = PLAN_BUSY.load(Ordering::Acquire);
+        let ran = runs.wrapping_sub(self.plan_seen);
+        self.plan_seen = runs;
+        if ran != 1 || busy {
+            self.recorder.note(RecordRef::Plan { runs: ran, busy });
+        }
         if let Some(pressed) = self.panel.poll(period, link_ms) {
             self.world.set_estop(pressed);
+            self.recorder.note(RecordRef::Estop(pressed));
         }
+        let recorder = &mut self.recorder;
         self.machine
-            .linked_period(&mut self.world, &mut self.control);
+            .linked_period_seen(&mut self.world, &mut self.control, |seen| {
+                recorder.note(seen.into())
+            });
         self.machine.servo().snapshot()
     }
 
@@ -156,7 +209,32 @@ impl LinkRig {
     pub fn finish(&mut self) {
         self.world.advance();
         self.periods += 1;
+        self.record();
         let ms = self.periods * 1000 / u64::from(self.rate_hz.max(1));
         LINK_CLOCK_MS.store(ms as u32, Ordering::Release);
+    }
+
+    /// The period's records and its tag in the log; the digest every [`BLOCK_PERIODS`].
+    fn record(&mut self) {
+        let p = self.periods as u32;
+        let tag = self.digest.fold(self.machine.servo().snapshot());
+        let i = (p as usize + BLOCK_PERIODS - 1) % BLOCK_PERIODS;
+        self.tags[2 * i..2 * i + 2].copy_from_slice(&tag.to_le_bytes());
+        if !self.recorder.is_empty() {
+            let (bytes, lost) = self.recorder.take();
+            if lost {
+                defmt::error!("machine-record {=u32} lost", p);
+            } else {
+                defmt::info!("machine-record {=u32} {=[u8]}", p, bytes);
+            }
+        }
+        if i == BLOCK_PERIODS - 1 {
+            defmt::info!(
+                "machine-digest {=u32} {=u64:x} {=[u8]}",
+                p,
+                self.digest.0,
+                &self.tags[..]
+            );
+        }
     }
 }

@@ -76,17 +76,25 @@ pub fn gantry_world(
     Ok((world, rate_hz))
 }
 
+/// Factory settings with the designed gantry's axis models entered (`gantry --sim`'s
+/// machine, and the QEMU link rig's).
+pub fn designed_settings() -> Settings {
+    let mut settings: Settings = FACTORY;
+    for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
+        a.model = Some(m);
+    }
+    settings
+}
+
 impl SimMachine {
     /// The physical gantry (host-sim/scenarios/gcode.toml: travel ±150/±150/±50 mm
     /// around where it starts) with limit switches where the factory homing expects
     /// them; telemetry every `telemetry_periods` control periods.
     pub fn new(models: SimModels, telemetry_periods: u32) -> Result<Self> {
-        let mut settings: Settings = FACTORY;
-        if models == SimModels::Designed {
-            for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
-                a.model = Some(m);
-            }
-        }
+        let settings = match models {
+            SimModels::Designed => designed_settings(),
+            SimModels::Factory => FACTORY,
+        };
         let (world, rate_hz) = gantry_world(&settings, None, false)?;
         let mut machine = Machine::new(
             &settings,

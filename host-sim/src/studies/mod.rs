@@ -7,6 +7,7 @@
 //! - [`identify`]: identification of every axis through the servo step, and the contour it buys;
 //! - [`gcode`]: a G-code program through the planner and the servo step, against its path;
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
+//! - [`machine_replay`]: the QEMU link rig's machine replayed in host-sim, bit for bit;
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
 
 pub mod estimators;
@@ -14,6 +15,7 @@ pub mod faults;
 pub mod gcode;
 pub mod generic;
 pub mod identify;
+pub mod machine_replay;
 pub mod paper;
 pub mod qemu_verdict;
 pub mod seeds;
