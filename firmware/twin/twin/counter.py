@@ -57,6 +57,16 @@ class Counter:
 
     def __init__(self, uc):
         self.addr = engine_handle(uc) + offset()
+        # the counter's own memory, read in place (one object, not one a read)
+        self.cell = ctypes.c_uint64.from_address(self.addr)
+        self.limit = ctypes.c_uint64.from_address(self.addr + 8)
 
     def read(self):
-        return ctypes.c_uint64.from_address(self.addr).value
+        return self.cell.value
+
+    def restart(self, count):
+        """What uc_emu_start does to the count: the run goes on as a new one of `count`
+        instructions (emu_count follows emu_counter in uc_struct, unicorn 2.1.4's
+        include/uc_priv.h)."""
+        self.cell.value = 0
+        self.limit.value = count

@@ -64,7 +64,7 @@ def enter(twin, exc, return_pc):
     if fp:
         data += struct.pack("<16I", *rest[6:22]) + struct.pack("<2I", rest[22], 0)
     if twin.in_sram(frame, len(data)):
-        uc.mem_write(frame, data)
+        twin.mem.write(frame, data)
     else:
         # a stack that ran out of SRAM: the words outside it are lost (a bus error each),
         # the entry goes on with SP at the frame (Cortex-M4 TRM 5.12.1: a fault on
@@ -91,7 +91,7 @@ def exit_(twin, exc_return):
     fp = not exc_return & 0x10
     sp, control = twin.xregs.exit_read.read()
     size = 0x68 if fp else 0x20
-    raw = bytes(uc.mem_read(sp, size))
+    raw = twin.mem.read(sp, size)
     words = struct.unpack_from("<8I", raw)
     values = list(words[:6])
     if fp:

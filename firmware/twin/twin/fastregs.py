@@ -21,6 +21,55 @@ def engine_handle(uc):
     return h.value if hasattr(h, "value") else int(h)
 
 
+class Memory:
+    """Reads and writes of emulated memory through the C API with buffers made once (the
+    binding's mem_read builds a string buffer and a bytearray each call)."""
+
+    def __init__(self, uc):
+        self.uch = ctypes.c_void_p(engine_handle(uc))
+        self.word = ctypes.c_uint32()
+        self.word_p = ctypes.cast(ctypes.pointer(self.word), ctypes.POINTER(ctypes.c_char))
+        self.bufs = {}
+
+    def read_u32(self, addr):
+        if uclib.uc_mem_read(self.uch, addr, self.word_p, 4) != 0:
+            raise TwinError(f"unicorn: read of 0x{addr:08x} failed")
+        return self.word.value
+
+    def read(self, addr, size):
+        buf = self.bufs.get(size)
+        if buf is None:
+            buf = self.bufs[size] = ctypes.create_string_buffer(size)
+        if uclib.uc_mem_read(self.uch, addr, buf, size) != 0:
+            raise TwinError(f"unicorn: read of {size} bytes at 0x{addr:08x} failed")
+        return buf.raw
+
+    def write(self, addr, data):
+        if uclib.uc_mem_write(self.uch, addr, data, len(data)) != 0:
+            raise TwinError(f"unicorn: write of {len(data)} bytes at 0x{addr:08x} failed")
+
+
+class Exits:
+    """uc_ctl(UC_CTL_UC_EXITS) with each set's array built once (the binding builds it,
+    and the control code, on every call: some four times a control period)."""
+
+    def __init__(self, uc):
+        from unicorn import unicorn_const as uc_const
+
+        self.uch = ctypes.c_void_p(engine_handle(uc))
+        self.code = (uc_const.UC_CTL_IO_WRITE << 30) | (2 << 26) | uc_const.UC_CTL_UC_EXITS
+        self.arrays = {}
+
+    def set(self, exits):
+        key = id(exits)
+        a = self.arrays.get(key)
+        if a is None or a[0] is not exits:
+            arr = (ctypes.c_uint64 * max(1, len(exits)))(*exits)
+            a = self.arrays[key] = (exits, ctypes.cast(arr, ctypes.c_void_p), ctypes.c_size_t(len(exits)), arr)
+        if uclib.uc_ctl(self.uch, self.code, a[1], a[2]) != 0:
+            raise TwinError("unicorn: setting the exits failed")
+
+
 class Batch:
     """A fixed set of 32-bit registers of one engine, read or written in one call."""
 

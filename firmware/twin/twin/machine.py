@@ -27,6 +27,7 @@ from unicorn import (
     UcError,
 )
 from unicorn import arm_const
+from unicorn.unicorn_py3.unicorn import HOOK_INTR_CFUNC as _HOOK_INTR, MMIO_READ_CFUNC as _MMIO_READ, MMIO_WRITE_CFUNC as _MMIO_WRITE, uclib
 from unicorn.arm_const import (
     UC_ARM_REG_BASEPRI,
     UC_ARM_REG_MSP,
@@ -38,14 +39,14 @@ from unicorn.arm_const import (
 )
 
 from . import board, exceptions
-from .fastregs import Batch
+from .fastregs import Batch, Exits, Memory
 from .counter import Counter
 from .exti import Exti, Syscfg
 from .flash import FLASH_BASE, FLASH_SIZE, OPTCR_FACTORY, Flash
 from .gpio import Gpio
 from .iwdg import LSI_TYPICAL_HZ, Iwdg
 from .rcc import CSR_BORRSTF, CSR_PINRSTF, CSR_PORRSTF, CSR_IWDGRSTF, CSR_SFTRSTF, Pwr, Rcc
-from .regs import TwinError
+from .regs import Peripheral, TwinError
 from .scs import Dwt, Scs
 from .timers import ADVANCED, GP16, GP32, Timer
 from .usart import Usart
@@ -176,9 +177,14 @@ class Twin:
             sram = bytes(self.uc.mem_read(SRAM_BASE, SRAM_SIZE))
             ccm = bytes(self.uc.mem_read(CCM_BASE, CCM_SIZE))
         self.uc = uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        self.mmio_words = {}
         self.counter = Counter(uc)
         self.xregs = exceptions.Registers(uc)
         self.pc_sp = Batch(uc, (UC_ARM_REG_PC, UC_ARM_REG_SP))
+        self.pc_write = Batch(uc, (UC_ARM_REG_PC,))
+        self.mem = Memory(uc)
+        self.one_reg = {}
+        self.exits_ctl = Exits(uc)
         self.masks = Batch(uc, (UC_ARM_REG_BASEPRI, UC_ARM_REG_PRIMASK, UC_ARM_REG_FAULTMASK))
         self.in_chunk = False
         self.sleeping = False
@@ -198,21 +204,30 @@ class Twin:
             uc.mem_write(SRAM_BASE, sram)
             uc.mem_write(CCM_BASE, ccm)
         self._peripherals(reset_flags)
-        for base, size in PERIPH_PAGES:
-            uc.mmio_map(base, size, self._mmio_read, base, self._mmio_write, base)
+        # the peripheral pages' accesses come straight from unicorn's C callback (through
+        # ctypes, not the Python binding's wrappers: an access is a Python call either way)
+        self.mmio_callbacks = []
+        for base, size in PERIPH_PAGES + [(0xE000_0000, 0x10_0000)]:
+            rd, wr = self._mmio_callbacks(base)
+            self.mmio_callbacks.append((rd, wr))
+            if uclib.uc_mmio_map(uc._uch, base, size, rd, None, wr, None) != 0:
+                raise TwinError(f"unicorn: mmio_map of 0x{base:08x} failed")
         uc.mmio_map(BITBAND_BASE, BITBAND_SIZE, self._bb_read, None, self._bb_write, None)
-        uc.mmio_map(0xE000_0000, 0x10_0000, self._mmio_read, 0xE000_0000, self._mmio_write, 0xE000_0000)
         uc.mem_map(SYSMEM_BASE, SYSMEM_SIZE, UC_PROT_READ)
         uc.mem_write(0x1FFF_7A22, (1024).to_bytes(2, "little"))  # flash size in KiB
-        uc.hook_add(UC_HOOK_INTR, self._intr)
+        # straight through ctypes, as the peripheral pages (`_mmio_callbacks`)
+        self.intr_callback = _HOOK_INTR(self._intr_cb)
+        self.intr_hook = ctypes.c_size_t()
+        if uclib.uc_hook_add(uc._uch, ctypes.byref(self.intr_hook), UC_HOOK_INTR, self.intr_callback, None, 1, 0) != 0:
+            raise TwinError("unicorn: hook_add of the interrupt hook failed")
         uc.hook_add(UC_HOOK_MEM_WRITE, self._flash_store, begin=FLASH_BASE, end=FLASH_BASE + FLASH_SIZE - 1)
         # the core stops before each unmasking instruction (`_at_exit`): unicorn checks
         # exits when it translates, where a code hook at each (35 in the release ELF)
         # cost every instruction a walk over all hooks (10 instead of 50 million
         # instructions a second). But every run invalidates the translated code at each
         # exit (it is retranslated with the check), so they are exits only while an
-        # exception waits to be taken (`_chunk`): only then can they let one in. (A WFI
-        # needs neither: unicorn ends the run after it.)
+        # exception waits that one could let in (`_exits_for_chunk`). (A WFI needs
+        # neither: unicorn ends the run after it.)
         uc.ctl_exits_enabled(True)
         self.no_exits = self.exits_now = []
         uc.ctl_set_exits(self.exits_now)
@@ -250,9 +265,19 @@ class Twin:
         self.exti = Exti(self, 0x4001_3C00)
         self.periphs = [self.rcc, self.flash, self.pwr, self.scs, self.dwt, *self.gpio.values(), *self.tim.values(),
                         self.usart2, self.iwdg, self.syscfg, self.exti]
+        self._periphs_changed()
+        self.outputs_seen = {}
+
+    def _periphs_changed(self):
         self.by_base = sorted(((p.base, p) for p in self.periphs), key=lambda bp: bp[0])
         self.bases = [b for b, _ in self.by_base]
-        self.outputs_seen = {}
+        # word address -> (peripheral, offset): what an access resolves to (filled as the
+        # firmware touches registers; emptied when a peripheral object is rebuilt)
+        self.mmio_words.clear()
+        # the peripherals with a time of their own (`events`, `tick`), in `periphs`' order:
+        # the others' are the base class's no-ops
+        self.tickers = [p for p in self.periphs if type(p).tick is not Peripheral.tick]
+        self.event_sources = [p for p in self.periphs if type(p).events is not Peripheral.events]
 
     def reset_peripheral(self, name):
         """An RCC reset of one peripheral: every register back to its reset value."""
@@ -274,8 +299,7 @@ class Twin:
         else:
             raise TwinError(f"RCC reset of {name}: not modelled")
         self.periphs[self.periphs.index(old)] = new
-        self.by_base = sorted(((p.base, p) for p in self.periphs), key=lambda bp: bp[0])
-        self.bases = [b for b, _ in self.by_base]
+        self._periphs_changed()
         self.irq_level(getattr(old, "irq", -1), False) if hasattr(old, "irq") else None
         self.pins_changed()
 
@@ -329,55 +353,97 @@ class Twin:
                 return p
         raise TwinError(f"access to 0x{addr:08x}: no peripheral the twin models")
 
-    def _mmio_read(self, uc, off, size, region):
-        try:
-            self._apply_stores()
-            addr = region + off
-            p = self._periph_at(addr)
-            v = p.read32((addr - p.base) & ~3)
-            lane = addr & 3
-            return (v >> (8 * lane)) & ((1 << (8 * size)) - 1)
-        except TwinError as e:
-            self.fail(e)
-            return 0
+    def _word(self, word):
+        """The peripheral and offset of the register at `word` (an aligned address)."""
+        p = self._periph_at(word)
+        w = self.mmio_words[word] = (p, word - p.base)
+        return w
+
+    def _hook_failed(self, e):
+        # what unicorn's Python binding does with an exception in a callback: kept, the
+        # run stopped, raised by emu_start
+        if self.uc._hook_exception is None:
+            self.uc._hook_exception = e
+        self.uc.emu_stop()
+
+    def _mmio_callbacks(self, region):
+        """The read and write callbacks of the peripheral page at `region` (ctypes
+        function pointers for uc_mmio_map). A store goes through `_store`'s rules."""
+        words = self.mmio_words
+
+        def read(_uch, off, size, _ud):
+            try:
+                if self.pending_stores:
+                    self._apply_stores()
+                addr = region + off
+                w = words.get(addr & ~3)
+                if w is None:
+                    w = self._word(addr & ~3)
+                v = w[0].read32(w[1])
+                lane = addr & 3
+                return (v >> (8 * lane)) & ((1 << (8 * size)) - 1)
+            except TwinError as e:
+                self.fail(e)
+                return 0
+            except BaseException as e:
+                self._hook_failed(e)
+                return 0
+
+        def write(_uch, off, size, value, _ud):
+            try:
+                addr = region + off
+                if self.replay is not None and self._replayed(addr, value):
+                    return
+                try:
+                    if self.pending_stores:
+                        self._apply_stores()
+                    w = words.get(addr & ~3)
+                    if w is None:
+                        w = self._word(addr & ~3)
+                    lane = addr & 3
+                    w[0].write32(w[1], (value << (8 * lane)) & 0xFFFFFFFF, ((1 << (8 * size)) - 1) << (8 * lane))
+                    if addr in self.trace_regs:
+                        self.trace.append((self.now_s(), addr, value))
+                except TwinError as e:
+                    self.fail(e)
+                if self.want_stop and self.in_chunk:
+                    self._stop_after_store(addr, value)
+            except BaseException as e:
+                self._hook_failed(e)
+
+        return _MMIO_READ(read), _MMIO_WRITE(write)
+
+    def _replayed(self, addr, value):
+        """The store unicorn restarts after a chunk that it ended (`_store`): True to skip it."""
+        # the restarted store is the one at that pc on that stack: an exception taken
+        # at the chunk's end runs its handler first, whose stores are not it
+        here = tuple(self.pc_sp.read())
+        if here == self.replay[0]:
+            again = self.replay[1] == (addr, value)
+            self.replay = None
+            return again
+        return False
+
+    def _stop_after_store(self, addr, value):
+        self.want_stop = False
+        # (and the exception depth it was made at: handlers taken before it resumes
+        # run chunks of their own)
+        self.replay = (tuple(self.pc_sp.read()), (addr, value), len(self.scs.active))
+        self._stop()
 
     def _store(self, uc, addr, value, apply):
         """A store into a peripheral: `apply()` does it, once. unicorn stops a run inside a
         store by restarting that store, so a chunk that a store ends (it changed what may
         interrupt the core) sees the same store again first: that one is skipped."""
-        if self.replay is not None:
-            # the restarted store is the one at that pc on that stack: an exception taken
-            # at the chunk's end runs its handler first, whose stores are not it
-            here = tuple(self.pc_sp.read())
-            if here == self.replay[0]:
-                again = self.replay[1] == (addr, value)
-                self.replay = None
-                if again:
-                    return
+        if self.replay is not None and self._replayed(addr, value):
+            return
         try:
             self._apply_stores()
             apply()
         except TwinError as e:
             self.fail(e)
         if self.want_stop and self.in_chunk:
-            self.want_stop = False
-            # (and the exception depth it was made at: handlers taken before it resumes
-            # run chunks of their own)
-            self.replay = (tuple(self.pc_sp.read()), (addr, value), len(self.scs.active))
-            self._stop()
-
-    def _mmio_write(self, uc, off, size, value, region):
-        addr = region + off
-
-        def apply():
-            p = self._periph_at(addr)
-            lane = addr & 3
-            mask = ((1 << (8 * size)) - 1) << (8 * lane)
-            p.write32((addr - p.base) & ~3, (value << (8 * lane)) & 0xFFFFFFFF, mask)
-            if addr in self.trace_regs:
-                self.trace.append((self.now_s(), addr, value))
-
-        self._store(uc, addr, value, apply)
+            self._stop_after_store(addr, value)
 
     def _bb_target(self, off):
         return 0x4000_0000 + (off >> 5), (off >> 2) & 7
@@ -410,7 +476,7 @@ class Twin:
         self._stop()
 
     def read_u32(self, addr):
-        return int.from_bytes(self.uc.mem_read(addr, 4), "little")
+        return self.mem.read_u32(addr)
 
     # --- flash stores ---------------------------------------------------------------
     def _flash_store(self, uc, _access, addr, size, value, _u):
@@ -564,6 +630,8 @@ class Twin:
         return any(self.scs.exception_enabled(e) and e not in self.blocked for e in self.scs.pending)
 
     def _take_pending(self):
+        if not self.scs.pending and not self.irq_lines:
+            return False
         best = self._preempting()
         if best is None:
             return False
@@ -600,6 +668,12 @@ class Twin:
         if exc != HARDFAULT:
             self.escalate_after_entry = True
 
+    def _intr_cb(self, _uch, intno, _ud):
+        try:
+            self._intr(self.uc, intno, None)
+        except BaseException as e:
+            self._hook_failed(e)
+
     def _intr(self, uc, intno, _u):
         pc = self.pc_sp.read()[0]
         if intno == EXCP_EXCEPTION_EXIT:
@@ -609,6 +683,8 @@ class Twin:
                 self.pc = exceptions.exit_(self, exc_return)
             except (TwinError, IndexError) as e:
                 self.fail(TwinError(f"exception return at 0x{pc:08x}: {e}"))
+                return
+            if self._return_in_chunk():
                 return
             self.resume_pc = self.pc
             self._stop()
@@ -628,84 +704,156 @@ class Twin:
         what = self.exits[self.pc]
         if what[0] == "cpsie":
             for flag in what[1]:
-                self.uc.reg_write(UC_ARM_REG_PRIMASK if flag == "i" else UC_ARM_REG_FAULTMASK, 0)
+                self._reg(UC_ARM_REG_PRIMASK if flag == "i" else UC_ARM_REG_FAULTMASK).write((0,))
         else:
             _, special, reg, _size = what
-            v = self.uc.reg_read(reg)
+            v = self._reg(reg).read()[0]
             # BASEPRI keeps its 8 bits (the unimplemented low ones read as written, as
             # unicorn's own MSR does); PRIMASK and FAULTMASK are one bit
-            self.uc.reg_write(special, v & (0xFF if special == UC_ARM_REG_BASEPRI else 1))
+            self._reg(special).write((v & (0xFF if special == UC_ARM_REG_BASEPRI else 1),))
         self.pc += what[-1]
         hz = self.rcc.hclk_hz()
         self.cycles += 1
         self.t_s += 1 / hz
 
+    def _reg(self, reg):
+        """A one-register batch (every register `_at_exit` touches is a 32-bit one)."""
+        b = self.one_reg.get(reg)
+        if b is None:
+            b = self.one_reg[reg] = Batch(self.uc, (reg,))
+        return b
+
     # --- the run loop ---------------------------------------------------------------------
     def _next_event(self):
-        ts = [t for t in (p.events() for p in self.periphs) if t is not None]
-        return min(ts) if ts else None
+        ev = None
+        for p in self.event_sources:
+            t = p.events()
+            if t is not None and (ev is None or t < ev):
+                ev = t
+        return ev
 
     def run(self, until_s, poll=None, poll_every_s=1e-3):
-        next_poll = self.t_s
-        while self.t_s < until_s:
-            if self.stop_reason is not None:
-                raise self.stop_reason
-            if self.reset_pending is not None:
-                cause = self.reset_pending
-                flags = {"IWDG": CSR_IWDGRSTF, "SYSRESETREQ": CSR_SFTRSTF}[cause] | CSR_PINRSTF
-                self.power_on(flags)
-                continue
-            for p in self.periphs:
-                p.tick(self.t_s)
-            if not self.sleeping and self.pc in self.exits:
-                self._at_exit()
-            while self._take_pending():
-                pass
-            ev = self._next_event()
-            if self.sleeping:
-                if self._wakes():
-                    self.sleeping = False
-                else:
-                    if ev is None or ev > until_s:
-                        self.t_s = until_s
-                        break
-                    self.t_s = max(self.t_s, ev)
+        self._next_poll = self.t_s
+        self._run_ctx = (until_s, poll, poll_every_s)
+        try:
+            while self.t_s < until_s:
+                plan = self._iteration(until_s, poll, poll_every_s)
+                if plan is None:
                     continue
-            if poll is not None and self.t_s >= next_poll:
-                poll(self)
-                next_poll = self.t_s + poll_every_s
-            hz = self.rcc.hclk_hz()
-            horizon = min(x for x in (ev, until_s, next_poll if poll else None) if x is not None)
-            n = max(1, min(MAX_CHUNK, math.ceil((horizon - self.t_s) * hz)))
-            if self.call_after_insns is not None:
-                left, fn = self.call_after_insns
-                c0 = self.cycles
-                self._chunk(max(1, min(n, left)), hz)
-                left -= min(self.cycles - c0, left)
-                self.call_after_insns = (left, fn) if left else None
-                if not left:
-                    fn(self)
-                continue
-            self._chunk(n, hz)
+                if plan is False:
+                    break
+                self._run_planned(*plan)
+                while self.deferred is not None:
+                    # the chunk an exception return planned (`_return_in_chunk`) that
+                    # its run could not go on with
+                    plan, self.deferred = self.deferred, None
+                    self._run_planned(*plan)
+        finally:
+            self._run_ctx = None
 
-    def _chunk(self, n, hz):
+    _run_ctx = None
+    deferred = None
+    # the chunk under way was ended (and the next one planned) inside a callback
+    chunk_done = False
+
+    def _iteration(self, until_s, poll, poll_every_s):
+        """One turn of the run loop up to the chunk it plans: (instructions, HCLK), None
+        to turn again, False to end the run."""
+        if self.stop_reason is not None:
+            raise self.stop_reason
+        if self.reset_pending is not None:
+            cause = self.reset_pending
+            flags = {"IWDG": CSR_IWDGRSTF, "SYSRESETREQ": CSR_SFTRSTF}[cause] | CSR_PINRSTF
+            self.power_on(flags)
+            return None
+        for p in self.tickers:
+            p.tick(self.t_s)
+        if not self.sleeping and self.pc in self.exits:
+            self._at_exit()
+        while self._take_pending():
+            pass
+        ev = self._next_event()
+        if self.sleeping:
+            if self._wakes():
+                self.sleeping = False
+            else:
+                if ev is None or ev > until_s:
+                    self.t_s = until_s
+                    return False
+                self.t_s = max(self.t_s, ev)
+                return None
+        if poll is not None and self.t_s >= self._next_poll:
+            poll(self)
+            self._next_poll = self.t_s + poll_every_s
+        hz = self.rcc.hclk_hz()
+        horizon = min(x for x in (ev, until_s, self._next_poll if poll else None) if x is not None)
+        n = max(1, min(MAX_CHUNK, math.ceil((horizon - self.t_s) * hz)))
+        return n, hz
+
+    def _run_planned(self, n, hz):
+        if self.call_after_insns is not None:
+            left, fn = self.call_after_insns
+            c0 = self.cycles
+            self._chunk(max(1, min(n, left)), hz)
+            left -= min(self.cycles - c0, left)
+            self.call_after_insns = (left, fn) if left else None
+            if not left:
+                fn(self)
+            return
+        self._chunk(n, hz)
+
+    def _exits_for_chunk(self):
+        """The exits a chunk runs with: all of them while an exception waits that an
+        unmasking instruction could let in, none otherwise. An instruction that lowers
+        BASEPRI, PRIMASK or FAULTMASK cannot lower the execution priority below the
+        active exceptions' (only their return can, `_intr`): an exception that waits
+        with a group priority no higher than theirs, or disabled, or held by a scenario,
+        cannot be let in by one, and with only such exceptions waiting the chunk runs
+        without exits. (Every run with exits ends by invalidating the translated code at
+        each one, which is retranslated: with exits whenever anything waited, the TIM4
+        handler ran with them, its own line high and then its software task pending
+        below it; a third of the twin's time.) What pends an exception or changes a
+        priority from here on ends the chunk (a store to the NVIC or SCB, a
+        peripheral's event, `Scs.write32`). (A run can still stop at an unmasking
+        instruction translated while they were exits; `_at_exit` executes it all the
+        same.)"""
+        scs = self.scs
+        if not scs.pending and not self.irq_lines:
+            return self.no_exits
+        floor = 256
+        for e in scs.active:
+            floor = min(floor, scs.group(scs.priority(e)))
+        for e in list(scs.pending) + [16 + i for i in self.irq_lines]:
+            if e in scs.active or e in self.blocked or not scs.exception_enabled(e):
+                continue
+            if scs.group(scs.priority(e)) < floor:
+                return self.all_exits
+        return self.no_exits
+
+    def _start_chunk(self, n, hz):
         self.chunk_t0, self.chunk_c0, self.chunk_n, self.chunk_hz = self.t_s, self.cycles, n, hz
         self.resume_pc = None
-        # nothing waits (what pends an exception from here on ends the chunk: a store to
-        # the NVIC, a peripheral's event): no exit. (A run can still stop at an unmasking
-        # instruction translated while they were exits; `_at_exit` executes it all the
-        # same.)
-        exits = self.all_exits if self.scs.pending or self.irq_lines else self.no_exits
-        if exits is not self.exits_now:
-            self.uc.ctl_set_exits(exits)
-            self.exits_now = exits
         self.stopped = False
         self.in_chunk = True
+
+    def _chunk(self, n, hz):
+        self._start_chunk(n, hz)
+        exits = self._exits_for_chunk()
+        if exits is not self.exits_now:
+            self.exits_ctl.set(exits)
+            self.exits_now = exits
         err = None
         try:
             self.uc.emu_start(self.pc | 1, 0, count=n)
         except UcError as e:
             err = e
+        if self.chunk_done:
+            self.chunk_done = False
+            return
+        self._finish_chunk(err)
+
+    def _finish_chunk(self, err):
+        n, hz = self.chunk_n, self.chunk_hz
         executed = min(self.counter.read(), n)
         self.in_chunk = False
         # a stalled core still counts cycles (the DWT counter runs on HCLK)
@@ -737,6 +885,42 @@ class Twin:
             # taken before the store resumed (it stops at a WFI or an unmasking
             # instruction, `_at_exit`) says nothing about it.
             self.replay = None
+
+    def _return_in_chunk(self):
+        """An exception return inside a run of the core: end the chunk there and plan the
+        next one as the run loop does (`_finish_chunk`, `_iteration`: the same steps on
+        the same numbers, so time and every decision stay the same to the bit), and let
+        unicorn go on with it instead of stopping and starting again. True if it goes on;
+        False leaves the return to the run loop, untouched; a chunk planned that the run
+        cannot go on with (its exits differ, a scenario's instruction count, a reset)
+        ends the run and waits in `deferred`."""
+        ctx = self._run_ctx
+        if (ctx is None or not self.in_chunk or self.stopped or self.stop_reason is not None
+                or self.reset_pending is not None or self.call_after_insns is not None
+                or self.pending_stores or self.stall_s):
+            return False
+        until_s, poll, poll_every_s = ctx
+        t_after = self.t_s + min(self.counter.read(), self.chunk_n) / self.chunk_hz
+        if not t_after < until_s or (poll is not None and t_after >= self._next_poll):
+            return False
+        self.resume_pc = self.pc
+        self.stopped = True
+        self._finish_chunk(None)
+        self.stopped = False  # (set again by anything in the turn that stops the run)
+        plan = self._iteration(until_s, poll, poll_every_s)
+        if not isinstance(plan, tuple):
+            raise TwinError(f"the run loop planned {plan!r} after an exception return")
+        if (self.stopped or self.stop_reason is not None or self.reset_pending is not None
+                or self.call_after_insns is not None or self._exits_for_chunk() is not self.exits_now):
+            self.deferred = plan
+            self.chunk_done = True
+            self.uc.emu_stop()
+            return True
+        n, hz = plan
+        self._start_chunk(n, hz)
+        self.counter.restart(n)
+        self.pc_write.write((self.pc | 1,))
+        return True
 
     def hard_fault(self, pc, what):
         self.faults.append((self.t_s, what, pc))

@@ -176,10 +176,22 @@ class Rcc(Peripheral):
         return (HSI_HZ, self.hse_hz or HSI_HZ, None)[self.sws] or self.pll_hz()
 
     _hclk = None
+    # the bus and timer clocks as computed (they follow CFGR and HCLK: dropped with it)
+    _derived = None
 
     def write32(self, off, value, lane_mask=0xFFFFFFFF):
         self._hclk = None
+        self._derived = None
         super().write32(off, value, lane_mask)
+
+    def _cached(self, key, fn):
+        d = self._derived
+        if d is None:
+            d = self._derived = {}
+        v = d.get(key)
+        if v is None:
+            v = d[key] = fn()
+        return v
 
     def hclk_hz(self):
         if self._hclk is None:
@@ -196,18 +208,16 @@ class Rcc(Peripheral):
         return 1 if ppre < 4 else (2, 4, 8, 16)[ppre - 4]
 
     def pclk1_hz(self):
-        return self.hclk_hz() // self._apb_div(10)
+        return self._cached("pclk1", lambda: self.hclk_hz() // self._apb_div(10))
 
     def pclk2_hz(self):
-        return self.hclk_hz() // self._apb_div(13)
+        return self._cached("pclk2", lambda: self.hclk_hz() // self._apb_div(13))
 
     def timclk1_hz(self):
-        d = self._apb_div(10)
-        return self.pclk1_hz() * (1 if d == 1 else 2)
+        return self._cached("timclk1", lambda: self.pclk1_hz() * (1 if self._apb_div(10) == 1 else 2))
 
     def timclk2_hz(self):
-        d = self._apb_div(13)
-        return self.pclk2_hz() * (1 if d == 1 else 2)
+        return self._cached("timclk2", lambda: self.pclk2_hz() * (1 if self._apb_div(13) == 1 else 2))
 
     def _check_limits(self):
         """DS8626: HCLK ≤ 168 MHz, PCLK1 ≤ 42 MHz, PCLK2 ≤ 84 MHz; the flash latency must

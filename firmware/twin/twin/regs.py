@@ -39,6 +39,17 @@ class Peripheral:
         self.regs = {}
         self.by_name = {}
         self.define()
+        # the hooks of each offset, looked up once (an access is a dict lookup, not a
+        # getattr of a built name: the control interrupt makes some 40 a period)
+        self.read_hooks = {}
+        self.write_hooks = {}
+        for off, r in self.regs.items():
+            h = getattr(self, "on_read_" + r.name, None)
+            if h is not None:
+                self.read_hooks[off] = h
+            h = getattr(self, "on_write_" + r.name, None)
+            if h is not None:
+                self.write_hooks[off] = h
 
     def define(self):
         raise NotImplementedError
@@ -61,29 +72,44 @@ class Peripheral:
             )
         return r
 
+    # (the RCC, its enable register, the bit) this peripheral's clock is read from
+    _clk = None
+
     def clock_on(self, what):
         """An access with the peripheral's clock off does nothing (reads give 0), as on
         the chip; the twin records it (the scenario decides whether that is a defect)."""
-        if self.clock is not None and not self.twin.rcc.clocked(*self.clock):
+        if self.clock is None:
+            return True
+        c = self._clk
+        rcc = self.twin.rcc
+        if c is None or c[0] is not rcc:
+            c = self._clk = (rcc, rcc.by_name[self.clock[0]], self.clock[1])
+        if not c[1].value >> c[2] & 1:
             self.twin.unclocked.append((self.twin.now_s(), what, self.name))
             return False
         return True
 
     def read32(self, off):
-        r = self.lookup(off)
-        if not self.clock_on("read"):
+        off &= ~3
+        r = self.regs.get(off)
+        if r is None:
+            self.lookup(off)
+        if self.clock is not None and not self.clock_on("read"):
             return 0
-        hook = getattr(self, "on_read_" + r.name, None)
+        hook = self.read_hooks.get(off)
         if hook is not None:
             return hook() & 0xFFFFFFFF
         return r.value
 
     def write32(self, off, value, lane_mask=0xFFFFFFFF):
-        r = self.lookup(off)
-        if not self.clock_on("write"):
+        off &= ~3
+        r = self.regs.get(off)
+        if r is None:
+            self.lookup(off)
+        if self.clock is not None and not self.clock_on("write"):
             return
         new = (r.value & ~lane_mask) | (value & lane_mask)
-        hook = getattr(self, "on_write_" + r.name, None)
+        hook = self.write_hooks.get(off)
         if hook is not None:
             hook(new & 0xFFFFFFFF, lane_mask)
         else:

@@ -56,6 +56,10 @@ class Scs(Peripheral):
         r(0xF34, "FPCCR", 0xC000_0000)
         r(0xF38, "FPCAR", 0)
         r(0xF3C, "FPDSCR", 0)
+        # the priority registers themselves (`priority` reads them at every look at what
+        # is pending)
+        self.ipr = [self.by_name[f"IPR{i}"] for i in range(21)]
+        self.shpr = [self.by_name[f"SHPR{i}"] for i in range(1, 4)]
         self.enabled = [False] * IRQS
         self.pending = set()  # exception numbers
         self.active = []  # stack of exception numbers
@@ -102,6 +106,16 @@ class Scs(Peripheral):
                 0x300: lambda: None,
             }[base]()
             return
+        if 0x400 <= off < 0x454 or 0xD0C <= off <= 0xD20:
+            # IPR, AIRCR (PRIGROUP), SHPR: a priority that changes while an exception
+            # waits may make an instruction that lowers BASEPRI or PRIMASK let it in,
+            # where the chunk runs without exits (`Twin._exits_for_chunk`): then the
+            # chunk ends after the store, and the next looks again
+            super().write32(off, value, lane_mask)
+            tw = self.twin
+            if tw.in_chunk and tw.exits_now is tw.no_exits and tw._exits_for_chunk() is not tw.no_exits:
+                tw.reschedule()
+            return
         super().write32(off, value, lane_mask)
 
     def on_write_STIR(self, v, _lanes):
@@ -120,8 +134,8 @@ class Scs(Peripheral):
             return -1
         if exc >= 16:
             n = exc - 16
-            return (self[f"IPR{n // 4}"] >> (8 * (n % 4))) & PRIO_MASK
-        shpr = self[f"SHPR{(exc - 4) // 4 + 1}"]
+            return (self.ipr[n // 4].value >> (8 * (n % 4))) & PRIO_MASK
+        shpr = self.shpr[(exc - 4) // 4].value
         return (shpr >> (8 * (exc % 4))) & PRIO_MASK
 
     def group(self, prio):
