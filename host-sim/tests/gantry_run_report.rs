@@ -63,6 +63,9 @@ impl Transport for Rig {
     fn now_ms(&self) -> u32 {
         self.inner.now_ms()
     }
+    fn clock_runs_alone(&self) -> bool {
+        self.inner.clock_runs_alone()
+    }
     fn wait(&mut self) -> Result<()> {
         self.inner.wait()?;
         if self.inner.machine().servo().state() == ServoState::Run {

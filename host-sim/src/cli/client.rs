@@ -100,6 +100,27 @@ impl<T: Transport> Client<T> {
         self.receive()
     }
 
+    /// `work` on a thread of its own while this one keeps the link serviced (heartbeats,
+    /// acknowledgements, telemetry), on a transport whose machine clock runs alone
+    /// ([`Transport::clock_runs_alone`]): parsing, compressing and measuring a program can
+    /// take longer than the machine's link watchdog on a board (and on the twin or QEMU,
+    /// whose clocks run on while the host computes). On the simulated machine, whose
+    /// clock moves only when the host waits, `work` runs here and the machine stands still.
+    pub fn while_busy<R: Send>(&mut self, work: impl FnOnce() -> R + Send) -> Result<R> {
+        if !self.transport.clock_runs_alone() {
+            return Ok(work());
+        }
+        std::thread::scope(|s| {
+            let job = s.spawn(work);
+            while !job.is_finished() {
+                self.pump()?;
+                self.transport.wait()?;
+            }
+            job.join()
+                .map_err(|_| anyhow!("the host's work beside the link panicked"))
+        })
+    }
+
     /// Handle what arrived, sending nothing (not even heartbeats: a host gone silent).
     pub fn receive(&mut self) -> Result<()> {
         let now = self.transport.now_ms();

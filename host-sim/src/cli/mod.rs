@@ -44,6 +44,11 @@ pub trait Transport {
     fn now_ms(&self) -> u32;
     /// Let time pass (about a millisecond); fails when the machine is gone.
     fn wait(&mut self) -> Result<()>;
+    /// The machine's clock runs whether or not the host waits (a board, the board twin,
+    /// QEMU): work on the host between requests then has to keep the link serviced
+    /// ([`Client::while_busy`]), or the machine's link watchdog (500 ms of its time) ends
+    /// the session. The simulated machine's clock moves only in [`Transport::wait`].
+    fn clock_runs_alone(&self) -> bool;
 }
 
 /// Axis names on the command line.
@@ -346,7 +351,7 @@ pub fn run_program<T: Transport>(
     }
     let tol = get_f64(c, "planner.tolerance_mm")?;
     // the machine's control period (the telemetry's period numbers count it)
-    let (run, _) = machine_and_planner(None)?;
+    let (run, _) = c.while_busy(|| machine_and_planner(None))??;
     let period_s = 1.0 / f64::from(run.servo.rate_hz);
     let name = path.display().to_string();
     let travel = travel(c)?;
@@ -362,20 +367,20 @@ pub fn run_program<T: Transport>(
     let s = c.status()?;
     // rejected before any motion (also when the machine is not ready)
     let here = s.pos_mm.map(f64::from);
-    if let Err(e) = load_program_with(path, &options(here), &travel) {
+    if let Err(e) = c.while_busy(|| load_program_with(path, &options(here), &travel))? {
         return Ok(GcodeReport::rejected(&name, &e, limits, tol));
     }
     let s = ready(c, true)?;
     let start = planner_start_mm(c, &s)?;
     let opts = options(start);
     let parse_started = Instant::now();
-    let program = match load_program_with(path, &opts, &travel) {
+    let program = match c.while_busy(|| load_program_with(path, &opts, &travel))? {
         Ok(p) => p,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
     let parse_s = parse_started.elapsed().as_secs_f64();
     let compress_started = Instant::now();
-    let (segs, compression) = segments(&program, tol);
+    let (segs, compression) = c.while_busy(|| segments(&program, tol))?;
     let compress_s = compress_started.elapsed().as_secs_f64();
     expect_done("run", c.exec(Request::Run)?)?;
     c.take_telemetry();
@@ -397,7 +402,8 @@ pub fn run_program<T: Transport>(
     let mut aborted = false;
     // figures from telemetry as it comes (no sample kept: a long program runs for hours):
     // every sample in Run (a jerk only between consecutive ones)
-    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s);
+    let mut metrics =
+        c.while_busy(|| PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s))?;
     let mut account = |samples: Vec<Telemetry>| {
         for t in samples
             .iter()
@@ -492,7 +498,8 @@ pub fn run_program<T: Transport>(
             .get(g.moves.clone())
             .map_or(0.0, |m| m.iter().map(distance::length).sum())
     };
-    let mut report = metrics.report(&program, executed, duration_s, limits, fault, realtime);
+    let mut report =
+        c.while_busy(|| metrics.report(&program, executed, duration_s, limits, fault, realtime))?;
     report.segments_planned = segs.len();
     if !completed {
         report.path_length_mm = segs.iter().take(executed).map(length).sum();

@@ -111,6 +111,11 @@ impl Transport for BoardPort {
         }
     }
 
+    /// Its clock runs on while the host computes.
+    fn clock_runs_alone(&self) -> bool {
+        true
+    }
+
     fn wait(&mut self) -> Result<()> {
         std::thread::sleep(Duration::from_millis(1));
         if let Some(c) = &self.twin {

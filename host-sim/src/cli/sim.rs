@@ -201,6 +201,11 @@ impl Transport for SimMachine {
         self.ms()
     }
 
+    /// Its clock moves only in `wait`.
+    fn clock_runs_alone(&self) -> bool {
+        false
+    }
+
     fn wait(&mut self) -> Result<()> {
         self.advance(self.rate_hz * WAIT_MS / 1000);
         Ok(())
