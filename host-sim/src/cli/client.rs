@@ -340,13 +340,13 @@ mod tests {
     impl Transport for Scripted {
         fn send(&mut self, bytes: &[u8]) -> Result<()> {
             let mut d = FrameDecoder::new();
-            if let Feed::Frame { result: Ok(f), .. } =
-                d.feed::<controller_core::link::ToDevice<Request>>(bytes)
+            if let Feed::Frame {
+                result: Ok(controller_core::link::ToDevice::Hello(h)),
+                ..
+            } = d.feed::<controller_core::link::ToDevice<Request>>(bytes)
             {
-                if let controller_core::link::ToDevice::Hello(h) = f {
-                    let ours = Version::current(SCHEMA_HASH).hello(Role::Device, h.session);
-                    self.inbox.extend(frame(&ToHost::Hello(ours)));
-                }
+                let ours = Version::current(SCHEMA_HASH).hello(Role::Device, h.session);
+                self.inbox.extend(frame(&ToHost::Hello(ours)));
             }
             Ok(())
         }
