@@ -83,11 +83,32 @@ impl<T: Transport> Client<T> {
         Ok(c)
     }
 
-    /// Send what is due, then handle what arrived.
+    /// Handle what arrived, send what is due, then handle what arrived meanwhile.
+    ///
+    /// What arrived is read before the link is polled: the poll checks the watchdog
+    /// against the clock now, and frames the device sent while the host was not reading
+    /// (a wait whose clock reading moved far, a panel exchange, a host starved of CPU)
+    /// are proof of life that the watchdog must see first. Polled first, a clock that
+    /// moved past the watchdog's timeout since the last read declared the link lost with
+    /// the device's frames unread in the socket.
     pub fn pump(&mut self) -> Result<()> {
+        self.receive()?;
         let now = self.transport.now_ms();
         let mut frames: Vec<Vec<u8>> = Vec::new();
         let res = self.link.poll(now, |f| {
+            if super::trace::on() {
+                let what = match &f {
+                    controller_core::link::ToDevice::Hello(_) => "hello".to_string(),
+                    controller_core::link::ToDevice::Heartbeat => "heartbeat".to_string(),
+                    controller_core::link::ToDevice::Command { seq, .. } => {
+                        format!("command {}", seq.0)
+                    }
+                    controller_core::link::ToDevice::Realtime { id, req } => {
+                        format!("realtime {} {req:?}", id.0)
+                    }
+                };
+                super::trace::line(format_args!("m{now} tx {what}"));
+            }
             let mut buf = [0u8; MAX_FRAME_LEN];
             if let Ok(n) = encode(&f, &mut buf) {
                 frames.push(buf[..n].to_vec());
@@ -95,6 +116,9 @@ impl<T: Transport> Client<T> {
         });
         for f in frames {
             self.transport.send(&f)?;
+        }
+        if let Err(e) = &res {
+            super::trace::line(format_args!("m{now} failed {e:?}"));
         }
         res.map_err(|e| anyhow!("link failed: {e:?}"))?;
         self.receive()
@@ -141,6 +165,23 @@ impl<T: Transport> Client<T> {
                             continue;
                         }
                     };
+                    if super::trace::on() {
+                        let what = match &frame {
+                            ToHost::Hello(_) => "hello".to_string(),
+                            ToHost::Ack { seq, credits } => format!("ack {} {credits}", seq.0),
+                            ToHost::Nak { seq, .. } => format!("nak {}", seq.0),
+                            ToHost::Refused { what, reason } => {
+                                format!("refused {what:?} {reason:?}")
+                            }
+                            ToHost::Telemetry { seq, sample } => {
+                                format!("telemetry {} p{}", seq.0, sample.period)
+                            }
+                            ToHost::Status { id, status } => {
+                                format!("status {} p{}", id.0, status.period)
+                            }
+                        };
+                        super::trace::line(format_args!("m{now} rx {what}"));
+                    }
                     match self.link.on_frame(frame, now) {
                         Ok(HostEvent::Telemetry {
                             sample, arrival, ..
@@ -296,5 +337,78 @@ pub fn expect_done(what: &str, o: Outcome) -> Result<Outcome> {
     match o {
         Outcome::Refused(why) => bail!("{what} refused: {why}"),
         other => Ok(other),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller_core::link::{Role, Seq, Version};
+
+    /// A device reduced to its frames: answers the host's Hello, and whatever the test
+    /// puts in `inbox`; its clock is set by the test.
+    struct Scripted {
+        now: u32,
+        inbox: Vec<u8>,
+    }
+
+    fn frame(f: &ToHost<Telemetry, Status>) -> Vec<u8> {
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = encode(f, &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    impl Transport for Scripted {
+        fn send(&mut self, bytes: &[u8]) -> Result<()> {
+            let mut d = FrameDecoder::new();
+            if let Feed::Frame {
+                result: Ok(controller_core::link::ToDevice::Hello(h)),
+                ..
+            } = d.feed::<controller_core::link::ToDevice<Request>>(bytes)
+            {
+                let ours = Version::current(SCHEMA_HASH).hello(Role::Device, h.session);
+                self.inbox.extend(frame(&ToHost::Hello(ours)));
+            }
+            Ok(())
+        }
+        fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()> {
+            buf.append(&mut self.inbox);
+            Ok(())
+        }
+        fn now_ms(&self) -> u32 {
+            self.now
+        }
+        fn wait(&mut self) -> Result<()> {
+            self.now += 1;
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_frame_waiting_when_the_clock_has_moved_past_the_watchdog_keeps_the_link() {
+        let mut c = Client::connect_session(
+            Scripted {
+                now: 0,
+                inbox: Vec::new(),
+            },
+            3,
+        )
+        .unwrap();
+        c.pump().unwrap();
+        // the host did not read for a while (a panel exchange, a starved host): its clock
+        // moved past the watchdog's timeout since the last frame it read, and the device's
+        // ack of its heartbeat waits unread
+        let t = c.transport.now + DEFAULT_HOST_LINK_CONFIG.watchdog.timeout_ms + 100;
+        c.transport.now = t;
+        c.transport.inbox.extend(frame(&ToHost::Ack {
+            seq: Seq::ZERO,
+            credits: 16,
+        }));
+        c.pump().unwrap();
+        c.pump().unwrap();
+        // and with nothing from the device for the timeout, the link is lost
+        c.transport.now = t + DEFAULT_HOST_LINK_CONFIG.watchdog.timeout_ms;
+        let e = c.pump().unwrap_err().to_string();
+        assert!(e.contains("LinkLost"), "{e}");
     }
 }

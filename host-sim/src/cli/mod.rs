@@ -13,6 +13,7 @@ pub mod port;
 pub mod qemu;
 pub mod scope;
 pub mod sim;
+pub mod trace;
 
 use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
 use crate::studies::gcode::distance;

@@ -45,6 +45,17 @@ use std::time::{Duration, Instant};
 /// workspace root.
 pub const DEFAULT_ELF: &str = "target/qemu/thumbv7em-none-eabihf/release/firmware";
 
+/// QEMU's side of both serial sockets without Nagle's algorithm. QEMU writes what the
+/// firmware sends one byte at a time (a data register write each), and its sockets keep
+/// Nagle's algorithm unless told: the first byte of a reply went out, the rest waited
+/// for the host's acknowledgement of it, which Linux delays by 40 ms (its minimum
+/// delayed ACK) unless the host happens to send first. Every status reply and every
+/// answer to the clock question took 44 ms of wall time (median and p99 47 ms over a
+/// scenario: `GANTRY_LINK_TRACE`), while the machine ran on, so the host read a clock
+/// 40 ms of wall time stale and acted that much late on every exchange. The host's own
+/// sockets set `TCP_NODELAY` too.
+const QEMU_NODELAY: &str = "nodelay=on";
+
 /// Longest wait for QEMU to open its socket.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(20);
 
@@ -137,11 +148,16 @@ impl QemuMachine {
                 "none",
             ])
             // USART1 = the operator panel (QEMU does not wait for it), USART2 = the host
-            // link (QEMU starts the machine once the host is connected)
+            // link (QEMU starts the machine once the host is connected); both without
+            // Nagle's algorithm (see [`QEMU_NODELAY`])
             .arg("-serial")
-            .arg(format!("tcp:127.0.0.1:{panel_port},server=on,wait=off"))
+            .arg(format!(
+                "tcp:127.0.0.1:{panel_port},server=on,wait=off,{QEMU_NODELAY}"
+            ))
             .arg("-serial")
-            .arg(format!("tcp:127.0.0.1:{port},server=on,wait=on"))
+            .arg(format!(
+                "tcp:127.0.0.1:{port},server=on,wait=on,{QEMU_NODELAY}"
+            ))
             .args([
                 "-semihosting-config",
                 "enable=on,target=native,arg=firmware,arg=link",
@@ -273,6 +289,10 @@ impl QemuMachine {
             let value = u32::from_le_bytes([a[1], a[2], a[3], a[4]]);
             match a[0] {
                 PANEL_CLOCK_QUERY => {
+                    super::trace::line(format_args!(
+                        "clock {value} (asked {} us ago)",
+                        self.clock.asked_at.map_or(0, |t| t.elapsed().as_micros())
+                    ));
                     if value != self.clock.ms {
                         self.clock.advanced_at = Instant::now();
                     }
