@@ -21,15 +21,6 @@ from .rtt import RttReader
 POLL_S = 1e-3
 # bytes USART2 sent that wait for a pty nobody reads (then the oldest go)
 OUT_BACKLOG = 1 << 20
-# Pacing: once the host has sent nothing for PACE_AFTER_S of machine time (a live host
-# sends a heartbeat every 125 ms at the default 500 ms watchdog), the twin runs at most
-# PACE_X x real time until it sends again. gantry counts its link timeouts in machine
-# time but computes in wall time: `gantry run` builds its machine model and planner
-# without pumping the link (1.8 s of wall time with two twins on two cores), which at
-# 0.3 x real time was 0.55 s of machine time, past the watchdog: LinkLost on both
-# sides. Only the wall time the machine takes changes, nothing it does.
-PACE_AFTER_S = 0.2
-PACE_X = 0.05
 
 
 # the settings store's sectors 10 and 11 (firmware/memory.x): what --flash keeps
@@ -181,7 +172,6 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
     print(f"twin: the release firmware's USART2 is at {pty_path}", flush=True)
 
     stats = {"next_s": 1.0, "in": 0, "out": 0, "backlog": 0, "dropped": 0}
-    pace = {"host_s": None, "wall": time.monotonic(), "paced": 0}
 
     dump = {"want": False}
     signal.signal(signal.SIGUSR1, lambda *_: dump.update(want=True))
@@ -195,7 +185,7 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
         if tw.t_s >= stats["next_s"] and os.environ.get("TWIN_LINK_STATS"):
             stats["next_s"] += 1.0
             print(f"twin: {tw.t_s:.0f} s: host bytes in {stats['in']}, out {stats['out']} (largest backlog {stats['backlog']}, "
-                  f"dropped {stats['dropped']}), overruns {tw.usart_overruns}, paced ms {pace['paced']}", flush=True)
+                  f"dropped {stats['dropped']}), overruns {tw.usart_overruns}", flush=True)
         rtt.poll()
         ctl.poll(tw)
         os.pwrite(clock, (int(tw.t_s * 1000) & 0xFFFF_FFFF).to_bytes(4, "little"), 0)
@@ -223,15 +213,6 @@ def serve(elf, pty_path, seconds, log_path, flash_path=None):
         if data:
             stats["in"] += len(data)
             tw.usart2.send(data)
-            pace["host_s"] = tw.t_s
-        wall = time.monotonic()
-        if pace["host_s"] is not None and tw.t_s - pace["host_s"] > PACE_AFTER_S:
-            wait = pace["wall"] + POLL_S / PACE_X - wall
-            if wait > 0:
-                time.sleep(wait)
-                wall += wait
-                pace["paced"] += 1
-        pace["wall"] = wall
 
     w = time.time()
     try:

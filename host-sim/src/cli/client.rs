@@ -382,6 +382,9 @@ mod tests {
             self.now += 1;
             Ok(())
         }
+        fn clock_runs_alone(&self) -> bool {
+            false
+        }
     }
 
     #[test]
