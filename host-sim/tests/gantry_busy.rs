@@ -6,9 +6,11 @@
 //!
 //! The machine here is the simulated one behind [`RunsAlone`]: the host's work advances
 //! a shared host clock, and every call on the transport first runs the machine up to it.
-//! The work takes its time in 100 ms steps, each after the transport has been called
-//! again (or after 20 ms of waiting for that), so the interleaving does not depend on
-//! how the threads are scheduled.
+//! The work takes its time in 100 ms steps, each after the host has waited on the
+//! transport again (one whole turn of the link's pump in between), or after 20 ms of
+//! waiting for that: at most 100 ms of machine time pass between two polls of the link,
+//! however the threads are scheduled, so its 125 ms heartbeats reach the machine well
+//! within the 500 ms watchdog.
 
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
@@ -30,13 +32,12 @@ const WORK_STEP_MS: u32 = 100;
 struct RunsAlone {
     inner: SimMachine,
     host_ms: Arc<AtomicU32>,
-    /// Transport calls so far (the work's steps wait for one).
-    calls: Arc<AtomicU32>,
+    /// The host's waits so far (a turn of its pump each; the work's steps wait for one).
+    waits: Arc<AtomicU32>,
 }
 
 impl RunsAlone {
     fn catch_up(&mut self) -> Result<()> {
-        self.calls.fetch_add(1, Ordering::SeqCst);
         while self.inner.now_ms() < self.host_ms.load(Ordering::SeqCst) {
             self.inner.wait()?;
         }
@@ -58,7 +59,9 @@ impl Transport for RunsAlone {
     }
     fn wait(&mut self) -> Result<()> {
         self.host_ms.fetch_add(1, Ordering::SeqCst);
-        self.catch_up()
+        self.catch_up()?;
+        self.waits.fetch_add(1, Ordering::SeqCst);
+        Ok(())
     }
     fn clock_runs_alone(&self) -> bool {
         true
@@ -69,29 +72,29 @@ impl Transport for RunsAlone {
 fn armed() -> (Client<RunsAlone>, impl Fn() -> u32 + Send + Sync) {
     let inner = SimMachine::new(SimModels::Designed, DECIMATION).unwrap();
     let host_ms = Arc::new(AtomicU32::new(inner.now_ms()));
-    let calls = Arc::new(AtomicU32::new(0));
+    let waits = Arc::new(AtomicU32::new(0));
     let t = RunsAlone {
         inner,
         host_ms: host_ms.clone(),
-        calls: calls.clone(),
+        waits: waits.clone(),
     };
     let mut c = Client::connect_session(t, 11).unwrap();
     cli::ready(&mut c, true).unwrap();
     assert!(c.status().unwrap().first_fault.is_none());
     let work = move || {
-        let mut steps_without_a_call = 0;
+        let mut steps_without_a_wait = 0;
         for _ in 0..WORK_MS / WORK_STEP_MS {
-            let seen = calls.load(Ordering::SeqCst);
+            let seen = waits.load(Ordering::SeqCst);
             let t0 = Instant::now();
-            while calls.load(Ordering::SeqCst) == seen && t0.elapsed() < Duration::from_millis(20) {
+            while waits.load(Ordering::SeqCst) == seen && t0.elapsed() < Duration::from_millis(20) {
                 std::thread::yield_now();
             }
-            if calls.load(Ordering::SeqCst) == seen {
-                steps_without_a_call += 1;
+            if waits.load(Ordering::SeqCst) == seen {
+                steps_without_a_wait += 1;
             }
             host_ms.fetch_add(WORK_STEP_MS, Ordering::SeqCst);
         }
-        steps_without_a_call
+        steps_without_a_wait
     };
     (c, work)
 }
@@ -114,9 +117,9 @@ fn host_work_inline_is_silence_past_the_link_watchdog() {
 fn host_work_beside_the_link_keeps_the_session() {
     let (mut c, work) = armed();
     let p0 = c.transport.inner.periods();
-    let without_a_call = c.while_busy(work).unwrap();
+    let without_a_wait = c.while_busy(work).unwrap();
     assert_eq!(
-        without_a_call, 0,
+        without_a_wait, 0,
         "every step of the work saw the link serviced"
     );
     // the machine ran the work's 800 ms, and nothing tripped
