@@ -172,3 +172,23 @@ fn the_log_lines_parse_back_into_the_recording() {
     assert_eq!(parsed, rec);
     assert!(replay(&parsed).unwrap().is_ok());
 }
+
+#[test]
+fn a_corrupt_or_empty_log_is_refused_by_line_and_nothing_is_replayed() {
+    // a record line whose bytes are not bytes, then a line after it (not the cut-off last)
+    let text = "INFO machine-record 12 [1, 2, zz]\nINFO machine-digest 100 ab [1]\n";
+    let err = format!("{:#}", parse(text).unwrap_err());
+    assert!(err.contains("log line 1"), "{err}");
+    assert!(err.contains("bad byte"), "{err}");
+    // a digest line with the wrong number of tags
+    let text = "INFO machine-digest 100 ab [1, 2]\nINFO other\n";
+    let err = format!("{:#}", parse(text).unwrap_err());
+    assert!(
+        err.contains("log line 1") && err.contains("2 tag bytes"),
+        "{err}"
+    );
+    // a log with none of the rig's lines: nothing to compare, said so
+    let empty = parse("INFO gantry firmware up\n").unwrap();
+    let why = replay(&empty).unwrap().unwrap_err();
+    assert!(why.contains("no digest"), "{why}");
+}
