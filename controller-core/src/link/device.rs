@@ -104,6 +104,9 @@ pub enum DeviceEvent<C> {
         /// The session id.
         session: u16,
     },
+    /// The host ended its session cleanly ([`ToDevice::Goodbye`]): the watchdog is off;
+    /// stop what needs the host (a program, a jog), without a `LinkLost` fault.
+    SessionEnded,
     /// The handshake did not match: report it; commands are refused.
     Mismatch(ProtocolMismatch),
     /// Push this command into the command queue (room was promised by `free_slots`).
@@ -209,6 +212,17 @@ impl DeviceLink {
             },
             ToDevice::Command { seq, cmd } => self.on_command(seq, cmd, free_slots),
             ToDevice::Realtime { id, req } => self.on_realtime(id, req),
+            ToDevice::Goodbye => DeviceStep {
+                event: match self.session {
+                    DeviceSession::Active(_) => {
+                        self.session = DeviceSession::None;
+                        self.watchdog.disarm();
+                        DeviceEvent::SessionEnded
+                    }
+                    _ => DeviceEvent::None,
+                },
+                reply: None,
+            },
         }
     }
 

@@ -10,6 +10,7 @@
 //! |---|---|---|
 //! | host → device | [`ToDevice::Hello`] / device → host [`ToHost::Hello`] | handshake |
 //! | host → device | [`ToDevice::Heartbeat`] | watchdog feed on an idle link (answered by an ack) |
+//! | host → device | [`ToDevice::Goodbye`] | the session ends cleanly (watchdog off, no `LinkLost`) |
 //! | host → device | [`ToDevice::Command`] | reliable, windowed, credit flow control |
 //! | device → host | [`ToHost::Ack`] | cumulative ack + free queue slots (credits) |
 //! | device → host | [`ToHost::Nak`] | ack + "this frame came out of order": go back now |
@@ -81,6 +82,12 @@ pub enum ToDevice<C> {
         /// The request.
         req: RealtimeRequest,
     },
+    /// The host ends its session cleanly (a `gantry` command that finished, a GUI that
+    /// closes): the device's watchdog is disarmed without a `LinkLost` fault, and what the
+    /// host started that needs it (a streaming program, a jog) comes to a controlled stop;
+    /// the machine otherwise stays as it is (armed and holding, homed, its settings), as
+    /// a board stays between two sessions. Not answered.
+    Goodbye,
 }
 
 /// Frames from the device to the host. `T` is the telemetry sample type, `S` the status.
@@ -138,6 +145,7 @@ impl<C> ToDevice<C> {
             Self::Heartbeat => ToDevice::Heartbeat,
             Self::Command { seq, cmd } => ToDevice::Command { seq: *seq, cmd },
             Self::Realtime { id, req } => ToDevice::Realtime { id: *id, req: *req },
+            Self::Goodbye => ToDevice::Goodbye,
         }
     }
 }

@@ -51,7 +51,7 @@ pub use watchdog::{Watchdog, WatchdogConfig};
 /// Transport protocol version, sent in the handshake. Bump it whenever the framing, the
 /// envelopes or the channel rules change (the schema hash alone catches type changes, not
 /// rule changes).
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// A link setting out of its valid range; names the field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -28,6 +28,7 @@ fn clone_frame(f: &ToDevice<&ExampleCommand>) -> ExampleToDevice {
         ToDevice::Heartbeat => ToDevice::Heartbeat,
         ToDevice::Command { seq, cmd } => ToDevice::Command { seq, cmd: *cmd },
         ToDevice::Realtime { id, req } => ToDevice::Realtime { id, req },
+        ToDevice::Goodbye => ToDevice::Goodbye,
     }
 }
 
@@ -62,8 +63,8 @@ fn connected() -> (Host, DeviceLink) {
 fn schema_hash_is_pinned() {
     // Changing an envelope, Hello or RealtimeRequest changes these values: bump
     // PROTOCOL_VERSION when that happens, then update them.
-    assert_eq!(schema_hash::<(), (), ()>(), 0x4579_8ae1);
-    assert_eq!(HASH, 0x4522_59b8);
+    assert_eq!(schema_hash::<(), (), ()>(), 0x6a40_edb1);
+    assert_eq!(HASH, 0x2a22_9748);
 }
 
 #[test]
@@ -162,7 +163,7 @@ fn mismatch_is_reported_on_both_sides_and_commands_are_refused() {
     );
     let text = std::format!("{host_side}");
     let expected_text = std::format!(
-        "link protocol mismatch: ours is protocol 1 schema {:#010x}, theirs is protocol 1 schema {:#010x}",
+        "link protocol mismatch: ours is protocol 2 schema {:#010x}, theirs is protocol 2 schema {:#010x}",
         HASH ^ 1,
         HASH
     );
@@ -263,6 +264,39 @@ fn repeated_hello_keeps_the_session_and_a_new_one_restarts_numbering() {
     assert_eq!(
         host.on_frame::<ExampleTelemetry, ExampleStatus>(ToHost::Hello(other), 7),
         Ok(HostEvent::None)
+    );
+}
+
+#[test]
+fn a_goodbye_ends_the_session_with_the_watchdog_off_and_no_link_lost() {
+    let (_host, mut dev) = connected();
+    let timeout = DEFAULT_DEVICE_LINK_CONFIG.watchdog.timeout_ms;
+    let step = dev.on_frame(ExampleToDevice::Goodbye, 10, 10);
+    assert_eq!(step.event, DeviceEvent::SessionEnded);
+    assert_eq!(step.reply, None);
+    assert_eq!(dev.session(), DeviceSession::None);
+    // silence far past the timeout: no `LinkLost` (the watchdog is off)
+    for now in 10..10 + 3 * timeout {
+        assert!(!dev.poll(now, 10).link_lost, "t = {now}");
+    }
+    // a second goodbye (or one without a session) is nothing
+    let again = dev.on_frame(ExampleToDevice::Goodbye, 3 * timeout, 10);
+    assert_eq!(again.event, DeviceEvent::None);
+    // commands after it are refused until the next handshake
+    let step = dev.on_frame(
+        ToDevice::Command {
+            seq: Seq(0),
+            cmd: EXAMPLE_COMMAND,
+        },
+        3 * timeout,
+        10,
+    );
+    assert_eq!(
+        step.reply,
+        Some(Reply::Refused {
+            what: RefusedFrame::Command(Seq(0)),
+            reason: Refusal::NoSession
+        })
     );
 }
 

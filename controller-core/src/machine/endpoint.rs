@@ -81,6 +81,7 @@ impl Endpoint {
         match step.event {
             DeviceEvent::None | DeviceEvent::Mismatch(_) => {}
             DeviceEvent::SessionStarted { .. } => port.down(Down::SessionStarted),
+            DeviceEvent::SessionEnded => port.down(Down::SessionEnded),
             DeviceEvent::Command(req) => port.down(Down::Request(req)),
             // answered with the status after the machine acted (next control period)
             DeviceEvent::Realtime { id, req } => port.down(Down::Realtime { id, req }),

@@ -79,6 +79,9 @@ pub enum Down {
     /// The link side finished the save `token` (written or failed: `outcome`, the
     /// request's outcome); the outputs may be armed again.
     SaveDone { token: u32, outcome: Outcome },
+    /// The host ended its session cleanly: what needs it stops (a controlled stop of a
+    /// program, a jog, homing, an identification), no `LinkLost` fault; the rest stays.
+    SessionEnded,
 }
 
 /// What the machine reports back to the link side about settings (a queue of its own).
@@ -426,6 +429,16 @@ impl MachinePort for LinkSide<'_, '_> {
                 self.state.save = SavePhase::Idle;
                 self.state.agent.session_ended();
                 let _ = self.ends.down.enqueue(Down::LinkLost);
+            }
+            Down::SessionEnded => {
+                // as for a new session: the ended session's requests that never went
+                // down are dropped (the machine retires its queued ones)
+                let n = self.state.held.len() as u32;
+                self.state.held.clear();
+                self.state.dropped = self.state.dropped.wrapping_add(n);
+                self.state.save = SavePhase::Idle;
+                self.state.agent.session_ended();
+                let _ = self.ends.down.enqueue(Down::SessionEnded);
             }
             // real-time traffic skips the queue; a full queue drops it (the host repeats
             // what it gets no answer to)

@@ -346,6 +346,18 @@ where
         }
     }
 
+    /// The host ended its session cleanly: a program, a jog, homing or an identification
+    /// (which need the host) come to a controlled stop; the machine stays otherwise as it
+    /// is (armed and holding, homed, its settings): no `LinkLost` fault.
+    pub fn session_ended(&mut self) {
+        self.save_lock = None;
+        let moving = matches!(
+            self.servo.state(),
+            ServoState::Run | ServoState::Jog | ServoState::Homing | ServoState::Identify
+        );
+        self.stop_program(moving.then_some(Command::Stop), ProgramEnd::HostStop);
+    }
+
     /// The link's watchdog expired: controlled stop and a `LinkLost` fault.
     pub fn link_lost(&mut self) {
         self.save_lock = None;
@@ -418,6 +430,7 @@ where
                     status: self.status(),
                 }),
                 Down::LinkLost => self.link_lost(),
+                Down::SessionEnded => self.session_ended(),
                 Down::SaveLock { token, repair } => {
                     self.enqueue(Queued::SaveLock { token, repair })
                 }

@@ -80,10 +80,19 @@ impl Refusal {
             Self::FaultLatched => "a fault is latched: clear its cause and reset",
             Self::EStopActive => "the e-stop is pressed",
             Self::LimitActive => "a limit switch is active",
-            Self::ModelMissing { .. } => {
-                "the axis' law needs a model: identify the axis (gantry identify --axis A --accept) or set axis.A.model"
+            // (the axis named: a `&'static str` per axis, the interrupt formats nothing)
+            Self::ModelMissing { axis: Axis::X } => {
+                "axis x has no model: gantry identify --axis x --window-mm 10 --accept (or set axis.x.model)"
             }
-            Self::NotHomed { .. } => "home the machine first (gantry home)",
+            Self::ModelMissing { axis: Axis::Y } => {
+                "axis y has no model: gantry identify --axis y --window-mm 10 --accept (or set axis.y.model)"
+            }
+            Self::ModelMissing { axis: Axis::Z } => {
+                "axis z has no model: gantry identify --axis z --window-mm 10 --accept (or set axis.z.model)"
+            }
+            Self::NotHomed { axis: Axis::X } => "axis x is not homed: home the machine first (gantry home)",
+            Self::NotHomed { axis: Axis::Y } => "axis y is not homed: home the machine first (gantry home)",
+            Self::NotHomed { axis: Axis::Z } => "axis z is not homed: home the machine first (gantry home)",
             Self::NoPath => "no path is configured",
             Self::NoHoming => "homing is not configured",
             Self::BadWindow { .. } => {
@@ -160,4 +169,40 @@ pub fn axis_mask(flags: [bool; AXES]) -> u8 {
         .iter()
         .enumerate()
         .fold(0, |m, (i, f)| if *f { m | 1 << i } else { m })
+}
+
+#[cfg(test)]
+mod message_tests {
+    use super::*;
+    use crate::machine::messages::TEXT_MAX;
+
+    /// Every refusal reaches the operator whole: its text fits the link's refusal text
+    /// (longer ones were cut mid-command).
+    #[test]
+    fn every_refusal_message_fits_the_links_text() {
+        let fixed = [
+            Refusal::WrongState,
+            Refusal::FaultLatched,
+            Refusal::EStopActive,
+            Refusal::LimitActive,
+            Refusal::NoPath,
+            Refusal::NoHoming,
+        ];
+        let per_axis = [Axis::X, Axis::Y, Axis::Z].map(|axis| {
+            [
+                Refusal::ModelMissing { axis },
+                Refusal::NotHomed { axis },
+                Refusal::BadWindow { axis },
+                Refusal::IdentifyRejected { axis },
+            ]
+        });
+        let all = fixed.iter().chain(per_axis.iter().flatten());
+        for r in all {
+            let m = r.message();
+            assert!(m.len() <= TEXT_MAX, "{r:?}: {} > {TEXT_MAX}: {m}", m.len());
+        }
+        assert!(Refusal::ModelMissing { axis: Axis::Y }
+            .message()
+            .contains("identify --axis y"));
+    }
 }

@@ -293,6 +293,11 @@ const fn slot_len(len: usize, word: usize) -> usize {
 }
 
 impl<F: NorFlash> SettingsStore<F> {
+    /// The flash under the store (a host keeps a simulated flash's bytes in a file).
+    pub fn flash(&self) -> &F {
+        &self.flash
+    }
+
     const WORD: usize = word_of::<F>();
 
     /// A store in `range` of `flash` (byte offsets of the flash; at least two erase pages,
@@ -695,6 +700,11 @@ impl<F: BlockingNorFlash> BlockingFlash<F> {
 
     pub fn into_inner(self) -> F {
         self.flash
+    }
+
+    /// The flash the window lies in.
+    pub fn inner(&self) -> &F {
+        &self.flash
     }
 }
 

@@ -2,7 +2,9 @@
 //! planner and servo step in-process against the simulated physical gantry; `--qemu`
 //! boots the firmware's QEMU build in its link rig and talks to it over its emulated
 //! USART2 (one machine per invocation either way: it powers up at the work origin,
-//! unhomed, disarmed); `--port DEV` talks to a board over its UART. See the README ("The gantry CLI") and docs/link-protocol.md.
+//! unhomed, disarmed); `--port DEV` talks to a board over its UART; `gantry sim serve PTY`
+//! runs one simulated machine that stays, and `--served PTY` talks to it. See the README
+//! ("The gantry CLI") and docs/link-protocol.md.
 
 use anyhow::{bail, Context, Result};
 
@@ -16,16 +18,21 @@ use controller_core::machine::scope::ScopeConfig;
 use host_sim::cli::client::{expect_done, Client};
 use host_sim::cli::port::BoardPort;
 use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
+use host_sim::cli::serve::{ServeOptions, Speed};
 use host_sim::cli::sim::{SimMachine, SimModels};
-use host_sim::cli::{self, Hold, Transport, AXES};
+use host_sim::cli::{self, view, Hold, Transport, AXES};
 use host_sim::output::report::write_json;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "gantry", about = "Command a gantry over the host link")]
-#[command(group(ArgGroup::new("machine").required(true).args(["sim", "qemu", "port", "twin"])))]
+#[command(
+    name = "gantry",
+    about = "Command a gantry over the host link",
+    version
+)]
+#[command(group(ArgGroup::new("machine").args(["sim", "qemu", "port", "twin", "served"])))]
 struct Cli {
     /// The simulated gantry in-process.
     #[arg(long)]
@@ -41,6 +48,10 @@ struct Cli {
     /// USART2 at PTY (`firmware/twin/run --serve PTY`); timeouts count its machine clock.
     #[arg(long, value_name = "PTY")]
     twin: Option<String>,
+    /// A machine that stays: the simulated gantry served at PTY by `gantry sim serve PTY`
+    /// (settings, homing and arming kept between commands); timeouts count its clock.
+    #[arg(long, value_name = "PTY")]
+    served: Option<String>,
     /// The firmware ELF for --qemu (default: what `cargo fw-qemu-build` builds).
     #[arg(long, requires = "qemu")]
     elf: Option<PathBuf>,
@@ -48,7 +59,7 @@ struct Cli {
     #[arg(long, requires = "sim")]
     factory: bool,
     /// Telemetry rate of the session, Hz (1-10000).
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
     telemetry_hz: u32,
     #[command(subcommand)]
     command: Cmd,
@@ -56,17 +67,40 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// The machine's status.
+    /// The simulated gantry as a long-lived machine (no --sim/--qemu/--port/--served).
+    Sim {
+        #[command(subcommand)]
+        op: SimOp,
+    },
+    /// The serial ports of this computer, a board's first (an ST-Link's virtual COM port,
+    /// USB-UART adapters); no machine option. Example: `gantry ports`.
+    Ports,
+    /// Print a completion script for SHELL (bash, zsh, fish, elvish, powershell); no
+    /// machine option. Example: `gantry completions bash > ~/.local/share/bash-completion/completions/gantry`.
+    Completions { shell: clap_complete::Shell },
+    /// The machine's status on one screen, with units (state, position, velocity, feed,
+    /// homing, faults, program). Example: `gantry --served /tmp/gantry status`.
     Status {
+        /// Machine-readable: the status as JSON (keys documented in the README).
         #[arg(long)]
         json: bool,
+    },
+    /// A live one-line read-out (state, X Y Z mm, feed mm/min, program segment, fault),
+    /// refreshed until Ctrl-C. Example: `gantry --served /tmp/gantry watch`.
+    Watch {
+        /// Stop after this much machine time, s.
+        #[arg(long, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
+        seconds: Option<f32>,
+        /// Read-outs per second of machine time (0.5-50).
+        #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = cli::args::watch_hz)]
+        hz: f32,
     },
     /// Telemetry to a CSV file for a while of machine time (one row per sample: period,
     /// state, position, reference, reference velocity and acceleration, contour, feed
     /// ratio, segment tag).
     Log {
         out: PathBuf,
-        #[arg(long, default_value_t = 1.0, value_parser = cli::args::duration_s)]
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         seconds: f32,
         /// Up to 4 more signals per sample, comma-separated (as `scope --signals`):
         /// columns after the fixed ones.
@@ -97,7 +131,7 @@ enum Cmd {
         #[arg(long)]
         run: Option<PathBuf>,
         /// Give up when the capture is not complete after this much machine time, s.
-        #[arg(long, default_value_t = 10.0, value_parser = cli::args::duration_s)]
+        #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         timeout_s: f32,
         /// No figure.
         #[arg(long)]
@@ -121,7 +155,7 @@ enum Cmd {
         axis: String,
         #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         vel_mm_s: f32,
-        #[arg(long, default_value_t = 1.0, value_parser = cli::args::duration_s)]
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         seconds: f32,
     },
     /// Move to a point (machine mm) at the rapid rate, homing and arming first; refused
@@ -141,10 +175,10 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
         /// Feed hold after this many seconds of machine time...
-        #[arg(long, value_parser = cli::args::instant_s)]
+        #[arg(long, allow_negative_numbers = true, value_parser = cli::args::instant_s)]
         hold_at_s: Option<f32>,
         /// ...and resume this long after it.
-        #[arg(long, default_value_t = 0.5, value_parser = cli::args::duration_s)]
+        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         hold_for_s: f32,
     },
     /// Identify axes (x, y, z or all); --accept stores the models in the settings.
@@ -155,7 +189,7 @@ enum Cmd {
         accept: bool,
         /// Identify unhomed axes within ± this many mm of where they stand (needed while
         /// the machine has no model and so cannot arm to home).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         window_mm: Option<f32>,
         #[arg(long)]
         json: Option<PathBuf>,
@@ -165,6 +199,34 @@ enum Cmd {
     Settings {
         #[command(subcommand)]
         op: SettingsOp,
+    },
+}
+
+#[derive(Subcommand)]
+enum SimOp {
+    /// Run one simulated machine behind a pseudo-terminal at PTY until Ctrl-C, in real
+    /// time: `gantry --served PTY …` commands then talk to the same machine, as to a
+    /// board. Example: `gantry sim serve /tmp/gantry --flash gantry.flash &` then
+    /// `gantry --served /tmp/gantry home`.
+    Serve {
+        /// Where the pseudo-terminal appears (a symlink to its /dev/pts device), e.g.
+        /// /tmp/gantry.
+        pty: PathBuf,
+        /// Machine time per wall time: 1 is real time, 10 ten times faster, `max` as fast
+        /// as this computer runs it.
+        #[arg(long, default_value = "1", allow_negative_numbers = true)]
+        speed: Speed,
+        /// The machine's settings flash, kept in this file: loaded at power-on as a board
+        /// loads its store, written at every `settings save`.
+        #[arg(long, value_name = "FILE")]
+        flash: Option<PathBuf>,
+        /// Start with factory settings when the flash holds none (no axis model:
+        /// identify first); otherwise the designed gantry's models are entered.
+        #[arg(long)]
+        factory: bool,
+        /// Stop after this much machine time, s (default: until Ctrl-C or SIGTERM).
+        #[arg(long, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
+        seconds: Option<f32>,
     },
 }
 
@@ -216,6 +278,66 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
+    let machines = [
+        cli.sim,
+        cli.qemu,
+        cli.port.is_some(),
+        cli.twin.is_some(),
+        cli.served.is_some(),
+    ];
+    if let Cmd::Sim { op } = cli.command {
+        if machines.iter().any(|m| *m) {
+            bail!("`gantry sim serve` runs a machine of its own: leave out --sim, --qemu, --port, --twin and --served");
+        }
+        let SimOp::Serve {
+            pty,
+            speed,
+            flash,
+            factory,
+            seconds,
+        } = op;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let on_signal = stop.clone();
+        ctrlc::set_handler(move || on_signal.store(true, std::sync::atomic::Ordering::Relaxed))
+            .context("cannot handle Ctrl-C")?;
+        let opts = ServeOptions {
+            pty,
+            speed,
+            flash,
+            models: if factory {
+                SimModels::Factory
+            } else {
+                SimModels::Designed
+            },
+            seconds: seconds.map(f64::from),
+        };
+        host_sim::cli::serve::serve(&opts, stop)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    if matches!(cli.command, Cmd::Ports | Cmd::Completions { .. }) && machines.iter().any(|m| *m) {
+        bail!("`gantry ports` and `gantry completions` talk to no machine: leave out --sim, --qemu, --port, --twin and --served");
+    }
+    match &cli.command {
+        Cmd::Ports => {
+            print!("{}", host_sim::cli::port::ports_text()?);
+            return Ok(ExitCode::SUCCESS);
+        }
+        Cmd::Completions { shell } => {
+            let mut cmd = <Cli as clap::CommandFactory>::command();
+            let mut script = Vec::new();
+            clap_complete::generate(*shell, &mut cmd, "gantry", &mut script);
+            // (through print!: a reader that went away ends gantry quietly, status 141)
+            print!("{}", String::from_utf8_lossy(&script));
+            return Ok(ExitCode::SUCCESS);
+        }
+        _ => {}
+    }
+    host_sim::cli::interrupt::install()?;
+    if !machines.iter().any(|m| *m) {
+        bail!(
+            "which machine? --sim (in-process, fresh each command), --served PTY (one `gantry sim serve PTY` keeps), --qemu, --twin PTY or --port DEV"
+        );
+    }
     // (clap's `requires` counts the flag's default as given)
     if cli.elf.is_some() && !cli.qemu {
         bail!("--elf is the firmware for --qemu; it does nothing with --sim, --port or --twin");
@@ -235,7 +357,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         SimModels::Designed
     };
     let decimation = 10_000 / cli.telemetry_hz;
-    if let Some(pty) = &cli.twin {
+    if let Some(pty) = cli.twin.as_ref().or(cli.served.as_ref()) {
         session(
             subscribed(BoardPort::open_twin(pty)?, decimation)?,
             cli.command,
@@ -270,15 +392,53 @@ fn subscribed<T: Transport>(t: T, decimation: u32) -> Result<Client<T>> {
     Ok(c)
 }
 
-/// What the subcommand does with the machine behind `c`.
+/// What the subcommand does with the machine behind `c`; then the session ends with a
+/// goodbye (a served machine or a board stays as the command left it, with no `LinkLost`
+/// fault), whether the command succeeded or not.
 fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Result<ExitCode> {
+    let done = command_on(&mut c, command, decimation);
+    let bye = c.goodbye();
+    let code = done?;
+    bye?;
+    Ok(code)
+}
+
+/// What the subcommand does with the machine behind `c`.
+fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) -> Result<ExitCode> {
     match command {
+        Cmd::Sim { .. } | Cmd::Ports | Cmd::Completions { .. } => {
+            bail!("`gantry sim serve`, `ports` and `completions` take no machine option")
+        }
         Cmd::Status { json } => {
             let s = c.status()?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
             } else {
-                println!("{s:#?}");
+                print!("{}", view::status_text(&s, CONTROL_RATE_HZ));
+            }
+        }
+        Cmd::Watch { seconds, hz } => {
+            let every_ms = (1000.0 / hz) as u32;
+            let tty = std::io::stdout().is_terminal();
+            let t0 = c.transport.now_ms();
+            loop {
+                let s = c.status()?;
+                if tty {
+                    print!("\r{}\x1b[K", view::dro_line(&s));
+                    std::io::Write::flush(&mut std::io::stdout())?;
+                } else {
+                    println!("{}", view::dro_line(&s));
+                }
+                let elapsed_s = f64::from(c.transport.now_ms().wrapping_sub(t0)) / 1000.0;
+                if host_sim::cli::interrupt::requested()
+                    || seconds.is_some_and(|limit| elapsed_s >= f64::from(limit))
+                {
+                    break;
+                }
+                c.sleep_ms(every_ms)?;
+            }
+            if tty {
+                println!();
             }
         }
         Cmd::Log {
@@ -304,7 +464,7 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 }
                 None => Vec::new(),
             };
-            let n = cli::log_telemetry(&mut c, &out, seconds, &names)?;
+            let n = cli::log_telemetry(c, &out, seconds, &names)?;
             println!("{n} samples written to {}", out.display());
         }
         Cmd::Scope {
@@ -333,7 +493,7 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 trigger: cli::scope::parse_trigger(&trigger)?,
             };
             let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
-            let cap = cli::scope::capture(&mut c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
+            let cap = cli::scope::capture(c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
                 if let Some(file) = &run {
                     let r = cli::run_program(c, file, period_s, false, None)?;
                     eprint!("{}", host_sim::studies::gcode::table(&r));
@@ -391,20 +551,54 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 );
             }
         }
+        // what is wrong and what to do, from the status, before the machine's own refusal
         Cmd::Arm => {
-            expect_done("arm", c.exec(Request::Arm)?)?;
-            println!("armed");
+            let s = c.status()?;
+            match s.state {
+                MachineState::Disabled => {
+                    expect_done("arm", c.exec(Request::Arm)?)?;
+                    println!("armed: holding position");
+                }
+                MachineState::Fault => bail!(
+                    "cannot arm: a fault is latched ({}): `gantry reset` once its cause is gone",
+                    s.first_fault.as_deref().unwrap_or("unknown")
+                ),
+                MachineState::Stopping | MachineState::EncoderCheck => bail!(
+                    "cannot arm now: {}; try again when it is done",
+                    view::state_words(&s)
+                ),
+                _ => println!("already armed: {}", view::state_words(&s)),
+            }
         }
         Cmd::Disarm => {
-            expect_done("disarm", c.exec(Request::Disarm)?)?;
-            println!("disarmed");
+            let s = c.status()?;
+            if matches!(s.state, MachineState::Disabled | MachineState::Fault) {
+                println!("already disarmed: {}", view::state_words(&s));
+            } else {
+                expect_done("disarm", c.exec(Request::Disarm)?)?;
+                println!("disarmed: outputs off");
+            }
         }
         Cmd::Reset => {
-            expect_done("reset", c.exec(Request::Reset)?)?;
-            println!("reset");
+            let s = c.status()?;
+            if s.state != MachineState::Fault {
+                println!(
+                    "no fault latched: nothing to reset ({})",
+                    view::state_words(&s)
+                );
+            } else {
+                expect_done("reset", c.exec(Request::Reset)?).map_err(|e| {
+                    anyhow::anyhow!(
+                        "{e} (latched: {}; `gantry status` shows what is still active)",
+                        s.first_fault.as_deref().unwrap_or("unknown")
+                    )
+                })?;
+                let after = cli::wait_while(c, |s| s.state == MachineState::EncoderCheck)?;
+                println!("reset: {}", view::state_words(&after));
+            }
         }
         Cmd::Home => {
-            let s = cli::ready(&mut c, true)?;
+            let s = cli::ready(c, true)?;
             println!(
                 "homed at x {:.3} y {:.3} z {:.3} mm",
                 s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
@@ -416,10 +610,10 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             seconds,
         } => {
             let i = axis_index(&axis)?;
-            cli::ready(&mut c, true)?;
+            cli::ready(c, true)?;
             let ms = (seconds.max(0.0) * 1000.0) as u32;
             let mut t = 0;
-            while t < ms {
+            while t < ms && !host_sim::cli::interrupt::requested() {
                 // jog requests keep coming, or the jog stops by itself (the timeout)
                 let jog = Request::Jog {
                     axis: i as u8,
@@ -434,12 +628,12 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 vel_mm_s: 0.0,
             };
             expect_done("jog", c.exec(stop)?)?;
-            let s = cli::wait_while(&mut c, |s| s.state == MachineState::Jog)?;
+            let s = cli::wait_while(c, |s| s.state == MachineState::Jog)?;
             println!("{} at {:.3} mm ({:?})", AXES[i], s.pos_mm[i], s.state);
         }
         Cmd::Move { x_mm, y_mm, z_mm } => {
-            cli::ready(&mut c, true)?;
-            let s = cli::move_to(&mut c, [x_mm, y_mm, z_mm])?;
+            cli::ready(c, true)?;
+            let s = cli::move_to(c, [x_mm, y_mm, z_mm])?;
             println!(
                 "at x {:.3} y {:.3} z {:.3} mm",
                 s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
@@ -457,7 +651,7 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             });
             let progress = std::io::stderr().is_terminal();
             let period_s = f64::from(decimation) / 10_000.0;
-            let r = cli::run_program(&mut c, &file, period_s, progress, hold)?;
+            let r = cli::run_program(c, &file, period_s, progress, hold)?;
             print!("{}", host_sim::studies::gcode::table(&r));
             if let Some(j) = json {
                 write_json(&j, &r)?;
@@ -487,7 +681,7 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
             } else {
                 vec![axis_index(&axis)?]
             };
-            let r = cli::identify(&mut c, &axes, accept, window_mm)?;
+            let r = cli::identify(c, &axes, accept, window_mm)?;
             for a in &r {
                 println!(
                     "{}: {}  J {}  B {}  f+ {}  f- {}  NRMSE {:.4}  R² {:.4}  {:.2} s{}",
@@ -513,22 +707,22 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
         Cmd::Settings { op } => match op {
             SettingsOp::List => {
                 for k in controller_core::settings::keys::keys() {
-                    let v = cli::get(&mut c, k.name).unwrap_or_else(|_| "-".into());
+                    let v = cli::get(c, k.name).unwrap_or_else(|_| "-".into());
                     println!("{:<36} {:>12} {:<10} {}", k.name, v, k.unit, k.doc);
                 }
             }
-            SettingsOp::Get { key } => println!("{}", cli::get(&mut c, &key)?),
+            SettingsOp::Get { key } => println!("{}", cli::get(c, &key)?),
             SettingsOp::Set { args } => {
                 let changes = cli::parse_set_args(&args)?;
                 if let [(key, value)] = &changes[..] {
-                    cli::set(&mut c, key, value)?;
+                    cli::set(c, key, value)?;
                 } else {
-                    cli::apply_settings(&mut c, &changes).map_err(|e| {
+                    cli::apply_settings(c, &changes).map_err(|e| {
                         anyhow::anyhow!("settings set rejected, nothing changed: {e}")
                     })?;
                 }
                 for (key, _) in &changes {
-                    println!("{key} = {}", cli::get(&mut c, key)?);
+                    println!("{key} = {}", cli::get(c, key)?);
                 }
             }
             SettingsOp::Defaults => {
@@ -544,7 +738,7 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 println!("settings store erased and rewritten with the settings the machine runs");
             }
             SettingsOp::Export { file } => {
-                let all = cli::read_settings(&mut c)?;
+                let all = cli::read_settings(c)?;
                 std::fs::write(&file, cli::export_toml(&all))
                     .with_context(|| format!("cannot write {}", file.display()))?;
                 println!("{} settings written to {}", all.len(), file.display());
@@ -554,7 +748,7 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
                 let text = gantry_scenario::file::read_regular(&file, SETTINGS_FILE_MAX_BYTES)
                     .map_err(anyhow::Error::msg)?;
                 let changes = cli::parse_settings_toml(&name, &text)?;
-                let changed = cli::import_settings(&mut c, &changes, CONTROL_RATE_HZ)?;
+                let changed = cli::import_settings(c, &changes, CONTROL_RATE_HZ)?;
                 println!("{} settings changed: {}", changed.len(), changed.join(", "));
             }
         },

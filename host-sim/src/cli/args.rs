@@ -45,6 +45,16 @@ pub fn instant_s(s: &str) -> Result<f32, String> {
     }
 }
 
+/// Read-outs per second of `gantry watch`: 0.5 to 50.
+pub fn watch_hz(s: &str) -> Result<f32, String> {
+    let x = number(s)?;
+    if (0.5..=50.0).contains(&x) {
+        Ok(x)
+    } else {
+        Err(format!("{x} Hz is outside [0.5, 50] Hz"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,5 +72,7 @@ mod tests {
         assert_eq!(instant_s("0"), Ok(0.0));
         assert_eq!(finite("-12.5"), Ok(-12.5));
         assert!(duration_s("inf").unwrap_err().contains("not finite"));
+        assert!(watch_hz("0").is_err() && watch_hz("51").is_err() && watch_hz("nan").is_err());
+        assert_eq!(watch_hz("10"), Ok(10.0));
     }
 }

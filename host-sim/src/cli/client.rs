@@ -10,8 +10,8 @@ use super::Transport;
 use anyhow::{anyhow, bail, Result};
 use controller_core::link::host::DEFAULT_HOST_LINK_CONFIG;
 use controller_core::link::{
-    encode, Arrival, Feed, FrameDecoder, HostEvent, HostLink, HostState, RealtimeRequest, ToHost,
-    MAX_FRAME_LEN,
+    encode, Arrival, Feed, FrameDecoder, HostEvent, HostLink, HostState, RealtimeRequest, ToDevice,
+    ToHost, MAX_FRAME_LEN,
 };
 use controller_core::machine::messages::{Outcome, Request, Status, Telemetry, SCHEMA_HASH};
 
@@ -106,6 +106,7 @@ impl<T: Transport> Client<T> {
                     controller_core::link::ToDevice::Realtime { id, req } => {
                         format!("realtime {} {req:?}", id.0)
                     }
+                    controller_core::link::ToDevice::Goodbye => "goodbye".to_string(),
                 };
                 super::trace::line(format_args!("m{now} tx {what}"));
             }
@@ -319,6 +320,20 @@ impl<T: Transport> Client<T> {
     /// machine's clock as the host sees it.
     pub fn last_period(&self) -> u32 {
         self.last_period
+    }
+
+    /// End the session cleanly ([`ToDevice::Goodbye`]): the machine's link watchdog is
+    /// turned off without a `LinkLost` fault, and what needed this host (a program, a jog)
+    /// stops; the machine stays armed, homed and set up for the next session. Without it
+    /// the watchdog ends the session 500 ms later with a `LinkLost` fault latched.
+    pub fn goodbye(&mut self) -> Result<()> {
+        // what arrived first (acks, a last status), so nothing the host owes is pending
+        self.pump()?;
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = encode(&ToDevice::<&Request>::Goodbye, &mut buf)
+            .map_err(|e| anyhow!("goodbye frame: {e:?}"))?;
+        super::trace::line(format_args!("m{} tx goodbye", self.transport.now_ms()));
+        self.transport.send(&buf[..n])
     }
 
     /// The transport, for a new session on the same line.

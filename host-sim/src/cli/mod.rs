@@ -1,19 +1,24 @@
 //! The `gantry` command line: a session over the host link with a machine, and what each
 //! subcommand does with it. The machine is `--sim` (the supervisor, planner and servo step
 //! in-process against the simulated gantry, [`sim`]), `--qemu` (the firmware's QEMU
-//! build in its link rig, over its emulated USART2, [`qemu`]) or `--port DEV` (a board
-//! over its UART, [`port`]).
+//! build in its link rig, over its emulated USART2, [`qemu`]), `--port DEV` (a board
+//! over its UART, [`port`]) or `--served PTY` (one simulated machine that stays, run by
+//! `gantry sim serve`, [`serve`]). What the operator reads is [`view`]; Ctrl-C is
+//! [`interrupt`].
 //!
 //! Every subcommand speaks the link protocol ([`client`]): requests on the reliable
 //! channel, status by real-time request, telemetry for the program run.
 
 pub mod args;
 pub mod client;
+pub mod interrupt;
 pub mod port;
 pub mod qemu;
 pub mod scope;
+pub mod serve;
 pub mod sim;
 pub mod trace;
+pub mod view;
 
 use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
 use crate::studies::gcode::distance;
@@ -66,10 +71,25 @@ pub fn wait_while<T: Transport>(
     busy: impl Fn(&Status) -> bool,
 ) -> Result<Status> {
     let t0 = c.transport.now_ms();
+    let mut stopping = false;
     loop {
         let s = c.status()?;
         if !busy(&s) {
+            if stopping {
+                bail!(
+                    "Ctrl-C: the machine stopped at x {:.3} y {:.3} z {:.3} mm, {}",
+                    s.pos_mm[0],
+                    s.pos_mm[1],
+                    s.pos_mm[2],
+                    view::state_words(&s)
+                );
+            }
             return Ok(s);
+        }
+        if interrupt::requested() && !stopping {
+            c.realtime(RealtimeRequest::Stop)?;
+            stopping = true;
+            eprintln!("Ctrl-C: stopping (a controlled stop; Ctrl-C again quits at once)");
         }
         if c.transport.now_ms().wrapping_sub(t0) > LONG_WAIT_MS {
             bail!("the machine is still busy after {} s", LONG_WAIT_MS / 1000);
@@ -306,6 +326,11 @@ fn keys<T: Transport>(
     keys: Option<&std::sync::mpsc::Receiver<char>>,
     aborted: &mut bool,
 ) -> Result<()> {
+    if interrupt::requested() && !*aborted {
+        c.realtime(RealtimeRequest::Stop)?;
+        *aborted = true;
+        eprintln!("Ctrl-C: stopping on the path (a controlled stop; Ctrl-C again quits at once)");
+    }
     let Some(rx) = keys else { return Ok(()) };
     while let Ok(k) = rx.try_recv() {
         match k {
@@ -392,7 +417,7 @@ pub fn run_program<T: Transport>(
         let b = ProgressBar::new(segs.len() as u64);
         b.set_style(
             ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} segments sent, {elapsed}  (h/r/a + Enter: hold/resume/abort)",
+                "{bar:30} {pos}/{len} segments run, ETA {eta}  {msg}  (h/r/a + Enter: hold/resume/abort)",
             )
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
@@ -405,7 +430,22 @@ pub fn run_program<T: Transport>(
     // every sample in Run (a jerk only between consecutive ones)
     let mut metrics =
         c.while_busy(|| PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s))?;
+    // the bar follows the machine's executor (the telemetry's segment tag), not what was
+    // sent: a short program is sent at once and runs for seconds
+    let tags: Vec<u32> = segs.iter().map(|g| g.seg.tag).collect();
+    let show = |bar: &Option<ProgressBar>, t: &Telemetry| {
+        if let Some(b) = bar {
+            b.set_position(tags.partition_point(|g| *g < t.tag) as u64);
+            b.set_message(format!(
+                "X {:.3} Y {:.3} Z {:.3} mm",
+                t.pos_mm[0], t.pos_mm[1], t.pos_mm[2]
+            ));
+        }
+    };
     let mut account = |samples: Vec<Telemetry>| {
+        if let Some(t) = samples.last() {
+            show(&bar, t);
+        }
         for t in samples
             .iter()
             .filter(|t| matches!(t.state, MachineState::Run { .. }))
@@ -424,7 +464,7 @@ pub fn run_program<T: Transport>(
         }
     };
     let (mut held_at, mut resumed) = (None, false);
-    for (k, seg) in segs.iter().enumerate() {
+    for seg in &segs {
         // wait for room here, not in `send`: a feed hold stops the planner taking
         // segments, and the resume must still get through
         while !c.can_send() && !aborted {
@@ -441,15 +481,9 @@ pub fn run_program<T: Transport>(
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed.as_ref(), &mut aborted)?;
         account(c.take_telemetry());
-        if let Some(b) = &bar {
-            b.set_position(k as u64 + 1);
-        }
     }
     if !aborted {
         c.send(Request::EndProgram)?;
-    }
-    if let Some(b) = bar {
-        b.finish_and_clear();
     }
     let end = loop {
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
@@ -474,6 +508,10 @@ pub fn run_program<T: Transport>(
         }
         c.sleep_ms(POLL_MS)?;
     };
+    drop(account);
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
     let duration_s = f64::from(end.period.wrapping_sub(p0)) * period_s;
     let compute_s = started.elapsed().as_secs_f64();
 
@@ -682,32 +720,36 @@ pub fn identify<T: Transport>(
     let mut out = Vec::new();
     for &i in axes {
         let s = c.status()?;
-        let window_mm =
-            if s.model_missing != 0 || s.homed & (1 << i) == 0 && window_half_mm.is_some() {
-                let Some(w) = window_half_mm else {
-                    bail!(
-                        "axis {} cannot be homed before it has a model (nothing can arm): give \
+        let window_mm = if s.model_missing != 0
+            || s.homed & (1 << i) == 0 && window_half_mm.is_some()
+        {
+            let Some(w) = window_half_mm else {
+                bail!(
+                    "axis {} cannot be homed before it has a model (nothing can arm): give \
                      --window-mm W to identify it within ±W mm of where it stands",
-                        AXES[i]
-                    );
-                };
-                if s.state == MachineState::Idle {
-                    expect_done("disarm", c.exec(Request::Disarm)?)?;
-                }
-                let at = c.status()?.pos_mm[i];
-                Some([at - w, at + w])
-            } else {
-                // homed: identify around the middle of the travel, where it has room
-                let s = ready(c, true)?;
-                let key = |end: &str| format!("axis.{}.travel.{end}", AXES[i]);
-                let (lo, hi) = (get_f64(c, &key("min_mm"))?, get_f64(c, &key("max_mm"))?);
-                if lo.is_finite() && hi.is_finite() {
-                    let mut target = s.pos_mm;
-                    target[i] = (0.5 * (lo + hi)) as f32;
-                    move_to(c, target)?;
-                }
-                None
+                    AXES[i]
+                );
             };
+            if !(w.is_finite() && w > 0.0) {
+                bail!("--window-mm must be a positive number of mm (the half-width of the travel identification may use), got {w}");
+            }
+            if s.state == MachineState::Idle {
+                expect_done("disarm", c.exec(Request::Disarm)?)?;
+            }
+            let at = c.status()?.pos_mm[i];
+            Some([at - w, at + w])
+        } else {
+            // homed: identify around the middle of the travel, where it has room
+            let s = ready(c, true)?;
+            let key = |end: &str| format!("axis.{}.travel.{end}", AXES[i]);
+            let (lo, hi) = (get_f64(c, &key("min_mm"))?, get_f64(c, &key("max_mm"))?);
+            if lo.is_finite() && hi.is_finite() {
+                let mut target = s.pos_mm;
+                target[i] = (0.5 * (lo + hi)) as f32;
+                move_to(c, target)?;
+            }
+            None
+        };
         expect_done(
             &format!("identify {}", AXES[i]),
             c.exec(Request::Identify {

@@ -91,10 +91,18 @@ impl Transport for BoardPort {
     }
 
     fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()> {
-        let mut chunk = [0u8; 1024];
+        let mut chunk = [0u8; 4096];
         loop {
             match self.port.read(&mut chunk) {
                 Ok(0) => return Ok(()),
+                // what was buffered, not all that keeps coming: a machine that streams
+                // faster than this host reads (a served machine at `--speed` 10 and
+                // 1 kHz telemetry) would keep this loop reading while the link's clock
+                // runs past its watchdog
+                Ok(n) if n < chunk.len() => {
+                    buf.extend_from_slice(&chunk[..n]);
+                    return Ok(());
+                }
                 Ok(n) => buf.extend_from_slice(&chunk[..n]),
                 Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {
                     return Ok(())
@@ -130,4 +138,54 @@ impl Transport for BoardPort {
         }
         Ok(())
     }
+}
+
+/// ST-Microelectronics' USB vendor id: an ST-Link's virtual COM port (Nucleo and
+/// Discovery boards, the STM32F407's usual link).
+const ST_VID: u16 = 0x0483;
+
+/// `gantry ports`: this computer's serial ports, the likely boards first, one per line
+/// with what the system says about them, and the command that talks to the first.
+pub fn ports_text() -> Result<String> {
+    let mut ports = serialport::available_ports().context("cannot list the serial ports")?;
+    let rank = |p: &serialport::SerialPortInfo| match &p.port_type {
+        serialport::SerialPortType::UsbPort(u) if u.vid == ST_VID => 0,
+        serialport::SerialPortType::UsbPort(_) => 1,
+        _ => 2,
+    };
+    ports.sort_by_key(|p| (rank(p), p.port_name.clone()));
+    let mut out = String::new();
+    for p in &ports {
+        let what = match &p.port_type {
+            serialport::SerialPortType::UsbPort(u) => format!(
+                "USB {:04x}:{:04x} {}{}{}",
+                u.vid,
+                u.pid,
+                u.manufacturer.as_deref().unwrap_or(""),
+                u.product
+                    .as_deref()
+                    .map_or(String::new(), |s| format!(" {s}")),
+                if u.vid == ST_VID {
+                    "  (an ST-Link: likely the board)"
+                } else {
+                    ""
+                }
+            ),
+            serialport::SerialPortType::PciPort => "PCI".into(),
+            serialport::SerialPortType::BluetoothPort => "Bluetooth".into(),
+            serialport::SerialPortType::Unknown => "unknown".into(),
+        };
+        out.push_str(&format!("{:<24} {what}\n", p.port_name));
+    }
+    match ports.first() {
+        Some(p) if rank(p) < 2 => out.push_str(&format!(
+            "talk to the board: gantry --port {} status\n",
+            p.port_name
+        )),
+        _ => out.push_str(
+            "no USB serial port found: is the board's USB cable in (an ST-Link shows up as /dev/ttyACM0)? \
+             Without a board: `gantry sim serve /tmp/gantry` and `gantry --served /tmp/gantry status`\n",
+        ),
+    }
+    Ok(out)
 }

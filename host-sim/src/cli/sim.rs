@@ -9,12 +9,15 @@
 
 use super::Transport;
 use crate::studies::gcode::machine_and_planner;
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, bail, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
 use controller_core::machine::{
     save_due_into, Channels, Endpoint, LinkSide, LinkState, Machine, MachineMemory,
 };
-use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
+use controller_core::servo::faults::FaultKind;
+use controller_core::settings::store::{
+    block_on, BlockingFlash, LoadOutcome, RamFlash, SettingsStore,
+};
 use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
 use controller_core::sim::world::{Injection, SwitchConfig, World};
 
@@ -91,11 +94,45 @@ impl SimMachine {
     /// around where it starts) with limit switches where the factory homing expects
     /// them; telemetry every `telemetry_periods` control periods.
     pub fn new(models: SimModels, telemetry_periods: u32) -> Result<Self> {
-        let settings = match models {
-            SimModels::Designed => designed_settings(),
-            SimModels::Factory => FACTORY,
+        Ok(Self::boot(models, telemetry_periods, None)?.0)
+    }
+
+    /// Power on with the settings flash `image` (what a served machine kept in its
+    /// `--flash` file; `None`: erased), loading the settings from it as the board does
+    /// at boot: a valid record is what runs; an erased store gives `models`' settings; an
+    /// unusable one the factory settings and a `settings_corrupt` fault. Also how they
+    /// were found.
+    pub fn boot(
+        models: SimModels,
+        telemetry_periods: u32,
+        image: Option<&[u8]>,
+    ) -> Result<(Self, LoadOutcome)> {
+        let mut ram = RamFlash::new();
+        if let Some(bytes) = image {
+            if bytes.len() != STORE_BYTES as usize {
+                bail!(
+                    "settings flash image: {} bytes, the simulated store has {STORE_BYTES}",
+                    bytes.len()
+                );
+            }
+            ram.bytes_mut().copy_from_slice(bytes);
+        }
+        let flash = BlockingFlash::new(ram, 0, STORE_BYTES)
+            .map_err(|e| anyhow!("settings flash: {e:?}"))?;
+        let mut store = SettingsStore::new(flash, 0..STORE_BYTES)
+            .map_err(|e| anyhow!("settings store: {e}"))?;
+        // (the scenario's control rate: the settings are checked at the rate they run)
+        let rate_hz = machine_and_planner(None)?.0.servo.rate_hz;
+        let (stored, outcome) = block_on(store.load(rate_hz));
+        let settings = match outcome {
+            LoadOutcome::Stored => stored,
+            LoadOutcome::Empty => match models {
+                SimModels::Designed => designed_settings(),
+                SimModels::Factory => FACTORY,
+            },
+            _ => FACTORY,
         };
-        let (world, rate_hz) = gantry_world(&settings, None, false)?;
+        let (world, rate_hz) = gantry_world(&settings, Some(rate_hz), false)?;
         let mut machine = Machine::new(
             &settings,
             rate_hz,
@@ -105,13 +142,12 @@ impl SimMachine {
         )
         .map_err(|e| anyhow!("machine: {e:?}"))?;
         machine.set_telemetry_every(telemetry_periods);
+        if outcome.is_fault() {
+            machine.latch_board_fault(FaultKind::SettingsCorrupt);
+        }
         let endpoint =
             Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).map_err(|e| anyhow!("link: {e}"))?;
-        let flash = BlockingFlash::new(RamFlash::new(), 0, STORE_BYTES)
-            .map_err(|e| anyhow!("settings flash: {e:?}"))?;
-        let store = SettingsStore::new(flash, 0..STORE_BYTES)
-            .map_err(|e| anyhow!("settings store: {e}"))?;
-        Ok(Self {
+        let sim = Self {
             world,
             machine,
             channels: Box::new(Channels::new()),
@@ -121,7 +157,23 @@ impl SimMachine {
             periods: 0,
             to_host: Vec::new(),
             store: Box::new(store),
-        })
+        };
+        Ok((sim, outcome))
+    }
+
+    /// The settings flash's bytes (what a served machine keeps in its `--flash` file).
+    pub fn flash_image(&self) -> &[u8] {
+        self.store.flash().inner().bytes()
+    }
+
+    /// The control rate, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.rate_hz
+    }
+
+    /// The link's millisecond clock: machine time since power-on.
+    pub fn clock_ms(&self) -> u32 {
+        self.ms()
     }
 
     /// The true state of the simulated axes (what no host sees over the link).

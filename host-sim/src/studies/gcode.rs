@@ -759,17 +759,33 @@ pub fn table(r: &GcodeReport) -> String {
             .collect();
         let _ = writeln!(s, "  settings written (G10): {}", written.join(", "));
     }
-    let _ = writeln!(
-        s,
-        "  simulated {:.1}x faster than real time",
-        r.realtime_ratio
-    );
+    let _ = writeln!(s, "  {}", speed_words(r.realtime_ratio));
     s
+}
+
+/// Machine time over wall time, in words that read right on both sides of 1 ("5.0x
+/// slower", not "0.2x faster").
+pub fn speed_words(ratio: f64) -> String {
+    if !ratio.is_finite() || ratio <= 0.0 {
+        "machine time over wall time: not measured".into()
+    } else if ratio >= 1.0 {
+        format!("ran {ratio:.1}x faster than real time")
+    } else {
+        format!("ran {:.1}x slower than real time", 1.0 / ratio)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_speed_ratio_reads_right_on_both_sides_of_one() {
+        assert_eq!(speed_words(62.0), "ran 62.0x faster than real time");
+        assert_eq!(speed_words(0.2), "ran 5.0x slower than real time");
+        assert_eq!(speed_words(1.0), "ran 1.0x faster than real time");
+        assert!(speed_words(0.0).contains("not measured"));
+    }
 
     #[test]
     fn segments_cover_the_motion_moves_in_order_and_are_tagged_with_their_first() {

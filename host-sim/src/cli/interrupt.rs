@@ -1,0 +1,25 @@
+//! Ctrl-C in the `gantry` commands: the first one asks for a controlled stop (a running
+//! program, a jog, homing, an identification stop on the path, the session ends with a
+//! goodbye and the command says where the machine stopped); a second one ends the process
+//! at once (the machine's link watchdog then stops it).
+
+use anyhow::{Context, Result};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+static REQUESTED: AtomicBool = AtomicBool::new(false);
+
+/// Take Ctrl-C (and SIGTERM) from here on.
+pub fn install() -> Result<()> {
+    ctrlc::set_handler(|| {
+        if REQUESTED.swap(true, Ordering::SeqCst) {
+            // the second one: leave now (130: killed by SIGINT, as a shell reports it)
+            std::process::exit(130);
+        }
+    })
+    .context("cannot handle Ctrl-C")
+}
+
+/// Ctrl-C was pressed.
+pub fn requested() -> bool {
+    REQUESTED.load(Ordering::SeqCst)
+}
