@@ -30,6 +30,9 @@ pub struct WideCounter {
     /// The change of the wide count at the last reading: the counter's signed delta,
     /// within ±2^31 (half a 32-bit counter's range), so an exact `i32`.
     step: i32,
+    /// The counter counts down when the axis moves forward (an encoder wired or mounted
+    /// the other way round: the setting `axis.<a>.encoder.invert`): every delta is negated.
+    inverted: bool,
 }
 
 impl WideCounter {
@@ -45,7 +48,18 @@ impl WideCounter {
             last: raw << shift,
             total: start,
             step: 0,
+            inverted: false,
         }
+    }
+
+    /// Count the other way from the next reading on (the count so far stays: the count
+    /// is continuous, its direction flips).
+    pub fn set_inverted(&mut self, inverted: bool) {
+        self.inverted = inverted;
+    }
+
+    pub fn inverted(&self) -> bool {
+        self.inverted
     }
 
     /// Take a new raw reading; returns the wide count.
@@ -57,6 +71,12 @@ impl WideCounter {
         // `(raw - last) as u16 as i16`).
         let shifted = raw << self.shift;
         let delta = (shifted.wrapping_sub(self.last) as i32) >> self.shift;
+        // (wrapping: a 32-bit counter's half-range step, i32::MIN, is ambiguous either way)
+        let delta = if self.inverted {
+            delta.wrapping_neg()
+        } else {
+            delta
+        };
         self.last = shifted;
         // saturating (a wide count never wraps), the rare case kept off the common path
         match self.total.checked_add(i64::from(delta)) {
@@ -115,6 +135,22 @@ mod tests {
         assert_eq!(w.update(65534), 4); // back down across zero by 5
                                         // upper bits of a 32-bit register read are ignored for a 16-bit timer
         assert_eq!(w.update(0xABCD_FFFE), 4);
+    }
+
+    #[test]
+    fn an_inverted_counter_counts_the_other_way_across_the_wraps_and_flips_without_a_jump() {
+        let mut w = WideCounter::new(CounterWidth::Bits16, 65530, 100);
+        w.set_inverted(true);
+        assert_eq!(w.update(3), 91); // +9 counts of the register: 9 down
+        assert_eq!(w.step(), -9);
+        assert_eq!(w.update(65534), 96); // back 5 across zero: 5 up
+        assert_eq!(w.extend(65530), 100); // a captured value, the same way
+        w.set_inverted(false);
+        assert_eq!(w.update(65534), 96); // no reading change, no jump
+        assert_eq!(w.update(2), 100);
+        let mut w = WideCounter::new(CounterWidth::Bits32, u32::MAX - 1, 0);
+        w.set_inverted(true);
+        assert_eq!(w.update(2), -4);
     }
 
     #[test]

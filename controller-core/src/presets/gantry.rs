@@ -117,16 +117,19 @@ pub const GANTRY_ENCODERS: [EncoderConfig; 3] = [
         counts_per_mm: GANTRY_COUNTS_PER_MM,
         counter: CounterWidth::Bits32,
         index_period_counts: GANTRY_INDEX_PERIOD_COUNTS,
+        invert: false,
     },
     EncoderConfig {
         counts_per_mm: GANTRY_COUNTS_PER_MM,
         counter: CounterWidth::Bits32,
         index_period_counts: GANTRY_INDEX_PERIOD_COUNTS,
+        invert: false,
     },
     EncoderConfig {
         counts_per_mm: GANTRY_COUNTS_PER_MM,
         counter: CounterWidth::Bits16,
         index_period_counts: GANTRY_INDEX_PERIOD_COUNTS,
+        invert: false,
     },
 ];
 
@@ -141,6 +144,7 @@ const fn amplifier(a: &PhysicalAxisConfig) -> AmplifierConfig {
     AmplifierConfig {
         full_scale: a.torque_max_mnm,
         resolution_bits: GANTRY_AMPLIFIER_BITS,
+        invert: false,
     }
 }
 

@@ -98,6 +98,11 @@ pub struct EncoderConfig {
     /// (`servo::index_check`).
     #[cfg_attr(feature = "serde", serde(default))]
     pub index_period_counts: u32,
+    /// The counter counts down when the axis moves forward (A and B swapped in the wiring,
+    /// or the encoder mounted facing the other way): the servo negates its steps, so the
+    /// machine's coordinates stay as the axis moves (setting `axis.<a>.encoder.invert`).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub invert: bool,
 }
 
 impl EncoderConfig {
@@ -120,6 +125,12 @@ pub struct AmplifierConfig {
     /// simulated amplifier; the board's is what its timer gives.
     #[cfg_attr(feature = "serde", serde(default))]
     pub resolution_bits: u8,
+    /// A positive command turns the motor backwards (its phases or the amplifier's
+    /// direction input wired the other way): the servo negates the effort it writes
+    /// (setting `axis.<a>.motor.invert`). The simulated amplifier ignores it: it models the
+    /// wiring, not the setting.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub invert: bool,
 }
 
 impl AmplifierConfig {

@@ -264,6 +264,9 @@ pub struct Servo<R> {
     count_len_f32: [f32; AXES],
     counts_per_mm: [f32; AXES],
     full_scale: Vec3<R>,
+    /// Axes whose motor turns backwards for a positive command (bit i: axis i,
+    /// `AmplifierConfig::invert`): their effort is negated as it is written.
+    motor_inverted: u8,
     estimators: EstimatorBank<R>,
     controller: Controller3<R>,
     monitor: Monitor,
@@ -382,8 +385,11 @@ impl<R: Real> Servo<R> {
         // (`from_fn`, not `[0, 1, 2].map`: its indices are provably in range, so no panic
         // path reaches the control interrupt, which rebuilds the servo on a settings change)
         let counters = core::array::from_fn(|i| {
-            WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i])
+            let mut c = WideCounter::new(cfg.encoders[i].counter, raw[i], start_counts[i]);
+            c.set_inverted(cfg.encoders[i].invert);
+            c
         });
+        let motor_inverted = commands::axis_mask(cfg.amplifiers.map(|a| a.invert));
         let model_missing = commands::axis_mask(core::array::from_fn(|i| {
             cfg.controller.laws[i].is_model_based() && !cfg.model_known[i]
         }));
@@ -399,6 +405,7 @@ impl<R: Real> Servo<R> {
             count_len_f32: count_len.map(|l| l as f32),
             counts_per_mm,
             full_scale,
+            motor_inverted,
             estimators: EstimatorBank::new(&cfg.estimator, &timing, count_len, start_counts)?,
             controller: Controller3::new(&cfg.controller)?,
             monitor: Monitor::new(
@@ -484,12 +491,24 @@ impl<R: Real> Servo<R> {
         let counts = self.counters.map(|c| c.count());
         let mut next = Self::new(cfg, [0; AXES], counts).map_err(ReconfigureError::Config)?;
         // the counters' register history, so that the next reading extends them as before
-        next.counters = self.counters;
-        if next.counts_per_mm == self.counts_per_mm && next.homing_cfg == self.homing_cfg {
+        // (in the direction the new settings give)
+        let same_direction = core::array::from_fn::<_, AXES, _>(|i| {
+            self.counters[i].inverted() == next.counters[i].inverted()
+        });
+        next.counters = core::array::from_fn(|i| {
+            let mut c = self.counters[i];
+            c.set_inverted(next.counters[i].inverted());
+            c
+        });
+        if next.counts_per_mm == self.counts_per_mm
+            && next.homing_cfg == self.homing_cfg
+            && same_direction.iter().all(|s| *s)
+            && next.motor_inverted == self.motor_inverted
+        {
             // the same encoders and switches: the origins still hold
             next.homed = self.homed;
         }
-        if next.counts_per_mm == self.counts_per_mm {
+        if next.counts_per_mm == self.counts_per_mm && same_direction.iter().all(|s| *s) {
             // the same count frame: the index references still hold
             next.index.carry_over(&self.index);
         }
@@ -503,6 +522,19 @@ impl<R: Real> Servo<R> {
         next.publish_faults();
         *self = next;
         Ok(())
+    }
+
+    /// The efforts as the amplifiers take them: an inverted motor's negated (the servo's
+    /// own efforts, in the snapshot, stay in machine directions).
+    #[inline]
+    fn drive(&self, u: Vec3<R>) -> [R; AXES] {
+        let mut out = u.to_array();
+        for (i, o) in out.iter_mut().enumerate() {
+            if self.motor_inverted & (1 << i) != 0 {
+                *o = -*o;
+            }
+        }
+        out
     }
 
     /// The latest snapshot.
@@ -1353,7 +1385,7 @@ impl<R: Real> Servo<R> {
                     self.finish_motion(&reference, &vel);
                 }
                 if self.state.drives() {
-                    io.write_outputs(&u.to_array());
+                    io.write_outputs(&self.drive(u));
                     applied = u;
                 } else {
                     io.disable_outputs();
@@ -1375,7 +1407,7 @@ impl<R: Real> Servo<R> {
                     self.encoder_check(&counts)
                 };
                 if self.state.drives() {
-                    io.write_outputs(&applied.to_array());
+                    io.write_outputs(&self.drive(applied));
                 } else {
                     applied = Vec3::zero();
                     io.disable_outputs();

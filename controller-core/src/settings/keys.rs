@@ -545,6 +545,20 @@ static AXIS_KEYS: &[AxisDef] = &[
         "Quadrature counts per mm (lines x 4 / screw lead)"
     ),
     axis_key!(
+        encoder.invert,
+        unit::NONE,
+        Range::Bool,
+        OutputsOff,
+        "The encoder counts down when the axis moves forward (A/B swapped): count it the other way (homes again)"
+    ),
+    axis_key!(
+        motor.invert,
+        unit::NONE,
+        Range::Bool,
+        OutputsOff,
+        "A positive command turns the motor backwards: drive it negated (homes again)"
+    ),
+    axis_key!(
         amplifier.full_scale,
         unit::MNM,
         EFFORT,

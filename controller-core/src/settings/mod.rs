@@ -31,6 +31,6 @@ pub use offsets::{ToolSettings, ToolTable, WorkOffset, WorkOffsets, TOOL_COUNT, 
 pub use servo_config::{SettingsError, PLACEHOLDER_MODELS};
 pub use tree::{
     AmplifierSettings, AxisSettings, CouplingKind, CouplingSettings, EncoderSettings,
-    EstimatorSettings, IdentifySettings, JogSettings, LawKind, LawSettings, LinkSettings, Settings,
-    FACTORY, SETTINGS_VERSION,
+    EstimatorSettings, IdentifySettings, JogSettings, LawKind, LawSettings, LinkSettings,
+    MotorSettings, Settings, FACTORY, SETTINGS_VERSION,
 };

@@ -116,9 +116,11 @@ impl Settings {
             }
             if let Some(e) = c.encoders.get_mut(i) {
                 e.counts_per_mm = a.encoder.counts_per_mm;
+                e.invert = a.encoder.invert;
             }
             if let Some(amp) = c.amplifiers.get_mut(i) {
                 amp.full_scale = a.amplifier.full_scale;
+                amp.invert = a.motor.invert;
             }
             if let Some(s) = c.safety.axes.get_mut(i) {
                 *s = AxisSafetyConfig {

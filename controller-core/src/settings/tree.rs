@@ -31,8 +31,9 @@ use super::offsets::{ToolTable, WorkOffsets};
 
 /// Version of the tree's layout, stored with every record (see the module docs). 3: the
 /// work offsets, the tool table and the planner's servo reserve; 4: the holding brakes
-/// (`axis.<a>.brake`); 5: the machine's safety switches (`safety.*`).
-pub const SETTINGS_VERSION: u16 = 5;
+/// (`axis.<a>.brake`); 5: the machine's safety switches (`safety.*`); 6: the motor's and
+/// the encoder's direction (`axis.<a>.motor.invert`, `axis.<a>.encoder.invert`).
+pub const SETTINGS_VERSION: u16 = 6;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -114,6 +115,21 @@ pub struct LawSettings {
 pub struct EncoderSettings {
     /// Quadrature counts per mm of travel (lines × 4 / screw lead).
     pub counts_per_mm: f32,
+    /// The encoder counts down when the axis moves forward (A and B swapped, or mounted the
+    /// other way): the servo counts it the other way round (bring-up, docs/bring-up.md).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub invert: bool,
+}
+
+/// An axis' motor as the amplifier drives it.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct MotorSettings {
+    /// A positive command turns the motor backwards (phases or the amplifier's direction
+    /// input wired the other way): the servo writes every effort negated.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub invert: bool,
 }
 
 /// An axis' amplifier scale.
@@ -137,6 +153,9 @@ pub struct AxisSettings {
     #[cfg_attr(feature = "serde", serde(default))]
     pub model: Option<AxisModel>,
     pub encoder: EncoderSettings,
+    /// (absent from files written before the motor's direction existed: not inverted)
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub motor: MotorSettings,
     pub amplifier: AmplifierSettings,
     /// Following error allowed at rest, mm (LinuxCNC MIN_FERROR).
     pub min_ferror_mm: f32,
@@ -292,7 +311,9 @@ const fn factory_axis(i: usize) -> AxisSettings {
         model: None,
         encoder: EncoderSettings {
             counts_per_mm: GANTRY_ENCODERS[i].counts_per_mm,
+            invert: false,
         },
+        motor: MotorSettings { invert: false },
         amplifier: AmplifierSettings {
             full_scale: GANTRY_AMPLIFIERS[i].full_scale,
         },

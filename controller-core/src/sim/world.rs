@@ -311,6 +311,8 @@ struct WorldFaults {
     ext_until_s: [f64; AXES],
     /// Extra Coulomb friction, as an acceleration magnitude, units/s².
     drag: [f64; AXES],
+    /// The motor turns backwards for a positive command (its wiring reversed).
+    motor_reversed: [bool; AXES],
 }
 
 /// A fault the simulated machine can be given.
@@ -337,6 +339,10 @@ pub enum Injection {
     },
     /// The encoder counts backwards from here on (swapped A/B).
     EncoderReversed { axis: crate::axes::Axis },
+    /// The motor turns backwards for a positive command from here on (its phases or the
+    /// amplifier's direction input wired the other way: what `axis.<a>.motor.invert`
+    /// undoes at bring-up).
+    MotorReversed { axis: crate::axes::Axis },
     /// An external acceleration acts on the axis (units/s²) for `for_s` seconds (`inf`:
     /// from here on): an obstruction, an impact, a falling load.
     ExternalAccel {
@@ -627,6 +633,7 @@ impl World {
             Injection::EncoderReversed { axis } => {
                 self.faults.reversed[axis.index()] = Some(counts[axis.index()])
             }
+            Injection::MotorReversed { axis } => self.faults.motor_reversed[axis.index()] = true,
             Injection::ExternalAccel {
                 axis,
                 accel_mm_s2,
@@ -796,8 +803,15 @@ impl<R: Real> ServoIo<R> for World {
     }
 
     fn write_outputs(&mut self, effort: &[R; AXES]) {
-        for ((e, u), lim) in self.effort.iter_mut().zip(effort).zip(self.full_scale) {
-            *e = u.to_f64().max(-lim).min(lim);
+        for (((e, u), lim), back) in self
+            .effort
+            .iter_mut()
+            .zip(effort)
+            .zip(self.full_scale)
+            .zip(self.faults.motor_reversed)
+        {
+            let u = if back { -u.to_f64() } else { u.to_f64() };
+            *e = u.max(-lim).min(lim);
         }
         self.outputs_on = true;
     }

@@ -508,7 +508,6 @@ pub fn run_program<T: Transport>(
         }
         c.sleep_ms(POLL_MS)?;
     };
-    drop(account);
     if let Some(b) = bar {
         b.finish_and_clear();
     }

@@ -375,7 +375,7 @@ fn interrupted_first_save_gives_factory() {
     // model even the cut before the first byte leaves some of its bits cleared); the cuts
     // before the record's padding byte (0xFF: nothing left to program), and the complete
     // save load it
-    assert_eq!(counts, [2, 0, 0, ops - 1]);
+    assert_eq!(counts, [4, 0, 0, ops - 3]);
 }
 
 #[test]
@@ -389,8 +389,8 @@ fn interrupted_save_keeps_the_previous_record() {
         counts[1],
         counts[3]
     );
-    // every cut before the last byte (the padding) keeps the previous record
-    assert_eq!(counts, [2, ops - 1, 0, 0]);
+    // every cut before the last 3 bytes (the padding) keeps the previous record
+    assert_eq!(counts, [4, ops - 3, 0, 0]);
 }
 
 #[test]
@@ -418,8 +418,8 @@ fn interrupted_save_that_erases_a_page_keeps_the_previous_record() {
     );
     // the 2048 byte erases are part of it (the page is random bytes after a cut in
     // them); every cut before the padding keeps the previous record
-    assert_eq!(ops, 2048 + 580);
-    assert_eq!(counts, [2, ops - 1, 0, 0]);
+    assert_eq!(ops, 2048 + 588);
+    assert_eq!(counts, [4, ops - 3, 0, 0]);
 }
 
 #[test]
@@ -438,8 +438,9 @@ fn record_size() {
     // 3 models × 16 bytes more
     assert_eq!(with_models, factory + 3 * 16);
     // 345 before the work offsets (9 × 3 × 4 bytes), the tool table (8 × 2 × 4 bytes),
-    // the brakes (3 × (1 + 4 + 4) bytes) and the safety switch (1 byte)
-    assert_eq!(factory, 345 + 108 + 64 + 27 + 1);
+    // the brakes (3 × (1 + 4 + 4) bytes), the safety switch (1 byte) and the motors' and
+    // encoders' directions (3 × 2 bytes)
+    assert_eq!(factory, 345 + 108 + 64 + 27 + 1 + 6);
     // in flash on the STM32 (1-byte words): header + version + tree
     type F4 = BlockingFlash<RamFlash<8192, 4096>>;
     assert_eq!(
@@ -455,7 +456,7 @@ fn record_layout_is_pinned() {
     // If this fails, the stored record changed. Changed layout (a field added, removed,
     // retyped or moved): bump SETTINGS_VERSION. Only factory values changed: update the
     // pin. Either way old records must not be misread.
-    const PIN: (u16, u32) = (5, 455_145_186);
+    const PIN: (u16, u32) = (6, 2_035_395_593);
     let mut all_models = FACTORY;
     for (a, m) in all_models.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
         a.model = Some(m);
