@@ -72,13 +72,16 @@ mod board_expect {
             "TIM5" => 0x4000_0C00,
             "USART2" => 0x4000_4400,
             "IWDG" => 0x4000_3000,
+            "SYSCFG" => 0x4001_3800,
+            "EXTI" => 0x4001_3C00,
             "SCB" => 0xE000_ED00,
             _ => return None,
         })
     }
 
-    /// Register offsets (RM0090 6.3, 3.9, 17.4, 18.4, 30.6, 21.4; PM0214 4.4), and the
-    /// field a name stands for when it is not a register (`BOR_LEV`: OPTCR bits 2-3).
+    /// Register offsets (RM0090 6.3, 3.9, 17.4, 18.4, 30.6, 21.4, 9.2, 12.3; PM0214 4.4),
+    /// and the field a name stands for when it is not a register (`BOR_LEV`: OPTCR bits
+    /// 2-3).
     fn offset(periph: &str, reg: &str) -> Option<(u32, u8, u8)> {
         let whole = |o| Some((o, 0, 32));
         match (periph, reg) {
@@ -101,6 +104,10 @@ mod board_expect {
             ("IWDG", "PR") => whole(0x04),
             ("IWDG", "RLR") => whole(0x08),
             ("SCB", "SHPR3") => whole(0x20),
+            ("SYSCFG", "EXTICR1") => whole(0x08),
+            ("EXTI", "IMR") => whole(0x00),
+            ("EXTI", "RTSR") => whole(0x08),
+            ("EXTI", "FTSR") => whole(0x0C),
             _ => None,
         }
     }

@@ -4,14 +4,16 @@
 //! request. The twin reads what the board's pins drive (TIM1's duty and the DIR, enable
 //! and brake pins), asks for one period, and puts the answer back on the board: the
 //! counts into the encoder timers, the limit switches and amplifier faults onto their
-//! input pins.
+//! input pins, and each index pulse the period passed onto its index pin, with the count
+//! the encoder gave there (the world's own index model, [`World::index_counts`]: what
+//! `read_index` gives host-sim's servo, before the counter's width).
 //!
 //! The protocol (little-endian, fixed-size records; `twin-plant` answers every request
 //! before it reads the next):
 //!
 //! | request | bytes | answer |
 //! |---|---|---|
-//! | `S` step one period | `S`, u8 enable mask, u8 brake-released mask, 3 × f64 signed duty (−1..1, + = DIR low) | 3 × i64 encoder counts, u8 limits (bit 2i: axis i's min switch, 2i+1: max), u8 amplifier faults |
+//! | `S` step one period | `S`, u8 enable mask, u8 brake-released mask, 3 × f64 signed duty (−1..1, + = DIR low) | 3 × i64 encoder counts, u8 limits (bit 2i: axis i's min switch, 2i+1: max), u8 amplifier faults, u8 index mask (bit i: axis i passed its index in the period), 3 × i64 the count at that index (0 where none) |
 //! | `T` true state | `T` | 3 × f64 position mm, 3 × f64 velocity mm/s |
 //! | `J` inject a fault | `J`, u16 length, that many bytes of one [`Injection`] as JSON | u8 0 taken, 1 refused |
 //!
@@ -28,7 +30,7 @@ use controller_core::sim::world::{Injection, World};
 /// Bytes of an `S` request after its tag.
 pub const STEP_REQUEST_BYTES: usize = 2 + 8 * AXES;
 /// Bytes of an `S` answer.
-pub const STEP_ANSWER_BYTES: usize = 8 * AXES + 2;
+pub const STEP_ANSWER_BYTES: usize = 8 * AXES + 3 + 8 * AXES;
 /// Largest `J` payload.
 const INJECTION_MAX_BYTES: usize = 1024;
 
@@ -50,6 +52,9 @@ pub struct Sensed {
     /// Per axis `[min, max]` switch active.
     pub limits: [[bool; 2]; AXES],
     pub amp_fault: [bool; AXES],
+    /// Per axis the index pulse passed in the period, as the encoder count there (the
+    /// frame of `counts`); `None`: none passed.
+    pub index: [Option<i64>; AXES],
 }
 
 /// The amplifiers and the axes.
@@ -87,6 +92,7 @@ impl TwinPlant {
             counts: self.world.reported_counts(),
             limits: inputs.limits,
             amp_fault: inputs.amp_fault,
+            index: self.world.index_counts(),
         }
     }
 
@@ -129,6 +135,15 @@ pub fn encode_sensed(s: &Sensed) -> [u8; STEP_ANSWER_BYTES] {
     }
     out[8 * AXES] = limits;
     out[8 * AXES + 1] = faults;
+    let mut index = 0u8;
+    for (i, n) in s.index.iter().enumerate() {
+        if let Some(n) = n {
+            index |= 1 << i;
+            let at = 8 * AXES + 3 + 8 * i;
+            out[at..at + 8].copy_from_slice(&n.to_le_bytes());
+        }
+    }
+    out[8 * AXES + 2] = index;
     out
 }
 
@@ -235,6 +250,38 @@ mod tests {
         assert_eq!(y, p.world().reported_counts()[1]);
         assert!(y.abs() <= 1, "y counts {y}");
         assert!(p.world().state()[0].vel > 0.0);
+    }
+
+    /// X driven forward across several revolutions: each index pulse is reported once, in
+    /// the period that passed it, at the encoder's count there (a multiple of the
+    /// revolution's 8000 counts: the simulated encoder has no jitter), between the
+    /// period's start and end counts; Y, at rest, reports none.
+    #[test]
+    fn a_step_that_passes_the_index_reports_the_count_there() {
+        let mut p = plant();
+        let drive = Drive {
+            enabled: [true, false, false],
+            brake_released: [false; AXES],
+            duty: [0.5, 0.0, 0.0],
+        };
+        let mut last = p.world().reported_counts()[0];
+        let mut seen = Vec::new();
+        for _ in 0..20_000 {
+            let s = p.step(&drive);
+            let x = s.counts[0];
+            if let Some(n) = s.index[0] {
+                assert!(last < n && n <= x, "index at {n} outside ({last}, {x}]");
+                seen.push(n);
+            }
+            assert_eq!(s.index[1], None);
+            let raw = encode_sensed(&s);
+            assert_eq!(raw[8 * AXES + 2] & 1, u8::from(s.index[0].is_some()));
+            last = x;
+        }
+        assert!(seen.len() >= 3, "index pulses {seen:?} over {last} counts");
+        for (k, n) in seen.iter().enumerate() {
+            assert_eq!(*n, 8000 * (k as i64 + 1), "{seen:?}");
+        }
     }
 
     #[test]

@@ -252,8 +252,9 @@ pub struct World {
     pending: [f64; AXES],
     /// Counts at the previous reading (index crossings).
     last_counts: [i64; AXES],
-    /// The index pulse of the last period, as the counter captured it.
-    index: [Option<u32>; AXES],
+    /// The index pulse of the last period: the count the encoder reported as it passed
+    /// (before the counter's width, [`World::index_counts`]).
+    index: [Option<i64>; AXES],
     brakes: WorldBrakes,
 }
 
@@ -498,8 +499,7 @@ impl World {
                 };
                 // the counter captures what it holds as the index passes: the true
                 // count there with the jitter and whatever counts the faults lost
-                self.index[i] =
-                    crossed.map(|m| (self.report(i, m as f64) as u32) & self.counter_mask[i]);
+                self.index[i] = crossed.map(|m| self.report(i, m as f64));
             }
         }
         self.last_counts = counts;
@@ -594,6 +594,15 @@ impl World {
             n = frozen;
         }
         n
+    }
+
+    /// Per axis the index pulse passed in the period up to the last reading of the inputs
+    /// (`ServoIo::read_inputs`), as the encoder's count there ([`Self::reported_counts`]'s
+    /// frame, not truncated to the counter's width: `read_index` gives it truncated); `None`
+    /// where no index passed. The board twin puts it into its encoder timers, whose counts
+    /// carry the firmware's own offset.
+    pub fn index_counts(&self) -> [Option<i64>; AXES] {
+        self.index
     }
 
     /// The counter registers as the board's timers would read them.
@@ -799,7 +808,12 @@ impl<R: Real> ServoIo<R> for World {
     }
 
     fn read_index(&mut self) -> [Option<u32>; AXES] {
-        self.index
+        let mut raw = [None; AXES];
+        for ((r, n), mask) in raw.iter_mut().zip(self.index).zip(self.counter_mask) {
+            // two's-complement truncation to the register width, as the timer counts
+            *r = n.map(|n| n as u32 & mask);
+        }
+        raw
     }
 
     fn write_outputs(&mut self, effort: &[R; AXES]) {

@@ -29,6 +29,13 @@ HEALTHY_INPUTS = (
     + [(p, 0) for p in INDEX.values()]
 )
 
+# alternate functions that take a pin into a timer's input: (port, pin, af) -> (timer,
+# channel 0..3): the index inputs' input capture (TIM2_CH3 on PB10, TIM3_CH3 on PB0)
+AF_INPUTS = {
+    ("B", 10, 1): ("TIM2", 2),
+    ("B", 0, 2): ("TIM3", 2),
+}
+
 # encoder timers per axis
 ENCODER_TIMER = {"x": "TIM2", "y": "TIM5", "z": "TIM3"}
 

@@ -25,7 +25,8 @@ def read(t, periph, reg):
         return t.tim[periph][reg]
     if periph == "NVIC_IPR":
         return t.scs.priority(16 + int(reg))
-    p = {"USART2": t.usart2, "IWDG": t.iwdg, "RCC": t.rcc, "SCB": t.scs, "FLASH": t.flash}[periph]
+    p = {"USART2": t.usart2, "IWDG": t.iwdg, "RCC": t.rcc, "SCB": t.scs, "FLASH": t.flash,
+         "SYSCFG": t.syscfg, "EXTI": t.exti}[periph]
     if periph == "FLASH" and reg == "BOR_LEV":
         return p.bor_level()
     return p[reg]

@@ -34,11 +34,15 @@ class Exti(Peripheral):
         r(0x0C, "FTSR", 0, 0x7F_FFFF)
         r(0x10, "SWIER", 0, 0x7F_FFFF)
         r(0x14, "PR", 0, 0)
-        self.last = {}
+        self.edges = []  # (t_s, line, rising) of every edge that set a pending bit
 
     def edge(self, line, rising):
-        if (self["RTSR"] if rising else self["FTSR"]) >> line & 1:
+        """An edge on `line`: with its trigger selected (RTSR/FTSR) and the line unmasked
+        (IMR: the pending request is gated by the mask, RM0090 Figure 41), the pending
+        bit and the line's interrupt."""
+        if (self["RTSR"] if rising else self["FTSR"]) >> line & 1 and self["IMR"] >> line & 1:
             self["PR"] |= 1 << line
+            self.edges.append((self.twin.now_s(), line, rising))
             self._irq(line)
 
     def _irq(self, line):

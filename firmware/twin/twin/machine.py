@@ -117,6 +117,16 @@ class Twin:
         for p, lv in board.HEALTHY_INPUTS:
             self.external[p] = lv
         self.encoder = {n: 0 for n in board.ENCODER_TIMER.values()}
+        # the encoders' index pulses (`index_pulse`): every pulse as (t_s, axis, the
+        # encoder's count at the index, the timer's CNT then), the timers' input captures
+        # (t_s, timer, channel, CCR, overcapture), the firmware's reads of a capturing CCR
+        # (t_s, timer, channel, value, CCxIF was set) and its reads of an encoder timer's
+        # CNT while a pulse is up (t_s, timer, value, active exception)
+        self.index_log = []
+        self.captures = []
+        self.ccr_reads = []
+        self.cnt_reads_in_pulse = []
+        self.index_pulse = None
         self.rtt_bytes = bytearray()
         self.unclocked = []  # (t_s, read/write, peripheral) with its clock off
         self.entries = {}  # exception number -> times entered
@@ -171,6 +181,8 @@ class Twin:
     def power_on(self, reset_flags):
         """A reset: the core and every peripheral to their reset state; flash keeps its
         contents, SRAM keeps its contents across a system reset (not across power)."""
+        if getattr(self, "index_pulse", None) is not None:
+            self.end_index_pulse()  # (the encoders count on through a reset)
         sram = None
         ccm = None
         if hasattr(self, "uc"):
@@ -492,10 +504,70 @@ class Twin:
 
     # --- pins ---------------------------------------------------------------------------
     def drive(self, pin, level):
-        """The outside drives `pin` = (port, n) to `level` (0/1)."""
+        """The outside drives `pin` = (port, n) to `level` (0/1). A change of the pin's
+        level is an edge for what listens to it: the EXTI line its SYSCFG_EXTICR routes it
+        to, the timer channel its alternate function takes it into."""
+        g = self.gpio[pin[0]]
+        before = g.level(pin[1])
         self.external[pin] = level
-        self.gpio[pin[0]].external[pin[1]] = level
+        g.external[pin[1]] = level
         self.pins_changed()
+        after = g.level(pin[1])
+        if before is not None and after is not None and before != after:
+            self.pin_edge(pin[0], pin[1], bool(after))
+
+    def pin_edge(self, port, pin, rising):
+        g = self.gpio[port]
+        mode = g.mode(pin)
+        if mode == 3:
+            return  # analog: the Schmitt trigger is off (RM0090 8.3.12)
+        if self.syscfg.port_of_line(pin) == "ABCDE".index(port):
+            self.exti.edge(pin, rising)
+        if mode == 2:
+            sig = board.AF_INPUTS.get((port, pin, g.af(pin)))
+            if sig is not None:
+                self.tim[sig[0]].input_edge(sig[1], rising)
+
+    # --- the encoders' index pulses ---------------------------------------------------------
+    def index_pulses(self, at_index, end):
+        """A plant step that passed index pulses (`at_index`: axis -> the encoder's count at
+        its index; `end`: axis -> the count at the step's end) lands in two parts. The
+        encoder timers count at each step (the plant's step lands at once), so the pulse
+        is put where the count passes through the index: first the counts at the index
+        with the index pins high (the rising edge: TIM2/TIM3 capture CNT, EXTI1 pends),
+        then the step's end counts with the pins low. The pulse lasts while the core runs
+        the exceptions its edge made it take at once (`end_index_pulse`: EXTI1's task
+        reads TIM5_CNT at the index, as the board's does within 0.2 µs of the edge); it
+        ends at once when none is taken."""
+        self.end_index_pulse()
+        for a, n in at_index.items():
+            timer = board.ENCODER_TIMER[a]
+            self.encoder[timer] = n
+            self.index_log.append((self.now_s(), a, n, self.tim[timer].cnt()))
+        self.index_pulse = (dict(end), len(self.scs.active))
+        for a in at_index:
+            self.drive(board.INDEX[a], 1)
+
+    def end_index_pulse(self):
+        if self.index_pulse is None:
+            return
+        end, _ = self.index_pulse
+        self.index_pulse = None
+        for a, n in end.items():
+            self.encoder[board.ENCODER_TIMER[a]] = n
+        for a in end:
+            self.drive(board.INDEX[a], 0)
+
+    def _land_step(self):
+        """The plant's step under way lands between two runs of the core, where an
+        exception its index pulse raises can be taken before the next instruction."""
+        self.plant.settle(between_runs=True)
+        if self.index_pulse is None:
+            return
+        while self._take_pending():
+            pass
+        if self.index_pulse is not None and len(self.scs.active) <= self.index_pulse[1]:
+            self.end_index_pulse()
 
     def af_level(self, port, pin, af):
         sig = board.AF_OUTPUTS.get((port, pin, af))
@@ -581,6 +653,11 @@ class Twin:
         if self.plant is not None:
             self.plant.settle()
         return self.encoder[timer]
+
+    def cnt_read(self, timer, value):
+        """The core read an encoder timer's CNT (recorded while an index pulse is up)."""
+        if self.index_pulse is not None:
+            self.cnt_reads_in_pulse.append((self.now_s(), timer, value, self.scs.active[-1] if self.scs.active else None))
 
     def inputs_read(self):
         """The core reads an input port: the plant's step under way lands first."""
@@ -680,6 +757,9 @@ class Twin:
             exc_return = 0xFFFF_FF00 | (pc & 0xFF) | 1
             try:
                 self.scs.active.pop()
+                if self.index_pulse is not None and len(self.scs.active) <= self.index_pulse[1]:
+                    # the exception the index pulse's edge raised returns: the pulse ends
+                    self.end_index_pulse()
                 self.pc = exceptions.exit_(self, exc_return)
             except (TwinError, IndexError) as e:
                 self.fail(TwinError(f"exception return at 0x{pc:08x}: {e}"))
@@ -772,6 +852,8 @@ class Twin:
             self._at_exit()
         while self._take_pending():
             pass
+        if self.plant is not None and self.plant.pending:
+            self._land_step()
         ev = self._next_event()
         if self.sleeping:
             if self._wakes():

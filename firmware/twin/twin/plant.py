@@ -1,7 +1,8 @@
 """The closed loop: the board's drive pins → the amplifiers and axes of `gantry --sim`
 (controller-core's `sim` world, run by the `twin-plant` helper: host-sim/src/twin_plant.rs
 has its protocol) → quadrature counts into the encoder timers, limit switches and
-amplifier faults onto their input pins.
+amplifier faults onto their input pins, and the index pulses the step passed onto the
+index pins with the count each came at (`Twin.index_pulses`).
 
 The plant integrates one control period per step, at each of TIM4's update events (the
 control tick): it holds, over the period that just ended, the drive the pins give at its
@@ -18,7 +19,7 @@ from . import board
 from .regs import TwinError
 
 STEP = struct.Struct("<cBB3d")
-SENSED = struct.Struct("<3qBB")
+SENSED = struct.Struct("<3qBBB3q")
 TRUTH = struct.Struct("<6d")
 
 
@@ -101,18 +102,26 @@ class Plant:
 
     pending = False
 
-    def settle(self):
+    def settle(self, between_runs=False):
         """The step under way, onto the board's inputs: the counts into the encoder timers,
-        the switches and amplifier faults onto their pins."""
+        the switches and amplifier faults onto their pins, the index pulses onto theirs.
+        `between_runs`: the run loop lands it where the core can take what the index
+        pulse raises before its next instruction (`Twin._land_step`); anywhere else (an
+        access of the core, a scenario between runs) the pulse ends at once."""
         if not self.pending:
             return
         self.pending = False
-        *counts, limits, faults = SENSED.unpack(self._read(SENSED.size))
+        v = SENSED.unpack(self._read(SENSED.size))
+        counts, limits, faults, index, at_index = v[:3], v[3], v[4], v[5], v[6:]
         self.steps += 1
         t = self.twin
+        # (an index pulse still up ends first: its step's counts land before this one's)
+        t.end_index_pulse()
+        passed = {a: at_index[i] for i, a in enumerate(board.AXES) if index >> i & 1}
         for a, c in zip(board.AXES, counts):
-            t.encoder[board.ENCODER_TIMER[a]] = c
-        self.counts = counts
+            if a not in passed:
+                t.encoder[board.ENCODER_TIMER[a]] = c
+        self.counts = list(counts)
         want = {}
         for i, a in enumerate(board.AXES):
             want[board.LIMITS[f"{a}-"]] = limits >> (2 * i) & 1
@@ -122,6 +131,10 @@ class Plant:
             if self.levels.get(pin) != lv:
                 self.levels[pin] = lv
                 t.drive(pin, lv)
+        if passed:
+            t.index_pulses(passed, {a: counts[board.AXES.index(a)] for a in passed})
+            if not between_runs:
+                t.end_index_pulse()
 
     def truth(self):
         """The axes' true positions (mm) and velocities (mm/s)."""

@@ -1,12 +1,13 @@
 """Scenarios the board twin runs against the release ELF, each a list of checks with the
 measured value and its bound."""
 
+import re
 import struct
 import time
 
 from unicorn.arm_const import UC_ARM_REG_LR, UC_ARM_REG_R0, UC_ARM_REG_SP
 
-from . import expect
+from . import board, expect
 from .machine import SRAM_BASE, Twin
 from .regs import TwinError
 from .rcc import CSR_BORRSTF, CSR_IWDGRSTF, CSR_PINRSTF, CSR_PORRSTF
@@ -333,5 +334,112 @@ def board_config(elf, log_path):
     return out, {"machine_s": BOOT_RUN_S}
 
 
+# the encoders' index pulses: each axis pushed through several revolutions by an external
+# force while the board is disarmed (its servo checks the index in every state): (axis,
+# mm/s², s), 27–37 mm each (5 to 7 pulses), at rest again by the end. X and Y have no
+# brake; Z's holds it until a hard push breaks it away (Z falls through its 16-bit
+# counter's negative counts)
+INDEX_PUSH = (("x", 3000.0, 0.1), ("y", -1800.0, 0.1), ("z", -40000.0, 0.025))
+INDEX_PUSH_AT_S = 0.15
+INDEX_RUN_S = 0.8
+# glitches injected after the axis' first index pulse (before its second): X's 3 counts
+# are within `safety.index_max_correction_counts` (16): corrected at the next pulse; Y's
+# 40 are not: `encoder_index` on y. Z gets none.
+INDEX_GLITCH = {"x": 3, "y": 40}
+INDEX_COUNTS_PER_MM = 1600
+# exception number of EXTI1 (IRQ 7): the firmware's y_index task
+EXTI1_EXC = 16 + 7
+
+
+def index(elf, log_path):
+    """The encoders' index pulses from the closed loop's plant (`twin-plant`, controller-
+    core's sim world: one pulse per 8000 counts): the board, disarmed, its axes pushed
+    through several revolutions. X's and Z's pulses are captured by TIM2/TIM3 channel 3
+    (CCR3 latches CNT), Y's raise EXTI1, whose task reads TIM5_CNT; each capture must be
+    the count the timer holds at the pulse, exactly, and reach the servo's index check:
+    a glitch of 3 counts on X is corrected at the next pulse (X's position then agrees
+    with the plant's count less the glitch), one of 40 on Y faults `encoder_index`, Z
+    (no glitch) ends where the plant says."""
+    from .plant import Plant
+    t = Twin(elf)
+    rtt = RttReader(t, elf, log_path)
+    t.plant = Plant(t)
+    try:
+        t.run(INDEX_PUSH_AT_S, poll=rtt.poll)
+        for a, acc, for_s in INDEX_PUSH:
+            t.plant.inject({"external_accel": {"axis": a, "accel_mm_s2": acc, "for_s": for_s}})
+        glitched = {}
+        while t.t_s < INDEX_RUN_S:
+            t.run(min(INDEX_RUN_S, t.t_s + 1e-3), poll=rtt.poll)
+            for a, n in INDEX_GLITCH.items():
+                pulses = [p for p in t.index_log if p[1] == a]
+                if a not in glitched and pulses:
+                    t.plant.inject({"encoder_jump": {"axis": a, "counts": n}})
+                    glitched[a] = (t.t_s, len(pulses))
+        counts = list(t.plant.counts)
+        rtt.poll()
+    finally:
+        t.plant.close()
+    lines = rtt.close()
+    out = []
+    period_s = 1 / CONTROL_HZ
+    for i, a in enumerate(("x", "y", "z")):
+        pulses = [p for p in t.index_log if p[1] == a]
+        out.append(check(f"{a}: index pulses from the plant", len(pulses), ">= 3", len(pulses) >= 3))
+        expected = [p[3] for p in pulses]
+        timer = {"x": "TIM2", "y": "TIM5", "z": "TIM3"}[a]
+        if a == "y":
+            # EXTI1's task reads TIM5_CNT while the pulse is up
+            reads = [v for _, tm, v, exc in t.cnt_reads_in_pulse if tm == timer and exc == EXTI1_EXC]
+            out.append(check("y: TIM5_CNT read by the EXTI1 task at each pulse = the count there",
+                             _firsts(reads), _firsts(expected), reads == expected))
+            edges = [e for e in t.exti.edges if e[1] == 1 and e[2]]
+            out.append(check("y: EXTI1 rising edges (pending bits set)", len(edges), len(pulses), len(edges) == len(pulses)))
+        else:
+            caps = [c for c in t.captures if c[1] == timer and c[2] == 2]
+            got = [c[3] for c in caps]
+            out.append(check(f"{a}: {timer}_CCR3 captures at each pulse = CNT there", _firsts(got), _firsts(expected),
+                             got == expected))
+            over = [c for c in caps if c[4]]
+            out.append(check(f"{a}: {timer} overcaptures (CC3OF)", len(over), 0, not over))
+            reads = [r for r in t.ccr_reads if r[1] == timer and r[2] == 2 and r[4]]
+            late = [round((r[0] - c[0]) * 1e6, 3) for r, c in zip(reads, caps)]
+            out.append(check(f"{a}: {timer}_CCR3 read by the control interrupt, each capture once, µs after it",
+                             _firsts(late), f"{len(caps)} reads, each < {period_s * 1e6:.0f} µs",
+                             [r[3] for r in reads] == got and all(0 <= d < period_s * 1e6 for d in late)))
+        pos = _last_pos(lines)
+        n = None if pos is None else round(pos[i] * INDEX_COUNTS_PER_MM)
+        if a == "x":
+            want, what = counts[i] - INDEX_GLITCH["x"], "the plant's count less the glitch (corrected)"
+        else:
+            want, what = counts[i], "the plant's count"
+        out.append(check(f"{a}: position at rest, counts (the firmware's telemetry)", n, f"{want}: {what}", n == want))
+    # the servo's fault records: kind, axis and the phase error it measured, counts
+    faults = []
+    for l in lines:
+        if "FAULT, outputs off: " in l:
+            m = re.search(r"kind: (\w+), axis: (?:Some\()?(\w+)\)?\s*\}, period: \d+, value: ([-\d.]+)", l)
+            faults.append((m.group(1), m.group(2), float(m.group(3))) if m else l)
+    want = [("EncoderIndex", "Y", float(INDEX_GLITCH["y"]))]
+    out.append(check("faults logged (kind, axis, the index check's error in counts)", faults, want, faults == want))
+    levels = {a: t.gpio[p[0]].level(p[1]) for a, p in board.INDEX.items()}
+    out.append(check("index pins at the end (IDR)", levels, "all low", not any(levels.values())))
+    info = {"machine_s": INDEX_RUN_S, "glitches_at_s": {a: round(g[0], 4) for a, g in glitched.items()},
+            "pulses": len(t.index_log), "counts": counts}
+    return out, info
+
+
+def _firsts(v, n=4):
+    return v if len(v) <= n else v[:n] + [f"… {len(v)} in all"]
+
+
+def _last_pos(lines):
+    """The axes' positions, mm, of the last telemetry line."""
+    for l in reversed(lines):
+        if " pos=[" in l:
+            return [float(x) for x in l.split(" pos=[")[1].split("]")[0].split(",")]
+    return None
+
+
 ALL = {"boot": boot, "board_config": board_config, "watchdog": watchdog, "uart_overrun": uart_overrun,
-       "hardfault": hardfault, "panic": panic, "stack_overflow": stack_overflow}
+       "hardfault": hardfault, "panic": panic, "stack_overflow": stack_overflow, "index": index}

@@ -1,5 +1,6 @@
 """TIM1 (advanced: PWM, BDTR with its write-once LOCK, the break input) and TIM2–TIM5
-(general purpose: encoder mode, the control tick's update interrupt), RM0090 §17–18.
+(general purpose: encoder mode, input capture of the encoders' index pulses, the control
+tick's update interrupt), RM0090 §17–18.
 
 A timer counts up at its kernel clock / (PSC + 1) from the RCC's timer clock; PSC, ARR
 (with ARPE) and CCRx (with OCxPE) are preloaded and take effect at the update event, as
@@ -24,6 +25,7 @@ class Timer(Peripheral):
         self.arr_active = 0xFFFF if kind != GP32 else 0xFFFF_FFFF
         self.ccr_active = [0, 0, 0, 0]
         self.enc_offset = 0  # encoder mode: CNT = offset + the axis' counts
+        self.ic_edges = [0, 0, 0, 0]  # input capture: edges counted by each prescaler
         self.bdtr_written = False
         self.next_update = None
         super().__init__(twin, base)
@@ -106,6 +108,13 @@ class Timer(Peripheral):
                     self.twin.outputs_changed(self, t_s)
 
     def on_read_CNT(self):
+        v = self.cnt()
+        if self.twin.index_pulse is not None and self.encoder_mode():
+            self.twin.cnt_read(self.name, v)
+        return v
+
+    def cnt(self):
+        """CNT now."""
         if self.encoder_mode():
             return (self.enc_offset + self.twin.encoder_counts(self.name)) % (self.arr_active + 1)
         if not self.counting():
@@ -123,7 +132,7 @@ class Timer(Peripheral):
 
     def on_write_CR1(self, v, _lanes):
         was = self.counting()
-        cnt = self.on_read_CNT() if was else self["CNT"]
+        cnt = self.cnt() if was else self["CNT"]
         self.store("CR1", v)
         if self.counting() and not was:
             self.cnt_t0, self.cnt_v0 = self.twin.now_s(), cnt
@@ -191,7 +200,7 @@ class Timer(Peripheral):
     def clocks_changed(self):
         if self.counting():
             self._catch_up()
-            cnt = self.on_read_CNT()
+            cnt = self.cnt()
             self.cnt_t0, self.cnt_v0 = self.twin.now_s(), cnt
             self._schedule()
 
@@ -208,7 +217,13 @@ class Timer(Peripheral):
     def on_write_CCR4(self, v, _l):
         self._ccr(3, v)
 
+    def _capturing(self, i):
+        """Channel `i` is an input (CCxS != 00): its CCR is read-only (RM0090 18.4.14)."""
+        return bool(self["CCMR1" if i < 2 else "CCMR2"] >> (8 * (i % 2)) & 3)
+
     def _ccr(self, i, v):
+        if self._capturing(i):
+            return
         self._catch_up()
         self.store(f"CCR{i + 1}", v)
         ccmr = self["CCMR1" if i < 2 else "CCMR2"] >> (8 * (i % 2))
@@ -216,9 +231,68 @@ class Timer(Peripheral):
             self.ccr_active[i] = self[f"CCR{i + 1}"]
             self.twin.outputs_changed(self, self.twin.now_s())
 
+    def on_read_CCR1(self):
+        return self._read_ccr(0)
+
+    def on_read_CCR2(self):
+        return self._read_ccr(1)
+
+    def on_read_CCR3(self):
+        return self._read_ccr(2)
+
+    def on_read_CCR4(self):
+        return self._read_ccr(3)
+
+    def _read_ccr(self, i):
+        v = self[f"CCR{i + 1}"]
+        if self._capturing(i):
+            flag = 1 << (i + 1)
+            self.twin.ccr_reads.append((self.twin.now_s(), self.name, i, v, bool(self["SR"] & flag)))
+            # CCxIF is cleared by software reading CCRx (RM0090 18.4.5)
+            self["SR"] &= ~flag
+            self.twin.irq_level(self.irq, self._irq_line())
+        return v
+
+    # --- input capture (TIM2–TIM5, RM0090 18.3.5) -------------------------------------
+    def input_edge(self, i, rising):
+        """An edge on the pin routed to channel `i`'s input TIi. With CCxS = 01 (ICx mapped
+        on TIx) and CCxE = 1, an edge of the polarity CCxP/CCxNP select (00 rising, 01
+        falling, 11 both), divided by ICxPSC, latches CNT into CCRx and sets CCxIF, and
+        CCxOF if CCxIF was still set (the previous capture not read). The input filter
+        ICxF delays the edge as much as A/B's (the same filter on the board), so the
+        capture holds the count the edge comes with: not modelled further. ICx mapped on
+        the other channel's input or on TRC (CCxS = 10/11) does not see this pin."""
+        if self.kind == ADVANCED:
+            return
+        ccmr = self["CCMR1" if i < 2 else "CCMR2"] >> (8 * (i % 2)) & 0xFF
+        ccer = self["CCER"] >> (4 * i) & 0xF
+        if ccmr & 3 != 1 or not ccer & 1:
+            return
+        pol = (ccer >> 1 & 1, ccer >> 3 & 1)  # (CCxP, CCxNP)
+        if pol == (0, 1):
+            raise TwinError(f"{self.name}: CC{i + 1}P/CC{i + 1}NP = 0/1, a reserved configuration (RM0090 18.4.9)")
+        if not (pol == (1, 1) or rising == (pol == (0, 0))):
+            return
+        self.ic_edges[i] += 1
+        if self.ic_edges[i] % (1 << (ccmr >> 2 & 3)):
+            return  # ICxPSC: one capture every 2, 4 or 8 edges
+        self._catch_up()
+        cnt = self.cnt()
+        flag = 1 << (i + 1)
+        over = bool(self["SR"] & flag)
+        if over:
+            self["SR"] |= 1 << (i + 9)  # CCxOF
+        self[f"CCR{i + 1}"] = cnt
+        self["SR"] |= flag
+        self.twin.captures.append((self.twin.now_s(), self.name, i, cnt, over))
+        self.twin.irq_level(self.irq, self._irq_line())
+
     def on_write_CCER(self, v, _l):
         old = self["CCER"]
         self.store("CCER", v)
+        for i in range(4):
+            if not self["CCER"] >> (4 * i) & 1:
+                self.ic_edges[i] = 0  # the prescaler is reset while CCxE = 0
         if self["CCER"] != old:
             self.twin.outputs_changed(self, self.twin.now_s())
 

@@ -54,7 +54,9 @@ pub enum SimModels {
 
 /// The simulated physical gantry of `gantry --sim` (host-sim/scenarios/gcode.toml: travel
 /// ±150/±150/±50 mm around where it starts) with limit switches where `settings`' homing
-/// expects them, at `rate_hz` (default: the scenario's), and its control rate. Also the
+/// expects them and the machine's encoder index pulses (one per revolution, 8000 counts:
+/// host-sim/machines/gantry.toml), at `rate_hz` (default: the scenario's), and its control
+/// rate. Also the
 /// board twin's plant (`twin-plant`), which passes `board_amplifier`: the amplifier
 /// applies the duty the board's timer drives, unquantised here (the timer's own
 /// resolution is the board's quantisation).
@@ -65,7 +67,17 @@ pub fn gantry_world(
 ) -> Result<(World, u32)> {
     let (run, _) = machine_and_planner(None)?;
     let mut wcfg = run.world;
-    wcfg.switches = SwitchConfig::for_homing(settings);
+    // the switches where homing expects them; the index pulses the machine's encoders give
+    for (sw, homing) in wcfg
+        .switches
+        .iter_mut()
+        .zip(SwitchConfig::for_homing(settings))
+    {
+        *sw = SwitchConfig {
+            index_period_counts: sw.index_period_counts,
+            ..homing
+        };
+    }
     let rate_hz = rate_hz.unwrap_or(run.servo.rate_hz);
     let mut servo_cfg = settings
         .servo_config(rate_hz)
