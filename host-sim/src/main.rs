@@ -32,15 +32,18 @@ struct PaperArgs {
     /// Paper study file (default: the built-in host-sim/scenarios/paper.toml).
     #[arg(long)]
     scenario: Option<PathBuf>,
-    /// Output folder for CSV traces and plots.
+    /// Output folder for the figures (and the CSV traces with --traces).
     #[arg(long, default_value = "out/paper")]
     out: PathBuf,
     /// Also write the results as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Skip CSV and plot output.
+    /// Skip the figures (and the CSV traces).
     #[arg(long)]
     no_plots: bool,
+    /// Also write one CSV trace per run (1 ms samples, about 3.5 MB each, 100 MB in all).
+    #[arg(long, conflicts_with = "no_plots")]
+    traces: bool,
 }
 
 #[derive(Subcommand)]
@@ -81,15 +84,18 @@ enum Command {
     /// The seed methods (DOB-SMC, cross-coupling, adaptive friction SMC) on the physical
     /// gantry: host-sim/scenarios/seeds_*.toml (docs/seed-methods.md).
     Seeds {
-        /// Output folder for CSV traces and plots.
+        /// Output folder for the figures (and the CSV traces with --traces).
         #[arg(long, default_value = "out/seeds")]
         out: PathBuf,
         /// Also write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
-        /// Skip CSV and plot output.
+        /// Skip the figures (and the CSV traces).
         #[arg(long)]
         no_plots: bool,
+        /// Also write one CSV trace per run (about 20 MB in all).
+        #[arg(long, conflicts_with = "no_plots")]
+        traces: bool,
     },
     /// The fault matrix: every fault class injected into the simulated gantry through the
     /// real servo step (host-sim/scenarios/faults.toml); exits non-zero if a case misses
@@ -200,7 +206,8 @@ fn main() -> ExitCode {
             out,
             json,
             no_plots,
-        }) => run_seeds(&out, json.as_deref(), no_plots),
+            traces,
+        }) => run_seeds(&out, json.as_deref(), no_plots, traces),
         Some(Command::Faults { scenario, json }) => {
             run_faults(scenario.as_deref(), json.as_deref())
         }
@@ -258,12 +265,15 @@ fn run_paper(a: &PaperArgs) -> Result<()> {
     }
     if !a.no_plots {
         create_dir(&a.out)?;
-        for (name, r) in &report.traces {
-            write_trace_csv(&a.out.join(format!("{name}.csv")), r)?;
+        if a.traces {
+            for (name, r) in &report.traces {
+                write_trace_csv(&a.out.join(format!("{name}.csv")), r)?;
+            }
         }
         let files = plots::paper_figures(&a.out, &info, &report)?;
         println!(
-            "\nTraces (CSV) and {} figures (PNG + SVG) in {}",
+            "\n{}{} figures (PNG + SVG) in {}",
+            traces_note(a.traces),
             files,
             a.out.display()
         );
@@ -288,7 +298,16 @@ fn run_file(file: &Path, out: &Path, json: Option<&Path>, no_plots: bool) -> Res
     Ok(())
 }
 
-fn run_seeds(out: &Path, json: Option<&Path>, no_plots: bool) -> Result<()> {
+/// What the figures line says about the CSV traces.
+fn traces_note(traces: bool) -> &'static str {
+    if traces {
+        "Traces (CSV) and "
+    } else {
+        "(CSV traces with --traces) "
+    }
+}
+
+fn run_seeds(out: &Path, json: Option<&Path>, no_plots: bool, traces: bool) -> Result<()> {
     let started = Instant::now();
     let rep = seeds::run_builtin()?;
     print!("{}", seeds::table(&rep));
@@ -298,12 +317,15 @@ fn run_seeds(out: &Path, json: Option<&Path>, no_plots: bool) -> Result<()> {
     }
     if !no_plots {
         create_dir(out)?;
-        for (name, r) in &rep.traces {
-            write_trace_csv(&out.join(format!("{name}.csv")), r)?;
+        if traces {
+            for (name, r) in &rep.traces {
+                write_trace_csv(&out.join(format!("{name}.csv")), r)?;
+            }
         }
         let files = seed_plots::seed_figures(out, &rep)?;
         println!(
-            "\nTraces (CSV) and {files} figures (PNG + SVG) in {}",
+            "\n{}{files} figures (PNG + SVG) in {}",
+            traces_note(traces),
             out.display()
         );
     }

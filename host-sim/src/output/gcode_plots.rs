@@ -21,10 +21,13 @@ pub fn figures(dir: &Path, r: &GcodeReport) -> Result<usize> {
     register_font()?;
     let t = &r.trace;
     let scale = t.contour_mm.iter().copied().fold(0.0, f64::max);
-    let legend = format!(
-        "contour error: blue 0 → red {:.2} µm (max {:.2} µm)",
+    let colour = (
+        format!(
+            "contour error (µm), blue 0 to red {:.2} (max of the run {:.2})",
+            scale * 1e3,
+            r.contour_max_mm * 1e3
+        ),
         scale * 1e3,
-        r.contour_max_mm * 1e3
     );
     let coloured = |a: usize, b: usize| -> Vec<(f64, f64, f64)> {
         t.pos_mm
@@ -35,36 +38,42 @@ pub fn figures(dir: &Path, r: &GcodeReport) -> Result<usize> {
     };
     let mut n = both(dir, "path", (1000, 1400), &|add| {
         add(Panel::Coloured {
-            title: format!("{}: tool path (top view)", r.program),
+            title: format!("{}: tool path (top view, equal scales)", r.program),
             xl: "x (mm)".into(),
             yl: "y (mm)".into(),
             points: coloured(0, 1),
+            rapid: t.rapid.clone(),
             scale,
-            legend: legend.clone(),
+            colour: colour.clone(),
         })?;
         add(Panel::Coloured {
-            title: "tool path (side view)".into(),
+            title: "tool path (side view, equal scales)".into(),
             xl: "x (mm)".into(),
             yl: "z (mm)".into(),
             points: coloured(0, 2),
+            rapid: t.rapid.clone(),
             scale,
-            legend: legend.clone(),
+            colour: colour.clone(),
         })
     })?;
     n += both(dir, "feed", (1000, 500), &|add| {
-        add(Panel::Lines {
-            title: format!(
-                "feed ratio along the path (path speed / achievable feed; mean {:.3} on feed moves)",
+        add(Panel::lines(
+            format!(
+                "feed ratio along the path (path speed / achievable feed, 0 on rapids; mean {:.3} on feed moves)",
                 r.feed_ratio_mean
             ),
-            xl: "distance along the path (mm)".into(),
-            yl: "feed ratio".into(),
-            series: vec![Series {
-                name: "feed ratio".into(),
-                color: AXIS_COLORS[0],
-                points: t.along_mm.iter().copied().zip(t.feed_ratio.iter().copied()).collect(),
-            }],
-        })
+            "distance along the path (mm)",
+            ("feed ratio", ""),
+            vec![Series::new(
+                "feed ratio",
+                AXIS_COLORS[0],
+                t.along_mm
+                    .iter()
+                    .copied()
+                    .zip(t.feed_ratio.iter().copied())
+                    .collect(),
+            )],
+        ))
     })?;
     let limits = r.limits;
     n += both(dir, "axes", (1000, 1600), &|add| {
@@ -75,52 +84,43 @@ pub fn figures(dir: &Path, r: &GcodeReport) -> Result<usize> {
             );
             let band = |v: f64| {
                 vec![
-                    Series {
-                        name: format!("limit ±{v}"),
-                        color: LIMIT,
-                        points: vec![(span.0, v), (span.1, v)],
-                    },
-                    Series {
-                        name: String::new(),
-                        color: LIMIT,
-                        points: vec![(span.0, -v), (span.1, -v)],
-                    },
+                    Series::new(format!("limit ±{v}"), LIMIT, vec![(span.0, v), (span.1, v)])
+                        .dashed(),
+                    Series::new("", LIMIT, vec![(span.0, -v), (span.1, -v)]).dashed(),
                 ]
             };
-            let mut vs = vec![Series {
-                name: format!("{name} velocity"),
-                color: AXIS_COLORS[i],
-                points: t
-                    .t_s
+            let mut vs = vec![Series::new(
+                format!("{name} velocity"),
+                AXIS_COLORS[i],
+                t.t_s
                     .iter()
                     .zip(&t.vel_mm_s)
                     .map(|(t, v)| (*t, v[i]))
                     .collect(),
-            }];
+            )];
             vs.extend(band(limits.vel[i]));
-            add(Panel::Lines {
-                title: format!("axis {name}: planned velocity against the limit"),
-                xl: "time (s)".into(),
-                yl: "mm/s".into(),
-                series: vs,
-            })?;
-            let mut acc = vec![Series {
-                name: format!("{name} acceleration"),
-                color: AXIS_COLORS[i],
-                points: t
-                    .t_s
+            add(Panel::lines(
+                format!("axis {name}: planned velocity against the limit"),
+                "time (s)",
+                (&format!("v_{name}"), "mm/s"),
+                vs,
+            ))?;
+            let mut acc = vec![Series::new(
+                format!("{name} acceleration"),
+                AXIS_COLORS[i],
+                t.t_s
                     .iter()
                     .zip(&t.acc_mm_s2)
                     .map(|(t, a)| (*t, a[i]))
                     .collect(),
-            }];
+            )];
             acc.extend(band(limits.acc[i]));
-            add(Panel::Lines {
-                title: format!("axis {name}: planned acceleration against the limit"),
-                xl: "time (s)".into(),
-                yl: "mm/s²".into(),
-                series: acc,
-            })?;
+            add(Panel::lines(
+                format!("axis {name}: planned acceleration against the limit"),
+                "time (s)",
+                (&format!("a_{name}"), "mm/s²"),
+                acc,
+            ))?;
         }
         Ok(())
     })?;

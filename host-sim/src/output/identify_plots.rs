@@ -81,45 +81,29 @@ fn axis_figure(dir: &Path, name: &str, r: &AxisReport) -> Result<usize> {
         .filter(|p| p.0 != 0.0)
         .collect();
     both(dir, &format!("identify_{name}"), (1000, 800), &|add| {
-        add(Panel::Lines {
-            title: format!("Axis {name}: applied effort and the identified model's prediction"),
-            xl: "time (s)".into(),
-            yl: "effort (mN·m)".into(),
-            series: vec![
-                Series {
-                    name: "measured (applied)".into(),
-                    color: MEASURED,
-                    points: measured.clone(),
-                },
-                Series {
-                    name: "predicted: J a + B v + f±".into(),
-                    color: MODEL,
-                    points: predicted.clone(),
-                },
+        add(Panel::lines(
+            format!("Axis {name}: applied effort and the identified model's prediction"),
+            "time (s)",
+            ("effort", "mN·m"),
+            vec![
+                Series::new("measured (applied)", MEASURED, measured.clone()),
+                Series::new("predicted: J a + B v + f±", MODEL, predicted.clone()),
             ],
-        })?;
-        add(Panel::Lines {
-            title: format!("Axis {name}: friction curve (steady motion) and the fitted model"),
-            xl: "velocity (mm/s)".into(),
-            yl: "effort (mN·m)".into(),
-            series: vec![
-                Series {
-                    name: "measured, binned mean (forward)".into(),
-                    color: MEASURED,
-                    points: forward.clone(),
-                },
-                Series {
-                    name: "measured, binned mean (backward)".into(),
-                    color: MEASURED,
-                    points: backward.clone(),
-                },
-                Series {
-                    name: "model B v + f±".into(),
-                    color: MODEL,
-                    points: model_curve.clone(),
-                },
+        ))?;
+        add(Panel::lines(
+            format!("Axis {name}: friction curve (steady motion) and the fitted model"),
+            "velocity (mm/s)",
+            ("effort", "mN·m"),
+            vec![
+                Series::new("measured, binned mean (forward)", MEASURED, forward.clone()),
+                Series::new(
+                    "measured, binned mean (backward)",
+                    MEASURED,
+                    backward.clone(),
+                ),
+                Series::new("model B v + f±", MODEL, model_curve.clone()),
             ],
-        })
+        ))
     })
 }
 

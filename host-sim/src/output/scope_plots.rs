@@ -10,6 +10,17 @@ use std::path::Path;
 const LINE: RGBColor = RGBColor(31, 119, 180);
 const TRIGGER: RGBColor = RGBColor(214, 39, 40);
 
+/// The unit of a scope signal by its name (`pos.x`, `vel.y`, `contour`, …), as
+/// `controller_core::machine::scope::Signal` documents them; effort is the gantry's mN·m.
+pub(crate) fn signal_unit(name: &str) -> &'static str {
+    match name.split('.').next().unwrap_or(name) {
+        "pos" | "ref" | "tracking" | "contour" => "mm",
+        "vel" | "ref_vel" | "sliding" => "mm/s",
+        "effort" => "mN·m",
+        _ => "",
+    }
+}
+
 /// `<stem>.png` and `<stem>.svg` in `dir`; the number of files written.
 pub fn figure(dir: &Path, stem: &str, cap: &Capture) -> Result<usize> {
     register_font()?;
@@ -27,27 +38,24 @@ pub fn figure(dir: &Path, stem: &str, cap: &Capture) -> Result<usize> {
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
                     (l.min(p.1), h.max(p.1))
                 });
-            add(Panel::Lines {
-                title: format!("{name} (trigger at t = 0)"),
-                xl: "time from the trigger (s)".into(),
-                yl: name.clone(),
-                series: vec![
-                    Series {
-                        name: name.clone(),
-                        color: LINE,
-                        points,
-                    },
-                    Series {
-                        name: "trigger".into(),
-                        color: TRIGGER,
-                        points: if lo.is_finite() {
+            add(Panel::lines(
+                format!("{name} (trigger at t = 0)"),
+                "time from the trigger (s)",
+                (name, signal_unit(name)),
+                vec![
+                    Series::new(name.clone(), LINE, points),
+                    Series::new(
+                        "trigger",
+                        TRIGGER,
+                        if lo.is_finite() {
                             vec![(0.0, lo), (0.0, hi)]
                         } else {
                             vec![]
                         },
-                    },
+                    )
+                    .dashed(),
                 ],
-            })?;
+            ))?;
         }
         Ok(())
     })

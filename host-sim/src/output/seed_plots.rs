@@ -84,24 +84,27 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
                     else {
                         continue;
                     };
-                    series.push(Series {
-                        name: format!("{ax} estimate"),
-                        color: AXIS_COLORS[i],
-                        points: rep.estimates.iter().map(|e| (e.t, e.axes[i][p])).collect(),
-                    });
+                    series.push(Series::new(
+                        format!("{ax} estimate"),
+                        AXIS_COLORS[i],
+                        rep.estimates.iter().map(|e| (e.t, e.axes[i][p])).collect(),
+                    ));
                     let t_end = rep.estimates.last().map_or(1.0, |e| e.t);
-                    series.push(Series {
-                        name: format!("{ax} truth"),
-                        color: BLACK,
-                        points: vec![(0.0, truth), (t_end, truth)],
-                    });
+                    series.push(
+                        Series::new(
+                            format!("{ax} truth"),
+                            AXIS_COLORS[i],
+                            vec![(0.0, truth), (t_end, truth)],
+                        )
+                        .dashed(),
+                    );
                 }
-                add(Panel::Lines {
-                    title: format!("Adaptive SMC: {name} estimate vs truth (friction_sine)"),
-                    xl: "t [s]".into(),
-                    yl: format!("{name} [{}]", units[p]),
+                add(Panel::lines(
+                    format!("Adaptive SMC: {name} estimate vs truth (friction_sine)"),
+                    "t (s)",
+                    (name, units[p]),
                     series,
-                })?;
+                ))?;
             }
             Ok(())
         })?;
@@ -116,34 +119,37 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
             for (i, ax) in ["x", "y"].iter().enumerate() {
                 let series = runs
                     .iter()
-                    .map(|(law, r)| Series {
-                        name: if *law == "SMC" {
-                            "fixed SMC".into()
-                        } else {
-                            "adaptive SMC".into()
-                        },
-                        color: seed_color(law),
-                        points: (0..r.trace.t.len())
-                            .filter(|&k| {
-                                let t = r.trace.t[k];
-                                (REVERSAL_PLOT_FROM_S..REVERSAL_PLOT_FROM_S + REVERSAL_PLOT_LEN_S)
-                                    .contains(&t)
-                            })
-                            .map(|k| {
-                                let e = r.trace.reference[k][i] - r.trace.position[k][i];
-                                (r.trace.t[k], e * 1e3)
-                            })
-                            .collect(),
+                    .map(|(law, r)| {
+                        Series::new(
+                            if *law == "SMC" {
+                                "fixed SMC"
+                            } else {
+                                "adaptive SMC"
+                            },
+                            seed_color(law),
+                            (0..r.trace.t.len())
+                                .filter(|&k| {
+                                    let t = r.trace.t[k];
+                                    (REVERSAL_PLOT_FROM_S
+                                        ..REVERSAL_PLOT_FROM_S + REVERSAL_PLOT_LEN_S)
+                                        .contains(&t)
+                                })
+                                .map(|k| {
+                                    let e = r.trace.reference[k][i] - r.trace.position[k][i];
+                                    (r.trace.t[k], e * 1e3)
+                                })
+                                .collect(),
+                        )
                     })
                     .collect();
-                add(Panel::Lines {
-                    title: format!(
+                add(Panel::lines(
+                    format!(
                         "Tracking error e_{ax} after convergence: reversals at the peaks of the 2 Hz sine"
                     ),
-                    xl: "t [s]".into(),
-                    yl: format!("e_{ax} [µm]"),
+                    "t (s)",
+                    (&format!("e_{ax}"), "µm"),
                     series,
-                })?;
+                ))?;
             }
             Ok(())
         })?;
@@ -162,19 +168,15 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
             first.trace.reference.iter().map(|p| (p[0], p[1])).collect();
         files += both(dir, &format!("seeds_contour_{sc}"), (1000, 1600), &|add| {
             for base in ["DOB-SMC", "PID"] {
-                let mut series = vec![Series {
-                    name: "reference".into(),
-                    color: BLACK,
-                    points: reference.clone(),
-                }];
+                let mut series = vec![Series::new("reference", BLACK, reference.clone())];
                 for (l, r) in laws
                     .iter()
                     .filter(|(l, _)| l.trim_end_matches("+ccc") == base)
                 {
-                    series.push(Series {
-                        name: l.clone(),
-                        color: seed_color(l),
-                        points: (0..r.trace.t.len())
+                    series.push(Series::new(
+                        l.clone(),
+                        seed_color(l),
+                        (0..r.trace.t.len())
                             .map(|k| {
                                 let (ex, ey) = normal_error(r, k);
                                 let p = r.trace.reference[k];
@@ -184,36 +186,39 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
                                 )
                             })
                             .collect(),
-                    });
+                    ));
                 }
-                add(Panel::Lines {
-                    title: format!(
+                add(Panel::path(
+                    format!(
                         "{sc}, {base} with/without cross-coupling: contour deviation ×{CONTOUR_MAGNIFICATION} (load step on X at 1.5 s)"
                     ),
-                    xl: "x [mm]".into(),
-                    yl: "y [mm]".into(),
+                    "x (mm)",
+                    ("y", "mm"),
                     series,
-                })?;
+                ))?;
             }
             let series = laws
                 .iter()
-                .map(|(l, r)| Series {
-                    name: l.clone(),
-                    color: seed_color(l),
-                    points: (0..r.trace.t.len())
-                        .map(|k| {
-                            let (ex, ey) = normal_error(r, k);
-                            (r.trace.t[k], (ex * ex + ey * ey).sqrt() * 1e3)
-                        })
-                        .collect(),
+                .map(|(l, r)| {
+                    Series::new(
+                        l.clone(),
+                        seed_color(l),
+                        (0..r.trace.t.len())
+                            .map(|k| {
+                                let (ex, ey) = normal_error(r, k);
+                                (r.trace.t[k], (ex * ex + ey * ey).sqrt() * 1e3)
+                            })
+                            .collect(),
+                    )
                 })
                 .collect();
-            add(Panel::Lines {
-                title: format!("{sc}: contour error (normal part of the XY error)"),
-                xl: "t [s]".into(),
-                yl: "|ε| [µm]".into(),
+            add(Panel::lines(
+                format!("{sc}: contour error (normal part of the XY error)"),
+                "t (s)",
+                ("|ε|", "µm"),
                 series,
-            })
+            )
+            .log_auto())
         })?;
     }
     Ok(files)

@@ -184,6 +184,8 @@ pub struct Trace {
     /// distance along the reference, mm.
     pub feed_ratio: Vec<f64>,
     pub along_mm: Vec<f64>,
+    /// Per sample: the segment running is a rapid (G0/G28 move), drawn apart from the cuts.
+    pub rapid: Vec<bool>,
     pub limits: Option<LimitsJson>,
 }
 

@@ -205,6 +205,10 @@ impl<'a> PathMetrics<'a> {
             t.acc_mm_s2.push(s.acc_mm_s2);
             t.feed_ratio.push(feed_ratio);
             t.along_mm.push(s.along_mm);
+            t.rapid.push(matches!(
+                self.path.moves.get(s.tag).map(|m| &m.kind),
+                Some(MoveKind::Rapid { .. })
+            ));
         }
     }
 
