@@ -44,9 +44,10 @@ impl Server {
             .arg(pty)
             .arg("--flash")
             .arg(flash)
-            // fast enough that a test's homing-free steps take a moment, slow enough that
-            // a loaded CI host keeps its link serviced
-            .args(["--speed", "5"])
+            // real time, as served by default: a faster machine shortens the link
+            // watchdog's 500 ms in wall time, which a loaded CI host's process start-up
+            // can exceed between a handshake and the next frame
+            .args(["--speed", "1"])
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
@@ -141,7 +142,7 @@ fn a_served_machine_keeps_its_settings_and_arming_between_commands_and_its_flash
     // armed by one command, still armed (and without a `LinkLost`) for the next, well
     // past the link watchdog's 500 ms of machine time
     ok(&pty, &["arm"]);
-    std::thread::sleep(Duration::from_millis(400)); // 2 s of machine time at 5 x
+    std::thread::sleep(Duration::from_millis(1200)); // past the 500 ms watchdog
     let s = status(&pty);
     assert_eq!(s["state"], "Idle", "{s}");
     assert!(s["first_fault"].is_null(), "{s}");
