@@ -414,31 +414,21 @@ impl MachinePort for LinkSide<'_, '_> {
                     self.state.accepted = self.state.accepted.wrapping_add(1);
                 }
             }
-            Down::SessionStarted => {
-                // the old session's requests that never went down are dropped here, those
-                // queued in the machine there
+            d @ (Down::SessionStarted | Down::SessionEnded) => {
+                // the old (or ended) session's requests that never went down are dropped
+                // here, those queued in the machine there
                 let n = self.state.held.len() as u32;
                 self.state.held.clear();
                 self.state.dropped = self.state.dropped.wrapping_add(n);
                 // (the machine drops its lock at the same event)
                 self.state.save = SavePhase::Idle;
                 self.state.agent.session_ended();
-                let _ = self.ends.down.enqueue(Down::SessionStarted);
+                let _ = self.ends.down.enqueue(d);
             }
             Down::LinkLost => {
                 self.state.save = SavePhase::Idle;
                 self.state.agent.session_ended();
                 let _ = self.ends.down.enqueue(Down::LinkLost);
-            }
-            Down::SessionEnded => {
-                // as for a new session: the ended session's requests that never went
-                // down are dropped (the machine retires its queued ones)
-                let n = self.state.held.len() as u32;
-                self.state.held.clear();
-                self.state.dropped = self.state.dropped.wrapping_add(n);
-                self.state.save = SavePhase::Idle;
-                self.state.agent.session_ended();
-                let _ = self.ends.down.enqueue(Down::SessionEnded);
             }
             // real-time traffic skips the queue; a full queue drops it (the host repeats
             // what it gets no answer to)

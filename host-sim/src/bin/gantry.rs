@@ -517,17 +517,7 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
         }
         Cmd::Faults { json } => {
             let s = c.status()?;
-            let history: Vec<String> = s
-                .fault_history
-                .iter()
-                .map(|f| {
-                    let kind = f.kind().map_or("unknown", |k| k.name());
-                    match f.axis() {
-                        Some(a) => format!("{kind} on {}", a.name()),
-                        None => kind.to_string(),
-                    }
-                })
-                .collect();
+            let history = view::fault_history(&s);
             if json {
                 let j = serde_json::json!({
                     "first": s.first_fault.as_deref(),

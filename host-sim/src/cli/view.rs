@@ -50,16 +50,9 @@ fn xyz(v: [f32; 3], decimals: usize) -> String {
     )
 }
 
-/// The faults: the first of the latched ones (it names the cause), and the history kept
-/// across resets, oldest first.
-fn faults(s: &Status) -> (String, String) {
-    let latched = match (&s.first_fault, s.state) {
-        (Some(f), _) => f.to_string(),
-        (None, MachineState::Fault) => "latched (kind unknown to this host)".into(),
-        (None, _) => "none".into(),
-    };
-    let history: Vec<String> = s
-        .fault_history
+/// The fault history kept across resets, oldest first: `estop`, `following_error on x`.
+pub fn fault_history(s: &Status) -> Vec<String> {
+    s.fault_history
         .iter()
         .map(|f| {
             let kind = f.kind().map_or("unknown", |k| k.name());
@@ -68,7 +61,18 @@ fn faults(s: &Status) -> (String, String) {
                 None => kind.to_string(),
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The faults: the first of the latched ones (it names the cause), and the history kept
+/// across resets, oldest first.
+fn faults(s: &Status) -> (String, String) {
+    let latched = match (&s.first_fault, s.state) {
+        (Some(f), _) => f.to_string(),
+        (None, MachineState::Fault) => "latched (kind unknown to this host)".into(),
+        (None, _) => "none".into(),
+    };
+    let history = fault_history(s);
     let history = if history.is_empty() {
         "none".into()
     } else {
