@@ -98,6 +98,37 @@ pub fn wait_while<T: Transport>(
     }
 }
 
+/// [`wait_while`] the machine is in `state`, with a bar at a terminal from the machine's
+/// own progress (homing, identification: `Status::progress`), its position and the time
+/// left at the rate so far.
+pub fn wait_with_progress<T: Transport>(
+    c: &mut Client<T>,
+    state: MachineState,
+    what: &str,
+) -> Result<Status> {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return wait_while(c, |s| s.state == state);
+    }
+    let bar = ProgressBar::new(1000);
+    bar.set_style(
+        ProgressStyle::with_template(&format!(
+            "{what} {{bar:30}} {{percent}} %, ETA {{eta}}  {{msg}}"
+        ))
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let s = wait_while(c, |s| {
+        bar.set_position((s.progress.clamp(0.0, 1.0) * 1000.0) as u64);
+        bar.set_message(format!(
+            "X {:.3} Y {:.3} Z {:.3} mm",
+            s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
+        ));
+        s.state == state
+    });
+    bar.finish_and_clear();
+    s
+}
+
 /// `gantry run`'s exit status: 0 completed, 2 rejected (nothing ran), 1 anything else
 /// (a fault, an abort: the program did not complete).
 pub fn run_exit_code(r: &GcodeReport) -> u8 {
@@ -148,7 +179,7 @@ pub fn ready<T: Transport>(c: &mut Client<T>, home: bool) -> Result<Status> {
     }
     if home && c.status()?.homed != 0b111 {
         expect_done("home", c.exec(Request::Home)?)?;
-        let s = wait_while(c, |s| s.state == MachineState::Homing)?;
+        let s = wait_with_progress(c, MachineState::Homing, "homing")?;
         if s.state != MachineState::Idle {
             bail!("homing failed: {:?} ({})", s.state, fault_text(&s));
         }
@@ -756,7 +787,11 @@ pub fn identify<T: Transport>(
                 window_mm,
             })?,
         )?;
-        let s = wait_while(c, |s| s.state == MachineState::Identify)?;
+        let s = wait_with_progress(
+            c,
+            MachineState::Identify,
+            &format!("identifying {}", AXES[i]),
+        )?;
         let m: Option<IdentifyMsg> = s.identify.filter(|m| usize::from(m.axis) == i);
         let done = m.is_some_and(|m| m.done);
         let mut accepted = false;
