@@ -81,6 +81,17 @@ def _exit_instruction(ins):
             return ("msr", _SPECIAL[special], getattr(arm_const, f"UC_ARM_REG_{reg.upper()}"), ins.size)
     return None
 
+# the bits of an access of 1, 2, 4 bytes
+_SIZE_MASK = (0, 0xFF, 0xFFFF, 0, 0xFFFF_FFFF)
+
+
+def _clocked(twin, p):
+    """`p`'s clock is on, by the enable bit `Peripheral.clock_on` found last time (False:
+    ask `clock_on`, which finds it again and records an access with the clock off)."""
+    c = p._clk
+    return c is not None and c[0] is twin.rcc and c[1].value >> c[2] & 1
+
+
 class Twin:
     def __init__(self, elf, hse_hz=8_000_000, lsi_hz=LSI_TYPICAL_HZ, flash_image=None, option_bytes=OPTCR_FACTORY):
         self.elf_path = elf
@@ -354,9 +365,21 @@ class Twin:
         raise TwinError(f"access to 0x{addr:08x}: no peripheral the twin models")
 
     def _word(self, word):
-        """The peripheral and offset of the register at `word` (an aligned address)."""
+        """What an access to the register at `word` (an aligned address) resolves to:
+        (peripheral, offset, register, read hook, write hook, its clock, whether reads /
+        writes go through the peripheral's own read32 / write32). The peripheral pages'
+        callbacks (`_mmio_callbacks`) do what `Peripheral.read32` / `write32` do with
+        these, without the calls; a peripheral that overrides them (the SCS's NVIC
+        banks, the RCC), or an offset it does not model (the failure), goes through them."""
         p = self._periph_at(word)
-        w = self.mmio_words[word] = (p, word - p.base)
+        off = word - p.base
+        r = p.regs.get(off)
+        cls = type(p)
+        w = self.mmio_words[word] = (
+            p, off, r, p.read_hooks.get(off), p.write_hooks.get(off), p.clock,
+            r is None or cls.read32 is not Peripheral.read32,
+            r is None or cls.write32 is not Peripheral.write32,
+        )
         return w
 
     def _hook_failed(self, e):
@@ -379,9 +402,16 @@ class Twin:
                 w = words.get(addr & ~3)
                 if w is None:
                     w = self._word(addr & ~3)
-                v = w[0].read32(w[1])
-                lane = addr & 3
-                return (v >> (8 * lane)) & ((1 << (8 * size)) - 1)
+                p, o, r, hook, _wh, clock, generic, _gw = w
+                if generic:
+                    v = p.read32(o)
+                elif clock is not None and not _clocked(self, p) and not p.clock_on("read"):
+                    v = 0
+                elif hook is not None:
+                    v = hook() & 0xFFFFFFFF
+                else:
+                    v = r.value
+                return (v >> (8 * (addr & 3))) & _SIZE_MASK[size]
             except TwinError as e:
                 self.fail(e)
                 return 0
@@ -400,8 +430,18 @@ class Twin:
                     w = words.get(addr & ~3)
                     if w is None:
                         w = self._word(addr & ~3)
-                    lane = addr & 3
-                    w[0].write32(w[1], (value << (8 * lane)) & 0xFFFFFFFF, ((1 << (8 * size)) - 1) << (8 * lane))
+                    p, o, r, _rh, hook, clock, _gr, generic = w
+                    lane = 8 * (addr & 3)
+                    value_l = (value << lane) & 0xFFFFFFFF
+                    lane_mask = _SIZE_MASK[size] << lane
+                    if generic:
+                        p.write32(o, value_l, lane_mask)
+                    elif clock is None or _clocked(self, p) or p.clock_on("write"):
+                        new = (r.value & ~lane_mask) | (value_l & lane_mask)
+                        if hook is not None:
+                            hook(new & 0xFFFFFFFF, lane_mask)
+                        else:
+                            r.value = (r.value & ~r.wmask) | (new & r.wmask)
                     if addr in self.trace_regs:
                         self.trace.append((self.now_s(), addr, value))
                 except TwinError as e:
