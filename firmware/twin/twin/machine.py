@@ -81,6 +81,16 @@ def _exit_instruction(ins):
             return ("msr", _SPECIAL[special], getattr(arm_const, f"UC_ARM_REG_{reg.upper()}"), ins.size)
     return None
 
+# the machine's outputs `Twin._record` logs: (signal, port, pin, TIM1 channel or None)
+_OUTPUTS = []
+for _a in board.AXES:
+    for _kind, _table in (("enable", board.ENABLE), ("brake", board.BRAKE), ("dir", board.DIRECTION)):
+        _OUTPUTS.append((f"{_kind}.{_a}", *_table[_a], None))
+    _OUTPUTS.append((f"pwm.{_a}", *board.PWM[_a]))
+_OUTPUT_KEYS = [o[0] for o in _OUTPUTS] + ["moe"]
+# the ports TIM1's channels drive pins of (a change of its outputs changes their IDR)
+_TIM1_PORTS = sorted({port for (port, _pin, _af), sig in board.AF_OUTPUTS.items() if sig[0] == "TIM1"})
+
 # the bits of an access of 1, 2, 4 bytes
 _SIZE_MASK = (0, 0xFF, 0xFFFF, 0, 0xFFFF_FFFF)
 
@@ -131,6 +141,7 @@ class Twin:
         self.rtt_bytes = bytearray()
         self.unclocked = []  # (t_s, read/write, peripheral) with its clock off
         self.entries = {}  # exception number -> times entered
+        self.port_generation = {letter: 0 for letter in "ABCDE"}
         self.first_entry = {}  # exception number -> time first entered
         # a power-on leaves PORRSTF, BORRSTF and PINRSTF (RCC_CSR's reset value, RM0090 6.3.21)
         self.power_on(reset_flags=CSR_PORRSTF | CSR_BORRSTF | CSR_PINRSTF)
@@ -555,10 +566,20 @@ class Twin:
         return g.level(pin)
 
     pin_generation = 0
+    # per port, what IDR's cache keys on (`Gpio.on_read_IDR`): a change of that port's
+    # pins or registers, of a pin driven from outside, or of TIM1's outputs for the ports
+    # its channels are on
+    port_generation = None
     usart_overruns = 0  # bytes from the host lost to ORE (RXNE still set)
 
     def pins_changed(self, port=None):
         self.pin_generation += 1
+        pg = self.port_generation
+        if port is None:
+            for k in pg:
+                pg[k] += 1
+        else:
+            pg[port] += 1
         if not hasattr(self, "tim"):
             return
         if port in (None, "B"):
@@ -568,26 +589,31 @@ class Twin:
 
     def outputs_changed(self, _timer, t_s):
         self.pin_generation += 1
+        pg = self.port_generation
+        for k in _TIM1_PORTS:
+            pg[k] += 1
         self._record(t_s)
 
     def _record(self, t_s=None):
         t = self.now_s() if t_s is None else t_s
-        now = {}
-        for a in board.AXES:
-            for kind, table in (("enable", board.ENABLE), ("brake", board.BRAKE), ("dir", board.DIRECTION)):
-                port, pin = table[a]
-                now[f"{kind}.{a}"] = self.gpio[port].level(pin)
-            port, pin, ch = board.PWM[a]
-            g = self.gpio[port]
-            if g.mode(pin) == 2 and g.af(pin) == 1:
-                now[f"pwm.{a}"] = round(self.tim["TIM1"].channel_duty(ch), 6)
+        gpio = self.gpio
+        tim1 = self.tim["TIM1"]
+        seen = self.outputs_seen
+        log = self.log
+        # every signal first, then the changes, in the order the log has always had them
+        # (per axis enable, brake, dir, pwm; then moe)
+        now = []
+        for key, port, pin, ch in _OUTPUTS:
+            g = gpio[port]
+            if ch is not None and g.mode(pin) == 2 and g.af(pin) == 1:
+                now.append(round(tim1.channel_duty(ch), 6))
             else:
-                now[f"pwm.{a}"] = g.level(pin)
-        now["moe"] = self.tim["TIM1"]["BDTR"] >> 15 & 1
-        for k, v in now.items():
-            if self.outputs_seen.get(k, "unset") != v:
-                self.outputs_seen[k] = v
-                self.log.append((t, k, v))
+                now.append(g.level(pin))
+        now.append(tim1["BDTR"] >> 15 & 1)
+        for key, v in zip(_OUTPUT_KEYS, now):
+            if seen.get(key, "unset") != v:
+                seen[key] = v
+                log.append((t, key, v))
 
     plant = None  # the closed loop (plant.Plant), attached by a scenario or --serve
 
