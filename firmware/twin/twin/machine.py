@@ -680,14 +680,32 @@ class Twin:
     def _preempting(self):
         """The pending exception the core takes now, if any (PM0214 2.3.6)."""
         scs = self.scs
+        active = scs.active
+        pending = scs.pending
         for irq in self.irq_lines:
-            if 16 + irq not in scs.active:
-                scs.pending.add(16 + irq)
-        cands = [e for e in scs.pending if scs.exception_enabled(e) and e not in scs.active and e not in self.blocked]
-        if not cands:
+            if 16 + irq not in active:
+                pending.add(16 + irq)
+        blocked = self.blocked
+        enabled = scs.exception_enabled
+        priority = scs.priority
+        group = scs.group
+        best = best_key = None
+        for e in pending:
+            if e in active or e in blocked or not enabled(e):
+                continue
+            prio = priority(e)
+            key = (group(prio), prio, e)
+            if best_key is None or key < best_key:
+                best, best_key = e, key
+        if best is None:
             return None
-        best = min(cands, key=lambda e: (scs.group(scs.priority(e)), scs.priority(e), e))
-        if scs.group(scs.priority(best)) >= self._exec_priority():
+        # the active exceptions' priority first: only an exception above it needs the
+        # masks read (BASEPRI, PRIMASK, FAULTMASK can only raise the execution priority)
+        g = best_key[0]
+        for e in active:
+            if g >= group(priority(e)):
+                return None
+        if g >= self._exec_priority():
             return None
         return best
 
@@ -836,9 +854,14 @@ class Twin:
             p.tick(self.t_s)
         if not self.sleeping and self.pc in self.exits:
             self._at_exit()
-        while self._take_pending():
-            pass
-        ev = self._next_event()
+        if self.scs.pending or self.irq_lines:
+            while self._take_pending():
+                pass
+        ev = None
+        for p in self.event_sources:
+            t = p.events()
+            if t is not None and (ev is None or t < ev):
+                ev = t
         if self.sleeping:
             if self._wakes():
                 self.sleeping = False
@@ -852,9 +875,14 @@ class Twin:
             poll(self)
             self._next_poll = self.t_s + poll_every_s
         hz = self.rcc.hclk_hz()
-        horizon = min(x for x in (ev, until_s, self._next_poll if poll else None) if x is not None)
-        n = max(1, min(MAX_CHUNK, math.ceil((horizon - self.t_s) * hz)))
-        return n, hz
+        # (the earliest of the next event, the end of the run and the next poll)
+        horizon = ev if ev is not None else until_s
+        if until_s < horizon:
+            horizon = until_s
+        if poll and self._next_poll < horizon:
+            horizon = self._next_poll
+        n = math.ceil((horizon - self.t_s) * hz)
+        return (1 if n < 1 else MAX_CHUNK if n > MAX_CHUNK else n), hz
 
     def _run_planned(self, n, hz):
         if self.call_after_insns is not None:

@@ -20,6 +20,7 @@ class Usart(Peripheral):
         self.sent = bytearray()
         self.ore_read_sr = False
         super().__init__(twin, base)
+        self.r_sr, self.r_cr1 = self.by_name["SR"], self.by_name["CR1"]
 
     def define(self):
         r = self.reg
@@ -130,7 +131,7 @@ class Usart(Peripheral):
         self.twin.reschedule()
 
     def _irq(self):
-        sr, cr1 = self["SR"], self["CR1"]
+        sr, cr1 = self.r_sr.value, self.r_cr1.value
         line = bool(
             (cr1 & 0x20 and sr & 0x28) or (cr1 & 0x80 and sr & 0x80) or (cr1 & 0x40 and sr & 0x40)
         )
@@ -141,8 +142,12 @@ class Usart(Peripheral):
         self._irq()
 
     def events(self):
-        ts = [t for t in (self.tx_busy_until, self.next_rx) if t is not None]
-        return min(ts) if ts else None
+        a, b = self.tx_busy_until, self.next_rx
+        if a is None:
+            return b
+        if b is None:
+            return a
+        return b if b < a else a
 
     def tick(self, now_s):
         self._advance()
