@@ -338,12 +338,15 @@ class Twin:
     # --- time -------------------------------------------------------------------
     def now_s(self):
         if self.in_chunk:
-            return self.chunk_t0 + min(self.counter.read(), self.chunk_n) / self.chunk_hz
+            # (the counter's cell read in place: Counter.read without the call)
+            c, n = self.counter.cell.value, self.chunk_n
+            return self.chunk_t0 + (c if c < n else n) / self.chunk_hz
         return self.t_s
 
     def now_cycles(self):
         if self.in_chunk:
-            return self.chunk_c0 + min(self.counter.read(), self.chunk_n)
+            c, n = self.counter.cell.value, self.chunk_n
+            return self.chunk_c0 + (c if c < n else n)
         return self.cycles
 
     def stall(self, seconds, _what):
