@@ -15,6 +15,20 @@ from unicorn.unicorn_py3.unicorn import uclib
 from .regs import TwinError
 
 
+def _untyped(name):
+    """`name` of the same libunicorn without the binding's argtypes: every argument the
+    twin passes is already a ctypes object of the C type (a handle, an array, a c_int),
+    and ctypes' per-call conversion through argtypes (`from_param` of each) doubled the
+    cost of a register batch (0.77 against 0.37 µs)."""
+    f = getattr(ctypes.CDLL(uclib._name), name)
+    f.restype = ctypes.c_int
+    return f
+
+
+_reg_read_batch = _untyped("uc_reg_read_batch")
+_reg_write_batch = _untyped("uc_reg_write_batch")
+
+
 def engine_handle(uc):
     """The `uc_engine *` behind a Python `Uc` (also what counter.py reads the counter from)."""
     h = uc._uch
@@ -83,11 +97,11 @@ class Batch:
         self.ptrs = (ctypes.c_void_p * n)(*(base + 4 * i for i in range(n)))
 
     def read(self):
-        if uclib.uc_reg_read_batch(self.uch, self.ids, self.ptrs, self.n) != 0:
+        if _reg_read_batch(self.uch, self.ids, self.ptrs, self.n) != 0:
             raise TwinError("unicorn: register batch read failed")
         return self.vals[:]
 
     def write(self, values):
         self.vals[:] = values
-        if uclib.uc_reg_write_batch(self.uch, self.ids, self.ptrs, self.n) != 0:
+        if _reg_write_batch(self.uch, self.ids, self.ptrs, self.n) != 0:
             raise TwinError("unicorn: register batch write failed")

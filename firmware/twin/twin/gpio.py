@@ -14,6 +14,10 @@ class Gpio(Peripheral):
         # levels the outside world drives on input pins (None: not connected)
         self.external = [None] * 16
         super().__init__(twin, base)
+        # the registers a pin's level is made of, held (not looked up by name per pin)
+        r = self.by_name
+        self.r_moder, self.r_odr, self.r_pupdr = r["MODER"], r["ODR"], r["PUPDR"]
+        self.r_afr = (r["AFRL"], r["AFRH"])
 
     def define(self):
         # reset values: port A/B keep the debug pins' alternate functions (RM0090 8.4)
@@ -33,41 +37,42 @@ class Gpio(Peripheral):
         r(0x24, "AFRH", 0)
 
     def mode(self, pin):
-        return self["MODER"] >> (2 * pin) & 3
+        return self.r_moder.value >> (2 * pin) & 3
 
     def af(self, pin):
-        reg = "AFRL" if pin < 8 else "AFRH"
-        return self[reg] >> (4 * (pin % 8)) & 0xF
+        return self.r_afr[pin >> 3].value >> (4 * (pin & 7)) & 0xF
 
     def pull(self, pin):
-        return self["PUPDR"] >> (2 * pin) & 3
+        return self.r_pupdr.value >> (2 * pin) & 3
 
     def level(self, pin):
         """The pin's level: driven by the port, by its alternate function, by the outside,
         or by its pull (None: floating)."""
-        m = self.mode(pin)
+        m = self.r_moder.value >> (2 * pin) & 3
         if m == 1:
-            return self["ODR"] >> pin & 1
+            return self.r_odr.value >> pin & 1
         if m == 2:
-            drv = self.twin.af_level(self.letter, pin, self.af(pin))
+            drv = self.twin.af_level(self.letter, pin, self.r_afr[pin >> 3].value >> (4 * (pin & 7)) & 0xF)
             if drv is not None:
                 return drv
-        if self.external[pin] is not None:
-            return self.external[pin]
-        p = self.pull(pin)
-        return {1: 1, 2: 0}.get(p)
+        ext = self.external[pin]
+        if ext is not None:
+            return ext
+        p = self.r_pupdr.value >> (2 * pin) & 3
+        return 1 if p == 1 else 0 if p == 2 else None
 
     def on_read_IDR(self):
         self.twin.inputs_read()
         # the levels change only when a pin, a port register or TIM1's outputs do
-        # (Twin.pin_generation counts those): the control interrupt reads IDR many times
-        gen = self.twin.pin_generation
+        # (Twin.port_generation counts those per port: TIM1's move port E's, where its
+        # channels are): the control interrupt reads IDR many times
+        gen = self.twin.port_generation[self.letter]
         if self._idr_cache is not None and self._idr_cache[0] == gen:
             return self._idr_cache[1]
         v = 0
+        level = self.level
         for pin in range(16):
-            lv = self.level(pin)
-            if lv:
+            if level(pin):
                 v |= 1 << pin
         self._idr_cache = (gen, v)
         return v

@@ -81,6 +81,27 @@ def _exit_instruction(ins):
             return ("msr", _SPECIAL[special], getattr(arm_const, f"UC_ARM_REG_{reg.upper()}"), ins.size)
     return None
 
+# the machine's outputs `Twin._record` logs: (signal, port, pin, TIM1 channel or None)
+_OUTPUTS = []
+for _a in board.AXES:
+    for _kind, _table in (("enable", board.ENABLE), ("brake", board.BRAKE), ("dir", board.DIRECTION)):
+        _OUTPUTS.append((f"{_kind}.{_a}", *_table[_a], None))
+    _OUTPUTS.append((f"pwm.{_a}", *board.PWM[_a]))
+_OUTPUT_KEYS = [o[0] for o in _OUTPUTS] + ["moe"]
+# the ports TIM1's channels drive pins of (a change of its outputs changes their IDR)
+_TIM1_PORTS = sorted({port for (port, _pin, _af), sig in board.AF_OUTPUTS.items() if sig[0] == "TIM1"})
+
+# the bits of an access of 1, 2, 4 bytes
+_SIZE_MASK = (0, 0xFF, 0xFFFF, 0, 0xFFFF_FFFF)
+
+
+def _clocked(twin, p):
+    """`p`'s clock is on, by the enable bit `Peripheral.clock_on` found last time (False:
+    ask `clock_on`, which finds it again and records an access with the clock off)."""
+    c = p._clk
+    return c is not None and c[0] is twin.rcc and c[1].value >> c[2] & 1
+
+
 class Twin:
     def __init__(self, elf, hse_hz=8_000_000, lsi_hz=LSI_TYPICAL_HZ, flash_image=None, option_bytes=OPTCR_FACTORY):
         self.elf_path = elf
@@ -130,6 +151,7 @@ class Twin:
         self.rtt_bytes = bytearray()
         self.unclocked = []  # (t_s, read/write, peripheral) with its clock off
         self.entries = {}  # exception number -> times entered
+        self.port_generation = {letter: 0 for letter in "ABCDE"}
         self.first_entry = {}  # exception number -> time first entered
         # a power-on leaves PORRSTF, BORRSTF and PINRSTF (RCC_CSR's reset value, RM0090 6.3.21)
         self.power_on(reset_flags=CSR_PORRSTF | CSR_BORRSTF | CSR_PINRSTF)
@@ -328,12 +350,15 @@ class Twin:
     # --- time -------------------------------------------------------------------
     def now_s(self):
         if self.in_chunk:
-            return self.chunk_t0 + min(self.counter.read(), self.chunk_n) / self.chunk_hz
+            # (the counter's cell read in place: Counter.read without the call)
+            c, n = self.counter.cell.value, self.chunk_n
+            return self.chunk_t0 + (c if c < n else n) / self.chunk_hz
         return self.t_s
 
     def now_cycles(self):
         if self.in_chunk:
-            return self.chunk_c0 + min(self.counter.read(), self.chunk_n)
+            c, n = self.counter.cell.value, self.chunk_n
+            return self.chunk_c0 + (c if c < n else n)
         return self.cycles
 
     def stall(self, seconds, _what):
@@ -366,9 +391,21 @@ class Twin:
         raise TwinError(f"access to 0x{addr:08x}: no peripheral the twin models")
 
     def _word(self, word):
-        """The peripheral and offset of the register at `word` (an aligned address)."""
+        """What an access to the register at `word` (an aligned address) resolves to:
+        (peripheral, offset, register, read hook, write hook, its clock, whether reads /
+        writes go through the peripheral's own read32 / write32). The peripheral pages'
+        callbacks (`_mmio_callbacks`) do what `Peripheral.read32` / `write32` do with
+        these, without the calls; a peripheral that overrides them (the SCS's NVIC
+        banks, the RCC), or an offset it does not model (the failure), goes through them."""
         p = self._periph_at(word)
-        w = self.mmio_words[word] = (p, word - p.base)
+        off = word - p.base
+        r = p.regs.get(off)
+        cls = type(p)
+        w = self.mmio_words[word] = (
+            p, off, r, p.read_hooks.get(off), p.write_hooks.get(off), p.clock,
+            r is None or cls.read32 is not Peripheral.read32,
+            r is None or cls.write32 is not Peripheral.write32,
+        )
         return w
 
     def _hook_failed(self, e):
@@ -391,9 +428,16 @@ class Twin:
                 w = words.get(addr & ~3)
                 if w is None:
                     w = self._word(addr & ~3)
-                v = w[0].read32(w[1])
-                lane = addr & 3
-                return (v >> (8 * lane)) & ((1 << (8 * size)) - 1)
+                p, o, r, hook, _wh, clock, generic, _gw = w
+                if generic:
+                    v = p.read32(o)
+                elif clock is not None and not _clocked(self, p) and not p.clock_on("read"):
+                    v = 0
+                elif hook is not None:
+                    v = hook() & 0xFFFFFFFF
+                else:
+                    v = r.value
+                return (v >> (8 * (addr & 3))) & _SIZE_MASK[size]
             except TwinError as e:
                 self.fail(e)
                 return 0
@@ -412,8 +456,18 @@ class Twin:
                     w = words.get(addr & ~3)
                     if w is None:
                         w = self._word(addr & ~3)
-                    lane = addr & 3
-                    w[0].write32(w[1], (value << (8 * lane)) & 0xFFFFFFFF, ((1 << (8 * size)) - 1) << (8 * lane))
+                    p, o, r, _rh, hook, clock, _gr, generic = w
+                    lane = 8 * (addr & 3)
+                    value_l = (value << lane) & 0xFFFFFFFF
+                    lane_mask = _SIZE_MASK[size] << lane
+                    if generic:
+                        p.write32(o, value_l, lane_mask)
+                    elif clock is None or _clocked(self, p) or p.clock_on("write"):
+                        new = (r.value & ~lane_mask) | (value_l & lane_mask)
+                        if hook is not None:
+                            hook(new & 0xFFFFFFFF, lane_mask)
+                        else:
+                            r.value = (r.value & ~r.wmask) | (new & r.wmask)
                     if addr in self.trace_regs:
                         self.trace.append((self.now_s(), addr, value))
                 except TwinError as e:
@@ -587,10 +641,20 @@ class Twin:
         return g.level(pin)
 
     pin_generation = 0
+    # per port, what IDR's cache keys on (`Gpio.on_read_IDR`): a change of that port's
+    # pins or registers, of a pin driven from outside, or of TIM1's outputs for the ports
+    # its channels are on
+    port_generation = None
     usart_overruns = 0  # bytes from the host lost to ORE (RXNE still set)
 
     def pins_changed(self, port=None):
         self.pin_generation += 1
+        pg = self.port_generation
+        if port is None:
+            for k in pg:
+                pg[k] += 1
+        else:
+            pg[port] += 1
         if not hasattr(self, "tim"):
             return
         if port in (None, "B"):
@@ -600,26 +664,31 @@ class Twin:
 
     def outputs_changed(self, _timer, t_s):
         self.pin_generation += 1
+        pg = self.port_generation
+        for k in _TIM1_PORTS:
+            pg[k] += 1
         self._record(t_s)
 
     def _record(self, t_s=None):
         t = self.now_s() if t_s is None else t_s
-        now = {}
-        for a in board.AXES:
-            for kind, table in (("enable", board.ENABLE), ("brake", board.BRAKE), ("dir", board.DIRECTION)):
-                port, pin = table[a]
-                now[f"{kind}.{a}"] = self.gpio[port].level(pin)
-            port, pin, ch = board.PWM[a]
-            g = self.gpio[port]
-            if g.mode(pin) == 2 and g.af(pin) == 1:
-                now[f"pwm.{a}"] = round(self.tim["TIM1"].channel_duty(ch), 6)
+        gpio = self.gpio
+        tim1 = self.tim["TIM1"]
+        seen = self.outputs_seen
+        log = self.log
+        # every signal first, then the changes, in the order the log has always had them
+        # (per axis enable, brake, dir, pwm; then moe)
+        now = []
+        for key, port, pin, ch in _OUTPUTS:
+            g = gpio[port]
+            if ch is not None and g.mode(pin) == 2 and g.af(pin) == 1:
+                now.append(round(tim1.channel_duty(ch), 6))
             else:
-                now[f"pwm.{a}"] = g.level(pin)
-        now["moe"] = self.tim["TIM1"]["BDTR"] >> 15 & 1
-        for k, v in now.items():
-            if self.outputs_seen.get(k, "unset") != v:
-                self.outputs_seen[k] = v
-                self.log.append((t, k, v))
+                now.append(g.level(pin))
+        now.append(tim1["BDTR"] >> 15 & 1)
+        for key, v in zip(_OUTPUT_KEYS, now):
+            if seen.get(key, "unset") != v:
+                seen[key] = v
+                log.append((t, key, v))
 
     plant = None  # the closed loop (plant.Plant), attached by a scenario or --serve
 
@@ -691,14 +760,32 @@ class Twin:
     def _preempting(self):
         """The pending exception the core takes now, if any (PM0214 2.3.6)."""
         scs = self.scs
+        active = scs.active
+        pending = scs.pending
         for irq in self.irq_lines:
-            if 16 + irq not in scs.active:
-                scs.pending.add(16 + irq)
-        cands = [e for e in scs.pending if scs.exception_enabled(e) and e not in scs.active and e not in self.blocked]
-        if not cands:
+            if 16 + irq not in active:
+                pending.add(16 + irq)
+        blocked = self.blocked
+        enabled = scs.exception_enabled
+        priority = scs.priority
+        group = scs.group
+        best = best_key = None
+        for e in pending:
+            if e in active or e in blocked or not enabled(e):
+                continue
+            prio = priority(e)
+            key = (group(prio), prio, e)
+            if best_key is None or key < best_key:
+                best, best_key = e, key
+        if best is None:
             return None
-        best = min(cands, key=lambda e: (scs.group(scs.priority(e)), scs.priority(e), e))
-        if scs.group(scs.priority(best)) >= self._exec_priority():
+        # the active exceptions' priority first: only an exception above it needs the
+        # masks read (BASEPRI, PRIMASK, FAULTMASK can only raise the execution priority)
+        g = best_key[0]
+        for e in active:
+            if g >= group(priority(e)):
+                return None
+        if g >= self._exec_priority():
             return None
         return best
 
@@ -850,11 +937,16 @@ class Twin:
             p.tick(self.t_s)
         if not self.sleeping and self.pc in self.exits:
             self._at_exit()
-        while self._take_pending():
-            pass
+        if self.scs.pending or self.irq_lines:
+            while self._take_pending():
+                pass
         if self.plant is not None and self.plant.pending:
             self._land_step()
-        ev = self._next_event()
+        ev = None
+        for p in self.event_sources:
+            t = p.events()
+            if t is not None and (ev is None or t < ev):
+                ev = t
         if self.sleeping:
             if self._wakes():
                 self.sleeping = False
@@ -868,9 +960,14 @@ class Twin:
             poll(self)
             self._next_poll = self.t_s + poll_every_s
         hz = self.rcc.hclk_hz()
-        horizon = min(x for x in (ev, until_s, self._next_poll if poll else None) if x is not None)
-        n = max(1, min(MAX_CHUNK, math.ceil((horizon - self.t_s) * hz)))
-        return n, hz
+        # (the earliest of the next event, the end of the run and the next poll)
+        horizon = ev if ev is not None else until_s
+        if until_s < horizon:
+            horizon = until_s
+        if poll and self._next_poll < horizon:
+            horizon = self._next_poll
+        n = math.ceil((horizon - self.t_s) * hz)
+        return (1 if n < 1 else MAX_CHUNK if n > MAX_CHUNK else n), hz
 
     def _run_planned(self, n, hz):
         if self.call_after_insns is not None:

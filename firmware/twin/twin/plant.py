@@ -46,6 +46,7 @@ class Plant:
         self.proc = subprocess.Popen([self.helper, "--rate-hz", str(rate_hz)], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, bufsize=0)
         self.w, self.r = self.proc.stdin, self.proc.stdout
+        self.wfd, self.rfd = self.w.fileno(), self.r.fileno()
         # the helper is woken by every step the twin writes: as a batch task it does not
         # preempt the twin on that wake-up (the twin went on waiting for the CPU inside
         # the write, up to a millisecond on a loaded machine); it runs beside it, or
@@ -58,7 +59,7 @@ class Plant:
     def _read(self, n):
         b = b""
         while len(b) < n:
-            part = self.r.read(n - len(b))
+            part = os.read(self.rfd, n - len(b))
             if not part:
                 code = self.proc.poll()
                 raise TwinError(f"the plant helper ended (exit {code})")
@@ -97,7 +98,9 @@ class Plant:
         if self.proc is None:
             self._start(rate_hz)
         en, br, duty = self.drive()
-        self.w.write(STEP.pack(b"S", en, br, *duty))
+        # (a pipe takes the 27 bytes whole; os.write without the file object's layer)
+        if os.write(self.wfd, STEP.pack(b"S", en, br, *duty)) != STEP.size:
+            raise TwinError("the plant helper's pipe took a step in part")
         self.pending = True
 
     pending = False

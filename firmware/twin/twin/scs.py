@@ -60,6 +60,7 @@ class Scs(Peripheral):
         # is pending)
         self.ipr = [self.by_name[f"IPR{i}"] for i in range(21)]
         self.shpr = [self.by_name[f"SHPR{i}"] for i in range(1, 4)]
+        self.aircr = self.by_name["AIRCR"]
         self.enabled = [False] * IRQS
         self.pending = set()  # exception numbers
         self.active = []  # stack of exception numbers
@@ -142,7 +143,7 @@ class Scs(Peripheral):
         """Group (preemption) priority under AIRCR.PRIGROUP."""
         if prio < 0:
             return prio
-        pg = self["AIRCR"] >> 8 & 7
+        pg = self.aircr.value >> 8 & 7
         return prio & ~((1 << (pg + 1)) - 1) & 0xFF
 
     def exception_enabled(self, exc):

@@ -29,6 +29,11 @@ class Timer(Peripheral):
         self.bdtr_written = False
         self.next_update = None
         super().__init__(twin, base)
+        # the registers the counting and compare paths read, held (not looked up by name)
+        r = self.by_name
+        self.r_cr1, self.r_smcr, self.r_sr = r["CR1"], r["SMCR"], r["SR"]
+        self.r_ccr = [r[f"CCR{i + 1}"] for i in range(4)]
+        self.r_ccmr = [r["CCMR1"], r["CCMR2"]]
 
     def define(self):
         top = 0xFFFF_FFFF if self.kind == GP32 else 0xFFFF
@@ -62,10 +67,10 @@ class Timer(Peripheral):
         return f / (self.psc_active + 1)
 
     def encoder_mode(self):
-        return 1 <= (self["SMCR"] & 7) <= 3
+        return 1 <= (self.r_smcr.value & 7) <= 3
 
     def counting(self):
-        return bool(self["CR1"] & 1) and not self.encoder_mode()
+        return bool(self.r_cr1.value & 1) and not 1 <= (self.r_smcr.value & 7) <= 3
 
     def _top(self):
         return 0xFFFF_FFFF if self.kind == GP32 else 0xFFFF
@@ -101,10 +106,10 @@ class Timer(Peripheral):
 
     def _transfer_ccr(self, t_s):
         for i in range(4):
-            ccmr = self["CCMR1" if i < 2 else "CCMR2"] >> (8 * (i % 2))
+            ccmr = self.r_ccmr[i >> 1].value >> (8 * (i & 1))
             if ccmr & 0x08:  # OCxPE
-                if self.ccr_active[i] != self[f"CCR{i + 1}"]:
-                    self.ccr_active[i] = self[f"CCR{i + 1}"]
+                if self.ccr_active[i] != self.r_ccr[i].value:
+                    self.ccr_active[i] = self.r_ccr[i].value
                     self.twin.outputs_changed(self, t_s)
 
     def on_read_CNT(self):
@@ -225,10 +230,11 @@ class Timer(Peripheral):
         if self._capturing(i):
             return
         self._catch_up()
-        self.store(f"CCR{i + 1}", v)
-        ccmr = self["CCMR1" if i < 2 else "CCMR2"] >> (8 * (i % 2))
-        if not ccmr & 0x08 and self.ccr_active[i] != self[f"CCR{i + 1}"]:
-            self.ccr_active[i] = self[f"CCR{i + 1}"]
+        r = self.r_ccr[i]
+        r.value = (r.value & ~r.wmask) | (v & r.wmask)
+        ccmr = self.r_ccmr[i >> 1].value >> (8 * (i & 1))
+        if not ccmr & 0x08 and self.ccr_active[i] != r.value:
+            self.ccr_active[i] = r.value
             self.twin.outputs_changed(self, self.twin.now_s())
 
     def on_read_CCR1(self):

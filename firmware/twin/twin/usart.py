@@ -20,6 +20,7 @@ class Usart(Peripheral):
         self.sent = bytearray()
         self.ore_read_sr = False
         super().__init__(twin, base)
+        self.r_sr, self.r_cr1 = self.by_name["SR"], self.by_name["CR1"]
 
     def define(self):
         r = self.reg
@@ -35,13 +36,13 @@ class Usart(Peripheral):
         brr = self["BRR"]
         if brr == 0:
             raise TwinError(f"{self.name}: transmission with BRR = 0")
-        over8 = self["CR1"] >> 15 & 1
+        over8 = self.r_cr1.value >> 15 & 1
         # USARTDIV = BRR with the fraction in 4 bits (OVER8 = 0): baud = fck / BRR
         baud = self.twin.rcc.pclk1_hz() / brr * (2 if over8 else 1) / 1
         return 10 / baud
 
     def enabled(self):
-        return self["CR1"] & (1 << 13)
+        return self.r_cr1.value & (1 << 13)
 
     # a scenario's overrun race: the next byte arrives after the handler's read of SR
     # (which saw RXNE, no ORE) and before its read of DR
@@ -49,40 +50,40 @@ class Usart(Peripheral):
 
     def on_read_SR(self):
         self._advance()
-        self.ore_read_sr = bool(self["SR"] & 0x8)
-        return self["SR"]
+        self.ore_read_sr = bool(self.r_sr.value & 0x8)
+        return self.r_sr.value
 
     def on_write_SR(self, v, _l):
         # rc_w0 bits: CTS, LBD, TC, RXNE
         keep = ~0x0360 | v
-        self["SR"] &= keep
+        self.r_sr.value &= keep
         self._irq()
 
     def on_read_DR(self):
         self._advance()
-        if self.race_after_sr and self["SR"] & 0x20 and not self.ore_read_sr:
+        if self.race_after_sr and self.r_sr.value & 0x20 and not self.ore_read_sr:
             self.race_after_sr = False
-            self["SR"] |= 0x8  # the arrival with RXNE set: an overrun
+            self.r_sr.value |= 0x8  # the arrival with RXNE set: an overrun
             self.twin.usart_overruns += 1
         v = self["DR"]
-        sr = self["SR"] & ~0x20  # RXNE cleared by the read
+        sr = self.r_sr.value & ~0x20  # RXNE cleared by the read
         if self.ore_read_sr:
             sr &= ~0x8  # ORE cleared by a read of SR then DR
             self.ore_read_sr = False
-        self["SR"] = sr
+        self.r_sr.value = sr
         self._irq()
         return v
 
     def on_write_DR(self, v, _l):
-        if not self.enabled() or not self["CR1"] & 0x8:
+        if not self.enabled() or not self.r_cr1.value & 0x8:
             raise TwinError(f"{self.name}: byte written with the transmitter off")
         self._advance()
         if self.tx_busy_until is None:
             self._start_tx(v & 0xFF)
         else:
             self.tx_pending = v & 0xFF
-            self["SR"] &= ~0x80  # TXE
-        self["SR"] &= ~0x40  # TC
+            self.r_sr.value &= ~0x80  # TXE
+        self.r_sr.value &= ~0x40  # TC
         self._irq()
 
     def _start_tx(self, byte):
@@ -107,19 +108,19 @@ class Usart(Peripheral):
                 self.tx_busy_until = t + self.byte_s()
                 self.sent.append(b)
                 self._out(b)
-                self["SR"] |= 0x80
+                self.r_sr.value |= 0x80
             else:
                 self.tx_busy_until = None
-                self["SR"] |= 0xC0
+                self.r_sr.value |= 0xC0
         while self.rx and self.next_rx is not None and now >= self.next_rx:
             b = self.rx.popleft()
-            if self.enabled() and self["CR1"] & 0x4:
-                if self["SR"] & 0x20:
-                    self["SR"] |= 0x8  # overrun: RDR keeps the old byte
+            if self.enabled() and self.r_cr1.value & 0x4:
+                if self.r_sr.value & 0x20:
+                    self.r_sr.value |= 0x8  # overrun: RDR keeps the old byte
                     self.twin.usart_overruns += 1
                 else:
                     self["DR"] = b
-                    self["SR"] |= 0x20
+                    self.r_sr.value |= 0x20
             self.next_rx = self.next_rx + self.byte_s() if self.rx else None
 
     def send(self, data):
@@ -130,7 +131,7 @@ class Usart(Peripheral):
         self.twin.reschedule()
 
     def _irq(self):
-        sr, cr1 = self["SR"], self["CR1"]
+        sr, cr1 = self.r_sr.value, self.r_cr1.value
         line = bool(
             (cr1 & 0x20 and sr & 0x28) or (cr1 & 0x80 and sr & 0x80) or (cr1 & 0x40 and sr & 0x40)
         )
@@ -141,8 +142,12 @@ class Usart(Peripheral):
         self._irq()
 
     def events(self):
-        ts = [t for t in (self.tx_busy_until, self.next_rx) if t is not None]
-        return min(ts) if ts else None
+        a, b = self.tx_busy_until, self.next_rx
+        if a is None:
+            return b
+        if b is None:
+            return a
+        return b if b < a else a
 
     def tick(self, now_s):
         self._advance()
