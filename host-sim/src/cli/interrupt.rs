@@ -12,7 +12,9 @@ static REQUESTED: AtomicBool = AtomicBool::new(false);
 pub fn install() -> Result<()> {
     ctrlc::set_handler(|| {
         if REQUESTED.swap(true, Ordering::SeqCst) {
-            // the second one: leave now (130: killed by SIGINT, as a shell reports it)
+            // the second one: leave now (130: killed by SIGINT, as a shell reports it),
+            // the terminal as it was
+            super::keys::restore();
             std::process::exit(130);
         }
     })

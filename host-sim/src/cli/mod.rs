@@ -12,6 +12,7 @@
 pub mod args;
 pub mod client;
 pub mod interrupt;
+pub mod keys;
 pub mod port;
 pub mod qemu;
 pub mod scope;
@@ -334,21 +335,38 @@ fn operator<T: Transport>(
     Ok(())
 }
 
-/// The operator's keys during a program (a line each, read on a thread of its own so the
-/// session never waits for the keyboard): `h` feed hold, `r` resume, `a` abort.
-fn keyboard() -> std::sync::mpsc::Receiver<char> {
+/// The operator's keys during a program, read on a thread of its own so the session never
+/// waits for the keyboard: `h` feed hold, `r` resume, `a` abort; single keys at a terminal
+/// (while the returned guard lives), else the first character of each line.
+fn keyboard() -> (std::sync::mpsc::Receiver<char>, Option<keys::SingleKeys>) {
     let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in std::io::stdin().lines() {
-            let Ok(line) = line else { break };
-            if let Some(k) = line.trim().chars().next() {
-                if tx.send(k.to_ascii_lowercase()).is_err() {
-                    break;
+    let single = keys::SingleKeys::start();
+    if single.is_some() {
+        std::thread::spawn(move || {
+            use std::io::Read;
+            let mut typed = [0u8; 16];
+            // (a read returns each key as it comes: the terminal gives bytes one by one)
+            while let Ok(n @ 1..) = std::io::stdin().read(&mut typed) {
+                for b in typed.iter().take(n).filter(|b| b.is_ascii_alphabetic()) {
+                    if tx.send((*b as char).to_ascii_lowercase()).is_err() {
+                        return;
+                    }
                 }
             }
-        }
-    });
-    rx
+        });
+    } else {
+        std::thread::spawn(move || {
+            for line in std::io::stdin().lines() {
+                let Ok(line) = line else { break };
+                if let Some(k) = line.trim().chars().next() {
+                    if tx.send(k.to_ascii_lowercase()).is_err() {
+                        break;
+                    }
+                }
+            }
+        });
+    }
+    (rx, single)
 }
 
 /// Act on the keys typed so far; `true` once the program was aborted.
@@ -367,7 +385,7 @@ fn keys<T: Transport>(
         match k {
             'h' => {
                 c.realtime(RealtimeRequest::Hold)?;
-                eprintln!("feed hold (r + Enter resumes, a + Enter aborts)");
+                eprintln!("feed hold (r resumes, a aborts)");
             }
             'r' => {
                 c.realtime(RealtimeRequest::Resume)?;
@@ -444,18 +462,23 @@ pub fn run_program<T: Transport>(
     let started = Instant::now();
     // the program's time is the machine's: its period count
     let p0 = c.status()?.period;
+    // an operator at a terminal: hold, resume and abort from the keyboard (single keys
+    // while `_single` lives)
+    let (typed, _single) = match progress.then(keyboard) {
+        Some((rx, single)) => (Some(rx), single),
+        None => (None, None),
+    };
+    let enter = if _single.is_some() { "" } else { " + Enter" };
     let bar = progress.then(|| {
         let b = ProgressBar::new(segs.len() as u64);
         b.set_style(
-            ProgressStyle::with_template(
-                "{bar:30} {pos}/{len} segments run, ETA {eta}  {msg}  (h/r/a + Enter: hold/resume/abort)",
-            )
+            ProgressStyle::with_template(&format!(
+                "{{bar:30}} {{pos}}/{{len}} segments run, ETA {{eta}}  {{msg}}  (h/r/a{enter}: hold/resume/abort)",
+            ))
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         b
     });
-    // an operator at a terminal: hold, resume and abort from the keyboard
-    let typed = progress.then(keyboard);
     let mut aborted = false;
     // figures from telemetry as it comes (no sample kept: a long program runs for hours):
     // every sample in Run (a jerk only between consecutive ones)

@@ -770,6 +770,8 @@ pub fn table(r: &GcodeReport) -> String {
 pub fn speed_words(ratio: f64) -> String {
     if !ratio.is_finite() || ratio <= 0.0 {
         "machine time over wall time: not measured".into()
+    } else if (0.95..=1.05).contains(&ratio) {
+        format!("ran at real time ({ratio:.2}x)")
     } else if ratio >= 1.0 {
         format!("ran {ratio:.1}x faster than real time")
     } else {
@@ -785,7 +787,8 @@ mod tests {
     fn the_speed_ratio_reads_right_on_both_sides_of_one() {
         assert_eq!(speed_words(62.0), "ran 62.0x faster than real time");
         assert_eq!(speed_words(0.2), "ran 5.0x slower than real time");
-        assert_eq!(speed_words(1.0), "ran 1.0x faster than real time");
+        assert_eq!(speed_words(1.0), "ran at real time (1.00x)");
+        assert_eq!(speed_words(0.97), "ran at real time (0.97x)");
         assert!(speed_words(0.0).contains("not measured"));
     }
 
