@@ -158,6 +158,10 @@ enum Cmd {
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         seconds: f32,
     },
+    /// Keyboard jog at a terminal (homes and arms first): arrows X/Y, PgUp/PgDn Z, `s`
+    /// steps or continuous, `1`-`4` the step (0.01-10 mm) or speed (1-50 mm/s), `q` quits.
+    /// Example: `gantry --served /tmp/gantry pendant`.
+    Pendant,
     /// Move to a point (machine mm) at the rapid rate, homing and arming first; refused
     /// before anything moves when the point is outside the travel.
     Move {
@@ -621,6 +625,7 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             let s = cli::wait_while(c, |s| s.state == MachineState::Jog)?;
             println!("{} at {:.3} mm ({:?})", AXES[i], s.pos_mm[i], s.state);
         }
+        Cmd::Pendant => host_sim::cli::pendant::pendant(c)?,
         Cmd::Move { x_mm, y_mm, z_mm } => {
             cli::ready(c, true)?;
             let s = cli::move_to(c, [x_mm, y_mm, z_mm])?;

@@ -13,6 +13,7 @@ pub mod args;
 pub mod client;
 pub mod interrupt;
 pub mod keys;
+pub mod pendant;
 pub mod port;
 pub mod qemu;
 pub mod scope;
