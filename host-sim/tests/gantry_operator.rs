@@ -128,3 +128,38 @@ fn version_ports_and_completions_need_no_machine() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("talk to no machine"));
 }
+
+#[test]
+fn every_argument_of_every_command_has_help() {
+    let commands: &[&[&str]] = &[
+        &[],
+        &["status"],
+        &["watch"],
+        &["log"],
+        &["scope"],
+        &["faults"],
+        &["jog"],
+        &["pendant"],
+        &["move"],
+        &["run"],
+        &["identify"],
+        &["ports"],
+        &["completions"],
+        &["sim", "serve"],
+        &["settings", "get"],
+        &["settings", "set"],
+        &["settings", "export"],
+        &["settings", "import"],
+    ];
+    for cmd in commands {
+        let mut args = cmd.to_vec();
+        args.push("--help");
+        let help = stdout_ok(&args);
+        for line in help.lines().map(str::trim_start) {
+            if line.starts_with('<') || line.starts_with('-') {
+                let text = line.split_once("  ").map_or("", |(_, t)| t.trim());
+                assert!(!text.is_empty(), "gantry {cmd:?}: `{line}` has no help");
+            }
+        }
+    }
+}

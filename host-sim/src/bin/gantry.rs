@@ -99,7 +99,9 @@ enum Cmd {
     /// state, position, reference, reference velocity and acceleration, contour, feed
     /// ratio, segment tag).
     Log {
+        /// The CSV file to write, e.g. out/log.csv.
         out: PathBuf,
+        /// Machine time to record, s.
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         seconds: f32,
         /// Up to 4 more signals per sample, comma-separated (as `scope --signals`):
@@ -111,6 +113,7 @@ enum Cmd {
     /// OUT.png / OUT.svg beside it). Signals: pos, ref, vel, tracking, effort, sliding,
     /// ref_vel (.x .y .z), contour, feed_ratio.
     Scope {
+        /// The CSV file to write (OUT.png and OUT.svg beside it), e.g. out/scope.csv.
         out: PathBuf,
         /// Up to 4 signals, comma-separated.
         #[arg(long, default_value = "pos.x,ref.x,tracking.x")]
@@ -139,6 +142,7 @@ enum Cmd {
     },
     /// Latched faults.
     Faults {
+        /// Machine-readable: `first`, `system_bits`, `axis_bits`, `history` as JSON.
         #[arg(long)]
         json: bool,
     },
@@ -152,9 +156,12 @@ enum Cmd {
     Home,
     /// Jog an axis at a speed for a time (homes first), then stop.
     Jog {
+        /// x, y or z.
         axis: String,
+        /// Speed, mm/s; negative toward the axis' minimum. Example: `gantry jog x -20`.
         #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         vel_mm_s: f32,
+        /// How long to jog, s of machine time.
         #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         seconds: f32,
     },
@@ -165,15 +172,19 @@ enum Cmd {
     /// Move to a point (machine mm) at the rapid rate, homing and arming first; refused
     /// before anything moves when the point is outside the travel.
     Move {
+        /// X, machine mm. Example: `gantry move -20 10 -5`.
         #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         x_mm: f32,
+        /// Y, machine mm.
         #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         y_mm: f32,
+        /// Z, machine mm.
         #[arg(allow_negative_numbers = true, value_parser = cli::args::finite)]
         z_mm: f32,
     },
     /// Run a G-code program (homes and arms first); prints the `cargo sim gcode` keys.
     Run {
+        /// The G-code program, e.g. host-sim/programs/square.nc.
         file: PathBuf,
         /// Write the report as JSON to this file.
         #[arg(long)]
@@ -187,14 +198,18 @@ enum Cmd {
     },
     /// Identify axes (x, y, z or all); --accept stores the models in the settings.
     Identify {
+        /// x, y, z or all. Example: `gantry identify --axis all --window-mm 20 --accept`.
         #[arg(long)]
         axis: String,
+        /// Store the identified models in the machine's settings (not saved: `settings
+        /// save` keeps them for the next boot).
         #[arg(long)]
         accept: bool,
         /// Identify unhomed axes within ± this many mm of where they stand (needed while
         /// the machine has no model and so cannot arm to home).
         #[arg(long, allow_negative_numbers = true)]
         window_mm: Option<f32>,
+        /// Write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -238,11 +253,14 @@ enum SimOp {
 enum SettingsOp {
     List,
     Get {
+        /// A dotted key, e.g. axis.x.following_error_mm (`settings list` shows them all).
         key: String,
     },
     /// `set KEY VALUE`, or `set KEY=VALUE KEY=VALUE ...`: several keys applied as one
     /// change, all or nothing (for keys only valid together).
     Set {
+        /// KEY VALUE, or KEY=VALUE KEY=VALUE ... Example: `settings set
+        /// axis.x.motor.invert true`.
         #[arg(required = true, num_args = 1.., allow_hyphen_values = true)]
         args: Vec<String>,
     },
@@ -255,11 +273,13 @@ enum SettingsOp {
     Repair,
     /// Write every setting to a TOML file (dotted keys).
     Export {
+        /// The TOML file to write, e.g. machine.toml.
         file: PathBuf,
     },
     /// Apply a TOML file of settings: all checked together first, nothing changes when one
     /// is bad.
     Import {
+        /// A TOML file of dotted keys, as `settings export` writes it.
         file: PathBuf,
     },
 }
