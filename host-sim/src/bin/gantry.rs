@@ -77,7 +77,10 @@ enum Cmd {
     Ports,
     /// Print a completion script for SHELL (bash, zsh, fish, elvish, powershell); no
     /// machine option. Example: `gantry completions bash > ~/.local/share/bash-completion/completions/gantry`.
-    Completions { shell: clap_complete::Shell },
+    Completions {
+        /// The shell the script is for.
+        shell: clap_complete::Shell,
+    },
     /// The machine's status on one screen, with units (state, position, velocity, feed,
     /// homing, faults, program). Example: `gantry --served /tmp/gantry status`.
     Status {
