@@ -2,20 +2,12 @@
 //! figures only, under 10 MB; the CSV traces (about 100 MB) only with `--traces`.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn host_sim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(args)
-        .output()
-        .expect("host-sim runs")
-}
+mod common;
+use common::host_sim;
 
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("host-sim-figs-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::scratch("host-sim-figs", name)
 }
 
 /// (files, bytes) in `dir` whose name ends with `ext`, and all bytes.

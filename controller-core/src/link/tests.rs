@@ -283,21 +283,25 @@ fn a_goodbye_ends_the_session_with_the_watchdog_off_and_no_link_lost() {
     let again = dev.on_frame(ExampleToDevice::Goodbye, 3 * timeout, 10);
     assert_eq!(again.event, DeviceEvent::None);
     // commands after it are refused until the next handshake
+    command_refused_without_a_session(&mut dev, 3 * timeout);
+}
+
+/// Command 0 at `now` is refused with `NoSession`; the refusal frame.
+fn command_refused_without_a_session(dev: &mut DeviceLink, now: u32) -> Reply {
     let step = dev.on_frame(
         ToDevice::Command {
             seq: Seq(0),
             cmd: EXAMPLE_COMMAND,
         },
-        3 * timeout,
+        now,
         10,
     );
-    assert_eq!(
-        step.reply,
-        Some(Reply::Refused {
-            what: RefusedFrame::Command(Seq(0)),
-            reason: Refusal::NoSession
-        })
-    );
+    let refused = Reply::Refused {
+        what: RefusedFrame::Command(Seq(0)),
+        reason: Refusal::NoSession,
+    };
+    assert_eq!(step.reply, Some(refused));
+    refused
 }
 
 #[test]
@@ -329,26 +333,10 @@ fn device_watchdog_expires_without_frames_and_heartbeats_prevent_it() {
     let last_fed = (3 * timeout - 2) / (timeout / 4) * (timeout / 4) + 2;
     assert_eq!(lost_at, [last_fed + timeout]);
     assert_eq!(dev.session(), DeviceSession::None);
-    let step = dev.on_frame(
-        ToDevice::Command {
-            seq: Seq(0),
-            cmd: EXAMPLE_COMMAND,
-        },
-        last + 3 * timeout,
-        10,
-    );
-    assert_eq!(
-        step.reply,
-        Some(Reply::Refused {
-            what: RefusedFrame::Command(Seq(0)),
-            reason: Refusal::NoSession
-        })
-    );
+    let refused = command_refused_without_a_session(&mut dev, last + 3 * timeout);
     // Host side: the refusal latches.
-    let e = host.on_frame::<ExampleTelemetry, ExampleStatus>(
-        step.reply.unwrap().into_frame(),
-        last + 3 * timeout,
-    );
+    let e =
+        host.on_frame::<ExampleTelemetry, ExampleStatus>(refused.into_frame(), last + 3 * timeout);
     assert!(matches!(e, Err(LinkError::Refused { .. })));
     assert!(matches!(
         host.state(),

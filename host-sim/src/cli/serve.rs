@@ -222,12 +222,14 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
         if ms != last_ms {
             clock.write_all_at(&ms.to_le_bytes(), 0)?;
             last_ms = ms;
-        }
-        // a save or repair the machine wrote: into the file at once (a kill loses nothing)
-        if let Some(p) = &opts.flash {
-            if sim.flash_image() != &kept[..] {
-                kept.copy_from_slice(sim.flash_image());
-                write_flash(p, &kept)?;
+            // a save or repair the machine wrote: into the file within a millisecond of
+            // machine time (a kill loses nothing); looked at once per millisecond, not per
+            // turn of this loop
+            if let Some(p) = &opts.flash {
+                if sim.flash_image() != &kept[..] {
+                    kept.copy_from_slice(sim.flash_image());
+                    write_flash(p, &kept)?;
+                }
             }
         }
     }
