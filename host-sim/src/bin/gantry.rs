@@ -8,18 +8,15 @@
 
 use anyhow::{bail, Context, Result};
 
-/// The simulated machine's control rate (host-sim/scenarios/gcode.toml), Hz.
-const CONTROL_RATE_HZ: u32 = 10_000;
 /// Largest settings file `settings import` reads (an export is a few KiB).
 const SETTINGS_FILE_MAX_BYTES: u64 = 1 << 20;
-use clap::{ArgGroup, Parser, Subcommand};
+use clap::{Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use controller_core::machine::scope::ScopeConfig;
 use host_sim::cli::client::{expect_done, Client};
-use host_sim::cli::port::BoardPort;
-use host_sim::cli::qemu::{QemuMachine, DEFAULT_ELF};
+use host_sim::cli::machine::{MachineArgs, CONTROL_RATE_HZ};
 use host_sim::cli::serve::{ServeOptions, Speed};
-use host_sim::cli::sim::{SimMachine, SimModels};
+use host_sim::cli::sim::SimModels;
 use host_sim::cli::{self, view, Hold, Transport, AXES};
 use host_sim::output::report::write_json;
 use std::io::IsTerminal;
@@ -32,35 +29,9 @@ use std::process::ExitCode;
     about = "Command a gantry over the host link",
     version
 )]
-#[command(group(ArgGroup::new("machine").args(["sim", "qemu", "port", "twin", "served"])))]
 struct Cli {
-    /// The simulated gantry in-process.
-    #[arg(long)]
-    sim: bool,
-    /// The firmware's QEMU build (its link rig: the simulated gantry behind the real
-    /// firmware's USART2 link), booted on qemu-system-arm.
-    #[arg(long)]
-    qemu: bool,
-    /// A board: its UART's device (921,600 baud 8N1), e.g. /dev/ttyACM0.
-    #[arg(long, value_name = "DEV")]
-    port: Option<String>,
-    /// The board twin: the release firmware ELF on the emulated STM32F407, serving its
-    /// USART2 at PTY (`firmware/twin/run --serve PTY`); timeouts count its machine clock.
-    #[arg(long, value_name = "PTY")]
-    twin: Option<String>,
-    /// A machine that stays: the simulated gantry served at PTY by `gantry sim serve PTY`
-    /// (settings, homing and arming kept between commands); timeouts count its clock.
-    #[arg(long, value_name = "PTY")]
-    served: Option<String>,
-    /// The firmware ELF for --qemu (default: what `cargo fw-qemu-build` builds).
-    #[arg(long, requires = "qemu")]
-    elf: Option<PathBuf>,
-    /// Start the simulated machine with factory settings (no axis model: identify first).
-    #[arg(long, requires = "sim")]
-    factory: bool,
-    /// Telemetry rate of the session, Hz (1-10000).
-    #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
-    telemetry_hz: u32,
+    #[command(flatten)]
+    machine: MachineArgs,
     #[command(subcommand)]
     command: Cmd,
 }
@@ -172,6 +143,18 @@ enum Cmd {
     /// steps or continuous, `1`-`4` the step (0.01-10 mm) or speed (1-50 mm/s), `q` quits.
     /// Example: `gantry --served /tmp/gantry pendant`.
     Pendant,
+    /// The operator's window (the `gantry-gui` program beside this one; `cargo gui` builds
+    /// and runs it): read-out, jog pad, program with its tool path, live plots, scope,
+    /// settings editor, identification. Example: `gantry --served /tmp/gantry gui`.
+    Gui {
+        /// Options passed on to `gantry-gui` (`gantry gui --help` lists them).
+        #[arg(
+            trailing_var_arg = true,
+            allow_hyphen_values = true,
+            value_name = "GUI OPTIONS"
+        )]
+        args: Vec<String>,
+    },
     /// Move to a point (machine mm) at the rapid rate, homing and arming first; refused
     /// before anything moves when the point is outside the travel.
     Move {
@@ -305,15 +288,8 @@ fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
-    let machines = [
-        cli.sim,
-        cli.qemu,
-        cli.port.is_some(),
-        cli.twin.is_some(),
-        cli.served.is_some(),
-    ];
     if let Cmd::Sim { op } = cli.command {
-        if machines.iter().any(|m| *m) {
+        if cli.machine.any() {
             bail!("`gantry sim serve` runs a machine of its own: leave out --sim, --qemu, --port, --twin and --served");
         }
         let SimOp::Serve {
@@ -341,8 +317,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
         host_sim::cli::serve::serve(&opts, stop)?;
         return Ok(ExitCode::SUCCESS);
     }
-    if matches!(cli.command, Cmd::Ports | Cmd::Completions { .. }) && machines.iter().any(|m| *m) {
+    if matches!(cli.command, Cmd::Ports | Cmd::Completions { .. }) && cli.machine.any() {
         bail!("`gantry ports` and `gantry completions` talk to no machine: leave out --sim, --qemu, --port, --twin and --served");
+    }
+    if let Cmd::Gui { args } = &cli.command {
+        return gui(&cli.machine, args);
     }
     match &cli.command {
         Cmd::Ports => {
@@ -360,63 +339,28 @@ fn run(cli: Cli) -> Result<ExitCode> {
         _ => {}
     }
     host_sim::cli::interrupt::install()?;
-    if !machines.iter().any(|m| *m) {
-        bail!(
-            "which machine? --sim (in-process, fresh each command), --served PTY (one `gantry sim serve PTY` keeps), --qemu, --twin PTY or --port DEV"
-        );
-    }
-    // (clap's `requires` counts the flag's default as given)
-    if cli.elf.is_some() && !cli.qemu {
-        bail!("--elf is the firmware for --qemu; it does nothing with --sim, --port or --twin");
-    }
-    if cli.factory && !cli.sim {
-        bail!("--factory starts the simulated machine; it goes with --sim only");
-    }
-    if cli.telemetry_hz == 0 || cli.telemetry_hz > 10_000 {
-        bail!(
-            "--telemetry-hz must be within 1-10000, got {}",
-            cli.telemetry_hz
-        );
-    }
-    let models = if cli.factory {
-        SimModels::Factory
-    } else {
-        SimModels::Designed
-    };
-    let decimation = 10_000 / cli.telemetry_hz;
-    if let Some(pty) = cli.twin.as_ref().or(cli.served.as_ref()) {
-        session(
-            subscribed(BoardPort::open_twin(pty)?, decimation)?,
-            cli.command,
-            decimation,
-        )
-    } else if let Some(dev) = &cli.port {
-        session(
-            subscribed(BoardPort::open(dev)?, decimation)?,
-            cli.command,
-            decimation,
-        )
-    } else if cli.qemu {
-        let elf = cli.elf.unwrap_or_else(|| PathBuf::from(DEFAULT_ELF));
-        session(
-            subscribed(QemuMachine::boot(&elf)?, decimation)?,
-            cli.command,
-            decimation,
-        )
-    } else {
-        session(
-            Client::connect(SimMachine::new(models, decimation)?)?,
-            cli.command,
-            decimation,
-        )
-    }
+    cli.machine.check()?;
+    let decimation = cli.machine.decimation();
+    session(cli.machine.open()?, cli.command, decimation)
 }
 
-/// A session with the machine behind `t`, telemetry every `decimation` periods.
-fn subscribed<T: Transport>(t: T, decimation: u32) -> Result<Client<T>> {
-    let mut c = Client::connect(t)?;
-    cli::subscribe(&mut c, decimation)?;
-    Ok(c)
+/// `gantry gui`: the `gantry-gui` program beside this one, with the machine options given
+/// to gantry and the GUI's own; it replaces this process.
+fn gui(machine: &MachineArgs, args: &[String]) -> Result<ExitCode> {
+    use std::os::unix::process::CommandExt;
+    let exe = std::env::current_exe().context("where gantry runs from")?;
+    let gui = exe.with_file_name("gantry-gui");
+    if !gui.is_file() {
+        bail!(
+            "{} is not built: `cargo build -p gantry-gui --release` builds it (or run `cargo gui …`)",
+            gui.display()
+        );
+    }
+    let err = std::process::Command::new(&gui)
+        .args(machine.to_args())
+        .args(args)
+        .exec();
+    bail!("cannot start {}: {err}", gui.display())
 }
 
 /// What the subcommand does with the machine behind `c`; then the session ends with a
@@ -433,8 +377,8 @@ fn session<T: Transport>(mut c: Client<T>, command: Cmd, decimation: u32) -> Res
 /// What the subcommand does with the machine behind `c`.
 fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) -> Result<ExitCode> {
     match command {
-        Cmd::Sim { .. } | Cmd::Ports | Cmd::Completions { .. } => {
-            bail!("`gantry sim serve`, `ports` and `completions` take no machine option")
+        Cmd::Sim { .. } | Cmd::Ports | Cmd::Completions { .. } | Cmd::Gui { .. } => {
+            bail!("`gantry sim serve`, `ports`, `completions` and `gui` take no session")
         }
         Cmd::Status { json } => {
             let s = c.status()?;

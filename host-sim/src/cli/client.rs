@@ -46,6 +46,15 @@ pub struct Client<T: Transport> {
     last_period: u32,
     /// Extra time a reply may take while a save's silence is expected, ms.
     reply_grace_ms: u32,
+    /// A copy of every status and telemetry sample as it arrives ([`Client::tap`]).
+    tap: Option<std::sync::mpsc::Sender<Tapped>>,
+}
+
+/// What [`Client::tap`] copies out of a session.
+#[derive(Clone, Debug)]
+pub enum Tapped {
+    Status(Status),
+    Telemetry(Telemetry),
 }
 
 impl<T: Transport> Client<T> {
@@ -72,6 +81,7 @@ impl<T: Transport> Client<T> {
             telemetry_gaps: 0,
             last_period: 0,
             reply_grace_ms: 0,
+            tap: None,
         };
         while c.link.state() == HostState::Handshaking {
             c.pump()?;
@@ -192,6 +202,9 @@ impl<T: Transport> Client<T> {
                                 Arrival::InOrder | Arrival::Gap { .. } | Arrival::Late
                             ) {
                                 self.last_period = self.last_period.max(sample.period);
+                                if let Some(tap) = &self.tap {
+                                    let _ = tap.send(Tapped::Telemetry(sample.clone()));
+                                }
                                 self.telemetry.push(sample);
                             }
                         }
@@ -200,6 +213,9 @@ impl<T: Transport> Client<T> {
                                 self.status_id = None;
                             }
                             self.last_period = self.last_period.max(status.period);
+                            if let Some(tap) = &self.tap {
+                                let _ = tap.send(Tapped::Status(status.clone()));
+                            }
                             self.status = Some(status);
                         }
                         Ok(_) => {}
@@ -210,6 +226,13 @@ impl<T: Transport> Client<T> {
         }
         self.telemetry_gaps = self.link.stats().telemetry.lost;
         Ok(())
+    }
+
+    /// From now on, a copy of every status and telemetry sample to `to` as it arrives,
+    /// whatever command is running (a live view beside a blocking command: `gantry gui`'s
+    /// session thread).
+    pub fn tap(&mut self, to: std::sync::mpsc::Sender<Tapped>) {
+        self.tap = Some(to);
     }
 
     /// Room for a request now (window and the device's credit).

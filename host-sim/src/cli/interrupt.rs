@@ -25,3 +25,14 @@ pub fn install() -> Result<()> {
 pub fn requested() -> bool {
     REQUESTED.load(Ordering::SeqCst)
 }
+
+/// Ask for the controlled stop Ctrl-C asks for (a GUI's stop button): the command running
+/// on the session stops the machine on its path as for Ctrl-C.
+pub fn request() {
+    REQUESTED.store(true, Ordering::SeqCst);
+}
+
+/// The stop was handled: the next command runs as usual.
+pub fn clear() {
+    REQUESTED.store(false, Ordering::SeqCst);
+}

@@ -13,6 +13,7 @@ pub mod args;
 pub mod client;
 pub mod interrupt;
 pub mod keys;
+pub mod machine;
 pub mod pendant;
 pub mod port;
 pub mod qemu;
@@ -190,7 +191,7 @@ pub fn ready<T: Transport>(c: &mut Client<T>, home: bool) -> Result<Status> {
 }
 
 /// The machine's travel, read from its settings.
-fn travel<T: Transport>(c: &mut Client<T>) -> Result<Travel> {
+pub fn travel<T: Transport>(c: &mut Client<T>) -> Result<Travel> {
     let mut t = [[0.0f64; 2]; 3];
     for (i, a) in AXES.iter().enumerate() {
         for (j, end) in ["min_mm", "max_mm"].iter().enumerate() {
@@ -414,6 +415,19 @@ pub fn run_program<T: Transport>(
     progress: bool,
     hold: Option<Hold>,
 ) -> Result<GcodeReport> {
+    run_program_with(c, path, telemetry_period_s, progress, hold, None)
+}
+
+/// [`run_program`] with the operator's keys (`h` hold, `r` resume, `a` abort) from
+/// `buttons` instead of the terminal (a GUI's).
+pub fn run_program_with<T: Transport>(
+    c: &mut Client<T>,
+    path: &Path,
+    telemetry_period_s: f64,
+    progress: bool,
+    hold: Option<Hold>,
+    buttons: Option<&std::sync::mpsc::Receiver<char>>,
+) -> Result<GcodeReport> {
     // the machine's planner limits, from its settings
     let mut limits = LimitsJson {
         vel: [0.0; 3],
@@ -465,9 +479,14 @@ pub fn run_program<T: Transport>(
     let p0 = c.status()?.period;
     // an operator at a terminal: hold, resume and abort from the keyboard (single keys
     // while `_single` lives)
-    let (typed, _single) = match progress.then(keyboard) {
-        Some((rx, single)) => (Some(rx), single),
-        None => (None, None),
+    let terminal = match buttons {
+        Some(_) => None,
+        None => progress.then(keyboard),
+    };
+    let (typed, _single) = match (buttons, &terminal) {
+        (Some(rx), _) => (Some(rx), None),
+        (None, Some((rx, single))) => (Some(rx), single.as_ref()),
+        (None, None) => (None, None),
     };
     let enter = if _single.is_some() { "" } else { " + Enter" };
     let bar = progress.then(|| {
@@ -525,7 +544,7 @@ pub fn run_program<T: Transport>(
         while !c.can_send() && !aborted {
             c.pump()?;
             operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
-            keys(c, typed.as_ref(), &mut aborted)?;
+            keys(c, typed, &mut aborted)?;
             c.transport.wait()?;
         }
         if aborted {
@@ -534,7 +553,7 @@ pub fn run_program<T: Transport>(
         c.send(Request::Segment(seg.seg))?;
         c.pump()?;
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
-        keys(c, typed.as_ref(), &mut aborted)?;
+        keys(c, typed, &mut aborted)?;
         account(c.take_telemetry());
     }
     if !aborted {
@@ -542,7 +561,7 @@ pub fn run_program<T: Transport>(
     }
     let end = loop {
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
-        keys(c, typed.as_ref(), &mut aborted)?;
+        keys(c, typed, &mut aborted)?;
         let s = c.status()?;
         account(c.take_telemetry());
         if matches!(s.last, Outcome::Refused(_)) {

@@ -195,3 +195,46 @@ pub fn dro_line(s: &Status) -> String {
         feed_mm_min(s),
     )
 }
+
+/// A fault's name (`following_error`, as the link and `first_fault` spell it; `… on x`
+/// allowed) in plain words with what to do about it; the name itself for one this host
+/// does not know.
+pub fn fault_words(name: &str) -> String {
+    let (kind, axis) = match name.split_once(" on ") {
+        Some((k, a)) => (k, Some(a)),
+        None => (name, None),
+    };
+    let what = match kind {
+        "estop" => "emergency stop pressed (or its wire broken): release it, then reset",
+        "limit_min" | "limit_max" => {
+            "a limit switch is pressed: reset, then jog off the switch (docs/bring-up.md)"
+        }
+        "amplifier_fault" => "the servo amplifier reports a fault: check it and its supply",
+        "encoder_stuck" => "the encoder stopped counting while the axis had to move: check its cable",
+        "encoder_jump" => {
+            "the encoder count jumped further than the axis can move: noise or a reversed encoder (axis.<a>.encoder.invert)"
+        }
+        "encoder_runaway" => {
+            "the axis sped up against its effort: motor or encoder reversed (axis.<a>.motor.invert)"
+        }
+        "non_finite" => "the control law's output was not a number: check the axis model and gains",
+        "following_error" => {
+            "the axis fell behind its reference beyond the following-error limit: load, friction or gains"
+        }
+        "overspeed" => "the axis moved faster than its maximum speed",
+        "deadline_overrun" => "the control interrupt missed its deadline too often",
+        "link_lost" => "the host link went silent (no heartbeat)",
+        "config_invalid" => "the settings were rejected at boot: outputs stay off",
+        "clock_fault" => "the board's crystal failed: its timing is not trustworthy",
+        "soft_limit" => "a reference left the axis' travel",
+        "homing_failed" => "homing did not find (or could not leave) the switch or the index",
+        "settings_corrupt" => "the settings store was unreadable at boot: factory settings are in use",
+        "encoder_index" => "the count at an index pulse was off: counts lost (coupling slip, bad disk)",
+        "board_config" => "the board's peripherals are not configured as expected",
+        other => return other.to_string(),
+    };
+    match axis {
+        Some(a) => format!("{a}: {what}"),
+        None => what.to_string(),
+    }
+}
