@@ -23,7 +23,10 @@ impl Served {
     /// Serve the simulated machine `args` describes (`--sim`, `--factory`) at a pty in
     /// the temporary directory; the machine options to talk to it.
     pub fn start(args: &MachineArgs) -> Result<(Self, MachineArgs)> {
-        let pty = std::env::temp_dir().join(format!("gantry-gui-{}", std::process::id()));
+        // (a counter: tests serve several machines from one process)
+        static SERVED: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let n = SERVED.fetch_add(1, Ordering::Relaxed);
+        let pty = std::env::temp_dir().join(format!("gantry-gui-{}-{n}", std::process::id()));
         let opts = ServeOptions {
             pty: pty.clone(),
             speed: Speed::Times(1.0),

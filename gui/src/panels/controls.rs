@@ -171,8 +171,8 @@ fn program(app: &mut GantryApp, ui: &mut egui::Ui) {
     });
     let known = known_programs();
     if !known.is_empty() {
-        egui::ComboBox::from_id_salt("programs")
-            .selected_text("examples…")
+        egui::ComboBox::from_label("examples")
+            .selected_text("choose…")
             .show_ui(ui, |ui| {
                 for p in known {
                     let name = p.file_name().map(|n| n.to_string_lossy().to_string());
