@@ -67,6 +67,11 @@ pub enum Command {
         window_mm: Option<f32>,
         accept: bool,
     },
+    /// Store the last identification's model of `axis` in the settings (not saved to
+    /// flash): disarm first (a model changes the law), as `gantry identify --accept` does.
+    Accept {
+        axis: usize,
+    },
     /// Choose the telemetry's signals (up to four names, `gantry scope --signals` names).
     Signals(Vec<String>),
     /// A scope capture (`gantry scope`'s), `timeout_s` of machine time.
@@ -93,6 +98,7 @@ impl Command {
             Self::SetSettings(_) => "settings set".into(),
             Self::SaveSettings => "settings save".into(),
             Self::Identify { axis, .. } => format!("identify {}", axis_name(*axis)),
+            Self::Accept { axis } => format!("accept {}", axis_name(*axis)),
             Self::Signals(_) => "telemetry signals".into(),
             Self::Scope { .. } => "scope".into(),
         }
@@ -439,6 +445,23 @@ fn execute(
                 .join(", ");
             let _ = events.send(Event::Identified(r));
             Ok(text)
+        }
+        Command::Accept { axis } => {
+            // the model changes the law: only with the outputs off
+            if c.status()?.state != MachineState::Disabled {
+                expect_done("disarm", c.exec(Request::Disarm)?)?;
+                cli::wait_while(c, |s| s.state == MachineState::Stopping)?;
+            }
+            expect_done(
+                "accept",
+                c.exec(Request::AcceptIdentified { axis: axis as u8 })?,
+            )?;
+            let all = cli::read_settings(c)?;
+            let _ = events.send(Event::Settings(all));
+            Ok(format!(
+                "axis {}: the identified model is in the settings (not saved: Settings › Save to flash keeps it)",
+                axis_name(axis)
+            ))
         }
         Command::Signals(names) => {
             subscribe(c, decimation, &names)?;
