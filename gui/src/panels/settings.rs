@@ -341,15 +341,20 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
         ui.label(RichText::new(e).color(ERROR_RED));
     }
     ui.separator();
+    editor(&mut app.settings, ui);
+}
+
+/// The key tree with its edit fields (no machine needed: the headless tests show it).
+pub fn editor(panel: &mut SettingsPanel, ui: &mut egui::Ui) {
     let root = group(keys().map(|k| k.name));
-    let filtering = !app.settings.filter.trim().is_empty() || app.settings.only_changed;
+    let filtering = !panel.filter.trim().is_empty() || panel.only_changed;
     egui::ScrollArea::vertical()
         .auto_shrink([false, false])
         .show(ui, |ui| {
             for g in &root.groups {
-                show_group(&mut app.settings, ui, g, g.name.clone(), filtering);
+                show_group(panel, ui, g, g.name.clone(), filtering);
             }
-            show_keys(&mut app.settings, ui, &root.keys, "");
+            show_keys(panel, ui, &root.keys, "");
         });
 }
 
@@ -389,7 +394,10 @@ fn show_group(
         title =
             RichText::new(format!("{}  ({}, {pending} edited)", g.name, visible.len())).strong();
     }
-    let mut header = egui::CollapsingHeader::new(title).id_salt(&path);
+    // the first axis opens by itself: the operator sees what a key row looks like
+    let mut header = egui::CollapsingHeader::new(title)
+        .id_salt(&path)
+        .default_open(path == "axis" || path == "axis.x");
     if filtering || errors > 0 {
         header = header.open(Some(true));
     }
@@ -435,7 +443,7 @@ fn key_row(panel: &mut SettingsPanel, ui: &mut egui::Ui, key: &Key) {
     if panel.edits.contains_key(key.name) {
         name = name.strong();
     }
-    ui.label(name).on_hover_text(format!(
+    let hover = format!(
         "{}\n\n{}\nunit: {}\nrange: {}\napplies: {}\nfactory: {}\nmachine: {}",
         key.name,
         key.doc,
@@ -444,7 +452,8 @@ fn key_row(panel: &mut SettingsPanel, ui: &mut egui::Ui, key: &Key) {
         key.apply.name(),
         factory,
         current.as_deref().unwrap_or("— (no model)"),
-    ));
+    );
+    let name_id = ui.label(name).on_hover_text(hover).id;
     // the edit: the pending text, else the machine's value
     let mut text = panel
         .edits
@@ -456,8 +465,10 @@ fn key_row(panel: &mut SettingsPanel, ui: &mut egui::Ui, key: &Key) {
     match key.range {
         Range::Bool => {
             let mut b = text.trim() == "true";
-            ui.checkbox(&mut b, "");
-            text = b.to_string();
+            // (only a click makes an edit: an unread value is not "false")
+            if ui.checkbox(&mut b, "").labelled_by(name_id).changed() {
+                text = b.to_string();
+            }
         }
         Range::Choice(names) => {
             egui::ComboBox::from_id_salt(("setting", key.name))
@@ -469,11 +480,16 @@ fn key_row(panel: &mut SettingsPanel, ui: &mut egui::Ui, key: &Key) {
                 });
         }
         Range::F32 { .. } | Range::U32 { .. } => {
-            ui.add(
-                egui::TextEdit::singleline(&mut text)
-                    .desired_width(110.0)
-                    .hint_text(if current.is_none() { "no model" } else { "" }),
-            );
+            // (sized: a grid cell would otherwise shrink it to its first frame's width)
+            ui.add_sized(
+                [110.0, ui.spacing().interact_size.y],
+                egui::TextEdit::singleline(&mut text).hint_text(if current.is_none() {
+                    "no model"
+                } else {
+                    ""
+                }),
+            )
+            .labelled_by(name_id);
         }
     }
     if text != before {
@@ -645,5 +661,68 @@ mod tests {
         assert!(!differs_from_factory(&k, &f));
         let other: f32 = f.parse::<f32>().unwrap() * 2.0;
         assert!(differs_from_factory(&k, &other.to_string()));
+    }
+}
+
+/// The editor driven headless through its accessibility tree (egui_kittest): what an
+/// operator types, and what the tab then shows.
+#[cfg(test)]
+mod ui_tests {
+    use super::*;
+    use egui_kittest::kittest::Queryable;
+    use egui_kittest::Harness;
+
+    fn panel() -> SettingsPanel {
+        let mut p = SettingsPanel::default();
+        p.set_values(
+            FACTORY
+                .list()
+                .filter_map(|(k, v)| Some((k.name.to_string(), v?.to_string())))
+                .collect(),
+        );
+        p
+    }
+
+    #[test]
+    fn typing_an_out_of_range_value_shows_the_error_naming_the_key() {
+        let mut h = Harness::new_ui_state(|ui, p: &mut SettingsPanel| editor(p, ui), panel());
+        h.run();
+        // axis › x is open: its following error field, labelled by its name
+        let field = h.get_by_label("following_error_mm");
+        field.focus();
+        field.type_text("250");
+        h.run();
+        assert_eq!(
+            h.state()
+                .edits
+                .get("axis.x.following_error_mm")
+                .map(String::as_str),
+            Some("1250"),
+            "typed after the factory's 1 mm"
+        );
+        h.get_by_label_contains("axis.x.following_error_mm: 1250 is outside the allowed range");
+        assert!(!h.state().check.is_ok());
+    }
+
+    #[test]
+    fn a_valid_edit_shows_no_error_and_no_edit_appears_before_a_click() {
+        let mut h = Harness::new_ui_state(|ui, p: &mut SettingsPanel| editor(p, ui), panel());
+        h.run();
+        assert!(h.state().edits.is_empty(), "{:?}", h.state().edits);
+        let field = h.get_by_label("min_ferror_mm");
+        field.focus();
+        field.type_text("5");
+        h.run();
+        assert_eq!(
+            h.state()
+                .edits
+                .get("axis.x.min_ferror_mm")
+                .map(String::as_str),
+            Some("0.15")
+        );
+        assert!(h.state().check.is_ok(), "{:?}", h.state().check);
+        assert!(h
+            .query_by_label_contains("outside the allowed range")
+            .is_none());
     }
 }
