@@ -74,11 +74,13 @@ pub enum Command {
     },
     /// Choose the telemetry's signals (up to four names, `gantry scope --signals` names).
     Signals(Vec<String>),
-    /// A scope capture (`gantry scope`'s), `timeout_s` of machine time.
+    /// A scope capture (`gantry scope`'s), `timeout_s` of machine time; `run`: a program
+    /// to run while the scope waits (`gantry scope --run`, homing and arming first).
     Scope {
         config: ScopeConfig,
         names: Vec<String>,
         timeout_s: f32,
+        run: Option<PathBuf>,
     },
 }
 
@@ -473,11 +475,30 @@ fn execute(
             config,
             names,
             timeout_s,
+            run,
         } => {
-            let cap =
-                cli::scope::capture(c, config, names, CONTROL_RATE_HZ, timeout_s, |_| Ok(()))?;
+            // `gantry scope --run`: the program runs while the scope waits (the session
+            // runs one command at a time, so nothing else could move the machine then)
+            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+            let mut report = None;
+            let cap = cli::scope::capture(c, config, names, CONTROL_RATE_HZ, timeout_s, |c| {
+                if let Some(path) = &run {
+                    report = Some(cli::run_program_with(
+                        c,
+                        path,
+                        period_s,
+                        false,
+                        None,
+                        Some(keys),
+                    )?);
+                }
+                Ok(())
+            })?;
             let n = cap.rows.len();
             let _ = events.send(Event::Scope(Box::new(cap)));
+            if let Some(r) = report {
+                let _ = events.send(Event::RunReport(Box::new(r)));
+            }
             Ok(format!("scope: {n} samples"))
         }
     }

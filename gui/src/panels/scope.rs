@@ -21,6 +21,8 @@ use std::path::Path;
 /// Longest wait the form offers, s of machine time (`capture`'s own bound).
 const MAX_TIMEOUT_S: f32 = 3600.0;
 const ERROR_RED: Color32 = Color32::from_rgb(220, 50, 47);
+/// The figure's colours (`host_sim::output::scope_plots`): signal blue, trigger red.
+const LINE_BLUE: Color32 = Color32::from_rgb(31, 119, 180);
 const TRIGGER_RED: Color32 = Color32::from_rgb(214, 39, 40);
 
 /// What starts the capture.
@@ -68,6 +70,8 @@ pub struct ScopePanel {
     pub timeout_s: f32,
     /// Where "Save CSV" writes.
     pub csv_path: String,
+    /// Run the loaded program while the scope waits (`gantry scope --run`).
+    pub run_program: bool,
 }
 
 impl Default for ScopePanel {
@@ -90,6 +94,7 @@ impl Default for ScopePanel {
             level: 1.0,
             timeout_s: 10.0,
             csv_path: "out/scope.csv".into(),
+            run_program: false,
         }
     }
 }
@@ -265,8 +270,26 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
             );
         }
     });
+    let program = app.program.as_ref().map(|l| l.path.clone());
+    ui.horizontal_wrapped(|ui| {
+        let label = match &program {
+            Some(path) => format!("run {} while the scope waits", path.display()),
+            None => "run the loaded program while the scope waits (load one first)".into(),
+        };
+        ui.add_enabled(
+            program.is_some(),
+            egui::Checkbox::new(&mut p.run_program, label),
+        )
+        .on_hover_text(
+            "gantry scope --run: homes and arms, then runs the program while the scope \
+                 waits for its trigger. Without it, the window's other commands wait until \
+                 the capture is complete (one command at a time): capture at rest, on a \
+                 fault, or with a program here.",
+        );
+    });
+    let run = program.filter(|_| p.run_program);
     let config = p.config();
-    let command_line = format!(
+    let mut command_line = format!(
         "arm the scope and read the capture: gantry scope --signals {} --samples {} \
          --every {} --pre {} --trigger {} --timeout-s {}",
         p.signals_text(),
@@ -276,6 +299,9 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
         p.trigger_text(),
         p.timeout_s
     );
+    if let Some(path) = &run {
+        command_line.push_str(&format!(" --run {}", path.display()));
+    }
     let timeout_s = p.timeout_s;
     let state = app.live.status.as_ref().map(|s| s.scope);
     let mut arm = false;
@@ -304,6 +330,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
                 config,
                 names,
                 timeout_s,
+                run,
             });
         }
     }
@@ -353,6 +380,8 @@ fn plot(ui: &mut egui::Ui, cap: &Capture) {
                 };
                 egui_plot::Plot::new(("scope-plot", i))
                     .height(height)
+                    // (one width for all: the linked time axes then line up)
+                    .y_axis_min_width(64.0)
                     .link_axis(link, [true, false])
                     .link_cursor(link, [true, false])
                     .legend(egui_plot::Legend::default())
@@ -363,7 +392,9 @@ fn plot(ui: &mut egui::Ui, cap: &Capture) {
                     })
                     .y_axis_label(label.clone())
                     .show(ui, |plot| {
-                        plot.line(egui_plot::Line::new(label.clone(), series_ms(cap, i)));
+                        plot.line(
+                            egui_plot::Line::new(label.clone(), series_ms(cap, i)).color(LINE_BLUE),
+                        );
                         plot.vline(egui_plot::VLine::new("trigger", 0.0).color(TRIGGER_RED));
                     });
             }
