@@ -109,11 +109,12 @@ pub fn verdict(r: &IdentifyJson) -> Verdict {
     }
 }
 
-/// How the machine would identify `axis`: `Some(window)` within ±window of where it
+/// How the machine would identify an axis: `Some(window)` within ±window of where it
 /// stands, `None` homed and around mid-travel. A machine with any axis lacking a model
-/// cannot arm (hence cannot home) and must use a window, as `host_sim::cli::identify`.
-pub fn window_for(model_missing: u8, in_place: bool, window_mm: f32) -> Option<f32> {
-    (model_missing != 0 || in_place).then_some(window_mm)
+/// cannot arm (hence cannot home) and must use a window; a homed axis identifies at
+/// mid-travel whatever the form says, as `host_sim::cli::identify` decides.
+pub fn window_for(model_missing: u8, homed: bool, in_place: bool, window_mm: f32) -> Option<f32> {
+    (model_missing != 0 || in_place && !homed).then_some(window_mm)
 }
 
 /// The settings now hold `r`'s model (the values read after an accept match it).
@@ -196,7 +197,12 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
                     "identify where it stands instead (no homing)",
                 );
             }
-            let window = window_for(missing, app.identify.in_place, app.identify.window_mm);
+            let window = window_for(
+                missing,
+                homed,
+                app.identify.in_place,
+                app.identify.window_mm,
+            );
             if window.is_some() {
                 ui.horizontal(|ui| {
                     ui.label("Window ±W");
@@ -284,10 +290,14 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
                     let can = free && v != Verdict::Failed && !in_settings;
                     if ui
                         .add_enabled(can, egui::Button::new(format!("Accept {name}")))
-                        .on_hover_text(
+                        .on_hover_text(if v == Verdict::Good {
                             "store this model in the settings (the law's gains follow from \
-                             it); the machine disarms first, since a new model changes the law",
-                        )
+                             it); the machine disarms first, since a new model changes the law"
+                        } else {
+                            "this fit is not a good one: accepting stores it anyway (the \
+                             law's gains follow from it); identifying again is better. The \
+                             machine disarms first, since a new model changes the law"
+                        })
                         .clicked()
                     {
                         app.send(Command::Accept { axis });
@@ -394,9 +404,15 @@ mod tests {
 
     #[test]
     fn a_machine_without_models_identifies_in_a_window() {
-        assert_eq!(window_for(0b010, false, 20.0), Some(20.0));
-        assert_eq!(window_for(0, false, 20.0), None);
-        assert_eq!(window_for(0, true, 35.0), Some(35.0));
+        // any axis without a model: nothing arms, a window whatever else
+        assert_eq!(window_for(0b010, false, false, 20.0), Some(20.0));
+        assert_eq!(window_for(0b001, true, false, 20.0), Some(20.0));
+        // models everywhere: homed (or homing first) and mid-travel
+        assert_eq!(window_for(0, false, false, 20.0), None);
+        assert_eq!(window_for(0, true, false, 20.0), None);
+        // where it stands, on request, only while not homed
+        assert_eq!(window_for(0, false, true, 35.0), Some(35.0));
+        assert_eq!(window_for(0, true, true, 35.0), None);
     }
 
     #[test]
