@@ -67,13 +67,20 @@ pub enum Command {
         window_mm: Option<f32>,
         accept: bool,
     },
+    /// Store the last identification's model of `axis` in the settings (not saved to
+    /// flash): disarm first (a model changes the law), as `gantry identify --accept` does.
+    Accept {
+        axis: usize,
+    },
     /// Choose the telemetry's signals (up to four names, `gantry scope --signals` names).
     Signals(Vec<String>),
-    /// A scope capture (`gantry scope`'s), `timeout_s` of machine time.
+    /// A scope capture (`gantry scope`'s), `timeout_s` of machine time; `run`: a program
+    /// to run while the scope waits (`gantry scope --run`, homing and arming first).
     Scope {
         config: ScopeConfig,
         names: Vec<String>,
         timeout_s: f32,
+        run: Option<PathBuf>,
     },
 }
 
@@ -93,6 +100,7 @@ impl Command {
             Self::SetSettings(_) => "settings set".into(),
             Self::SaveSettings => "settings save".into(),
             Self::Identify { axis, .. } => format!("identify {}", axis_name(*axis)),
+            Self::Accept { axis } => format!("accept {}", axis_name(*axis)),
             Self::Signals(_) => "telemetry signals".into(),
             Self::Scope { .. } => "scope".into(),
         }
@@ -440,6 +448,23 @@ fn execute(
             let _ = events.send(Event::Identified(r));
             Ok(text)
         }
+        Command::Accept { axis } => {
+            // the model changes the law: only with the outputs off
+            if c.status()?.state != MachineState::Disabled {
+                expect_done("disarm", c.exec(Request::Disarm)?)?;
+                cli::wait_while(c, |s| s.state == MachineState::Stopping)?;
+            }
+            expect_done(
+                "accept",
+                c.exec(Request::AcceptIdentified { axis: axis as u8 })?,
+            )?;
+            let all = cli::read_settings(c)?;
+            let _ = events.send(Event::Settings(all));
+            Ok(format!(
+                "axis {}: the identified model is in the settings (not saved: Settings › Save to flash keeps it)",
+                axis_name(axis)
+            ))
+        }
         Command::Signals(names) => {
             subscribe(c, decimation, &names)?;
             *signals = names;
@@ -450,11 +475,30 @@ fn execute(
             config,
             names,
             timeout_s,
+            run,
         } => {
-            let cap =
-                cli::scope::capture(c, config, names, CONTROL_RATE_HZ, timeout_s, |_| Ok(()))?;
+            // `gantry scope --run`: the program runs while the scope waits (the session
+            // runs one command at a time, so nothing else could move the machine then)
+            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+            let mut report = None;
+            let cap = cli::scope::capture(c, config, names, CONTROL_RATE_HZ, timeout_s, |c| {
+                if let Some(path) = &run {
+                    report = Some(cli::run_program_with(
+                        c,
+                        path,
+                        period_s,
+                        false,
+                        None,
+                        Some(keys),
+                    )?);
+                }
+                Ok(())
+            })?;
             let n = cap.rows.len();
             let _ = events.send(Event::Scope(Box::new(cap)));
+            if let Some(r) = report {
+                let _ = events.send(Event::RunReport(Box::new(r)));
+            }
             Ok(format!("scope: {n} samples"))
         }
     }
