@@ -109,16 +109,8 @@ pub fn signal_names() -> Vec<String> {
         .collect()
 }
 
-/// A signal's unit by its name, as `controller_core::machine::scope::Signal` documents
-/// them (host-sim's figure labels them the same way; effort is the gantry's mN·m).
-pub fn signal_unit(name: &str) -> &'static str {
-    match name.split('.').next().unwrap_or(name) {
-        "pos" | "ref" | "tracking" | "contour" => "mm",
-        "vel" | "ref_vel" | "sliding" => "mm/s",
-        "effort" => "mN·m",
-        _ => "",
-    }
-}
+/// A signal's unit by its name: the one host-sim's scope figure labels it with.
+pub use host_sim::output::scope_plots::signal_unit;
 
 impl ScopePanel {
     /// The chosen signals' names, in order.

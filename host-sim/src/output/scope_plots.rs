@@ -12,7 +12,7 @@ const TRIGGER: RGBColor = RGBColor(214, 39, 40);
 
 /// The unit of a scope signal by its name (`pos.x`, `vel.y`, `contour`, …), as
 /// `controller_core::machine::scope::Signal` documents them; effort is the gantry's mN·m.
-pub(crate) fn signal_unit(name: &str) -> &'static str {
+pub fn signal_unit(name: &str) -> &'static str {
     match name.split('.').next().unwrap_or(name) {
         "pos" | "ref" | "tracking" | "contour" => "mm",
         "vel" | "ref_vel" | "sliding" => "mm/s",
