@@ -32,8 +32,6 @@ pub const ARC_CHORD_ERROR_MM: f64 = 0.002;
 const ARC_MAX_PIECES: usize = 20_000;
 /// Trail points per cached mesh chunk (the last, growing chunk is rebuilt each frame).
 const TRAIL_CHUNK: usize = 8192;
-/// Colours of the contour-error scale (the trail is drawn in runs of one colour).
-const COLOUR_BINS: usize = 24;
 /// A polyline keeps a point only this far (screen points) from the last one kept.
 const MIN_STEP_PT: f32 = 0.7;
 /// Zoom limits (screen points per mm).
@@ -142,17 +140,6 @@ fn scale_colour(f: f32) -> Color32 {
         lerp(a[1], b[1], t),
         lerp(a[2], b[2], t),
     )
-}
-
-/// The colour bin of a contour error.
-fn colour_bin(contour_mm: f32, tolerance_mm: f32) -> u8 {
-    let f = contour_mm.abs() / tolerance_mm.max(f32::MIN_POSITIVE);
-    let f = if f.is_nan() { 1.0 } else { f.clamp(0.0, 1.0) };
-    (f * (COLOUR_BINS - 1) as f32).round() as u8
-}
-
-fn bin_colour(bin: u8) -> Color32 {
-    scale_colour(f32::from(bin) / (COLOUR_BINS - 1) as f32)
 }
 
 /// A run of moves of one kind drawn as one polyline.
@@ -395,6 +382,7 @@ struct MeshKey {
     pixels_per_point: f32,
     program: u64,
     rapids: bool,
+    dark: bool,
     tolerance_mm: f32,
 }
 
@@ -467,7 +455,8 @@ fn tessellator(pixels_per_point: f32, clip: Rect) -> Tessellator {
 }
 
 /// The program's mesh: cuts solid, rapids dashed and light.
-fn program_mesh(path: &ProgramPath, key: &MeshKey, dark: bool) -> Mesh {
+fn program_mesh(path: &ProgramPath, key: &MeshKey) -> Mesh {
+    let dark = key.dark;
     let mut tess = tessellator(key.pixels_per_point, key.clip);
     let mut mesh = Mesh::default();
     let cut = Stroke::new(
@@ -497,26 +486,95 @@ fn program_mesh(path: &ProgramPath, key: &MeshKey, dark: bool) -> Mesh {
     mesh
 }
 
-/// The trail's mesh of `points`, in runs of one colour of the contour-error scale.
+/// The trail's mesh of `points`: decimated to the screen as the program's polylines are
+/// (a kept point takes the largest contour error of the points it stands for, so a
+/// one-sample excursion still shows red), each segment a quad shaded from its ends'
+/// colours. Not the tessellator's paths: with the colour changing at nearly every point
+/// (noise across a bin's edge) they would be one path per segment, ~8× the vertices.
 fn trail_mesh(points: &[TrailPoint], key: &MeshKey) -> Mesh {
-    let mut tess = tessellator(key.pixels_per_point, key.clip);
+    let clip = key.clip.expand(4.0);
+    let tol = key.tolerance_mm;
     let mut mesh = Mesh::default();
-    let mut k = 0;
-    while k + 1 < points.len() {
-        let bin = colour_bin(points[k + 1].contour_mm, key.tolerance_mm);
-        let mut e = k + 1;
-        while e + 1 < points.len() && colour_bin(points[e + 1].contour_mm, key.tolerance_mm) == bin
-        {
-            e += 1;
+    let feather = 1.0 / key.pixels_per_point.max(0.1);
+    // the last point kept and its error; the newest point not kept, with the largest
+    // error since the last kept one
+    let mut kept: Option<(Pos2, f32)> = None;
+    let mut pending: Option<(Pos2, f32)> = None;
+    let err_of = |p: &TrailPoint| {
+        let e = p.contour_mm.abs();
+        if e.is_nan() {
+            f32::INFINITY
+        } else {
+            e
         }
-        let stroke = Stroke::new(2.0, bin_colour(bin));
-        let pts = points[k..=e].iter().map(|p| p.pos_mm);
-        screen_polylines(pts, &key.camera, key.clip, |line| {
-            tess.tessellate_path(&PathShape::line(line.to_vec(), stroke), &mut mesh);
-        });
-        k = e;
+    };
+    for p in points {
+        let s = key.camera.to_screen(p.pos_mm);
+        let e = err_of(p);
+        if !(s.x.is_finite() && s.y.is_finite()) {
+            if let (Some(a), Some(b)) = (kept, pending) {
+                segment_quad(&mut mesh, a, b, tol, feather, clip);
+            }
+            kept = None;
+            pending = None;
+            continue;
+        }
+        let Some(a) = kept else {
+            kept = Some((s, e));
+            continue;
+        };
+        let e = pending.map_or(e, |(_, pe)| pe.max(e));
+        if a.0.distance(s) < MIN_STEP_PT {
+            pending = Some((s, e));
+            continue;
+        }
+        segment_quad(&mut mesh, a, (s, e), tol, feather, clip);
+        kept = Some((s, e));
+        pending = None;
+    }
+    if let (Some(a), Some(b)) = (kept, pending) {
+        segment_quad(&mut mesh, a, b, tol, feather, clip);
     }
     mesh
+}
+
+/// Half the trail's width, screen points.
+const TRAIL_HALF_WIDTH_PT: f32 = 1.0;
+
+/// One trail segment `a → b` (screen point, contour error mm) as a quad 2 points wide
+/// with a feathered edge (anti-aliasing), colours from each end's error; off `clip`, none.
+fn segment_quad(
+    mesh: &mut Mesh,
+    a: (Pos2, f32),
+    b: (Pos2, f32),
+    tol_mm: f32,
+    feather: f32,
+    clip: Rect,
+) {
+    if !Rect::from_two_pos(a.0, b.0).intersects(clip) {
+        return;
+    }
+    let d = b.0 - a.0;
+    let len = d.length();
+    if !(len > 0.0) {
+        return;
+    }
+    let n = Vec2::new(-d.y, d.x) / len;
+    let (w, f) = (TRAIL_HALF_WIDTH_PT, TRAIL_HALF_WIDTH_PT + feather);
+    let i = mesh.vertices.len() as u32;
+    for (p, e) in [a, b] {
+        let c = contour_colour(e, tol_mm);
+        mesh.colored_vertex(p + n * f, Color32::TRANSPARENT);
+        mesh.colored_vertex(p + n * w, c);
+        mesh.colored_vertex(p - n * w, c);
+        mesh.colored_vertex(p - n * f, Color32::TRANSPARENT);
+    }
+    // three strips (feather, core, feather) between the ends' vertices i..i+4, i+4..i+8
+    for k in 0..3 {
+        let (p0, p1, q0, q1) = (i + k, i + k + 1, i + 4 + k, i + 4 + k + 1);
+        mesh.add_triangle(p0, p1, q0);
+        mesh.add_triangle(p1, q1, q0);
+    }
 }
 
 /// The trail's meshes: full chunks of [`TRAIL_CHUNK`] points kept while the view and the
@@ -674,6 +732,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
         pixels_per_point: ui.ctx().pixels_per_point(),
         program: view.program.as_ref().map_or(0, |p| p.key),
         rapids: view.show_rapids,
+        dark,
         tolerance_mm,
     };
 
@@ -686,7 +745,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
         let mesh = match &view.program_mesh {
             Some((k, m)) if *k == key => m.clone(),
             _ => {
-                let m = Arc::new(program_mesh(path, &key, dark));
+                let m = Arc::new(program_mesh(path, &key));
                 view.program_mesh = Some((key, m.clone()));
                 m
             }
@@ -1057,9 +1116,7 @@ mod tests {
         assert_eq!(contour_colour(tol, tol), Color32::from_rgb(220, 30, 30));
         assert_eq!(contour_colour(5.0 * tol, tol), contour_colour(tol, tol));
         assert_eq!(contour_colour(f32::NAN, tol), contour_colour(tol, tol));
-        assert_eq!(colour_bin(0.0, tol), 0);
-        assert_eq!(colour_bin(tol, tol) as usize, COLOUR_BINS - 1);
-        assert_eq!(colour_bin(0.0, 0.0) as usize, 0);
+        assert_eq!(contour_colour(0.0, 0.0), contour_colour(0.0, tol));
     }
 
     #[test]
@@ -1107,6 +1164,43 @@ mod tests {
         let mut lines = Vec::new();
         screen_polylines(broken.into_iter(), &cam, clip, |l| lines.push(l.len()));
         assert_eq!(lines, vec![2]);
+    }
+
+    /// 1,000 trail points within half a screen point, one of them 1 mm off: the mesh is
+    /// one segment, and it shows red.
+    #[test]
+    fn a_trail_spike_stays_red_when_decimated() {
+        let key = MeshKey {
+            camera: Camera {
+                right: [1.0, 0.0, 0.0],
+                up: [0.0, 1.0, 0.0],
+                center_mm: [0.0, 0.0],
+                scale_pt_per_mm: 1.0,
+                origin: Pos2::new(100.0, 100.0),
+            },
+            clip: Rect::from_min_size(Pos2::ZERO, Vec2::splat(200.0)),
+            pixels_per_point: 1.0,
+            program: 0,
+            rapids: true,
+            dark: false,
+            tolerance_mm: 0.01,
+        };
+        let pts: Vec<TrailPoint> = (0..1000)
+            .map(|i| TrailPoint {
+                pos_mm: [i as f32 * 0.0005, 0.0, 0.0],
+                contour_mm: if i == 500 { 1.0 } else { 0.0 },
+            })
+            .collect();
+        let mesh = trail_mesh(&pts, &key);
+        assert_eq!(mesh.vertices.len(), 8);
+        let red = contour_colour(1.0, 0.01);
+        assert!(mesh.vertices.iter().any(|v| v.color == red));
+        assert!(mesh.is_valid());
+        let nan = [TrailPoint {
+            pos_mm: [f32::NAN; 3],
+            contour_mm: f32::NAN,
+        }; 3];
+        assert!(trail_mesh(&nan, &key).vertices.is_empty());
     }
 
     #[test]
