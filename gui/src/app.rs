@@ -92,9 +92,21 @@ impl GantryApp {
     /// A window on the machine `args` names; `wake` repaints it (eframe's context).
     pub fn new(args: MachineArgs, script: Script, wake: impl Fn() + Send + Sync + 'static) -> Self {
         let session = Session::start(args.clone(), wake);
-        let mut app = Self {
+        let mut app = Self::detached(args, script);
+        app.session = Some(session);
+        if let Some(p) = app.script.program.clone() {
+            app.controls.program_path = p.display().to_string();
+            app.send(Command::Load(p));
+        }
+        app
+    }
+
+    /// A window with no session (nothing is sent anywhere): the frame benchmark's, which
+    /// feeds `live` and `program` itself.
+    pub fn detached(args: MachineArgs, script: Script) -> Self {
+        Self {
             args,
-            session: Some(session),
+            session: None,
             live: Live::default(),
             program: None,
             busy: None,
@@ -112,12 +124,7 @@ impl GantryApp {
             script_state: Default::default(),
             report: None,
             runs_ended: 0,
-        };
-        if let Some(p) = app.script.program.clone() {
-            app.controls.program_path = p.display().to_string();
-            app.send(Command::Load(p));
         }
-        app
     }
 
     /// Queue a command for the session.
