@@ -461,7 +461,7 @@ fn execute(
             let all = cli::read_settings(c)?;
             let _ = events.send(Event::Settings(all));
             Ok(format!(
-                "axis {}: the identified model is in the settings (not saved: Settings › Save to flash keeps it)",
+                "axis {}: the identified model is in the settings (not saved: Settings, Save to flash, keeps it)",
                 axis_name(axis)
             ))
         }

@@ -305,7 +305,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
                     if in_settings {
                         ui.label(
                             "The model is in the machine's settings until it restarts: \
-                             Settings › Save to flash keeps it (with the outputs off).",
+                             Settings, Save to flash, keeps it (with the outputs off).",
                         );
                     }
                 }

@@ -60,6 +60,8 @@ pub fn min_max_decimate(
     t1: f64,
     buckets: usize,
 ) -> Vec<[f64; 2]> {
+    /// A sample: time (s), value.
+    type TimeValue = (f64, f64);
     let buckets = buckets.max(1);
     let span = t1 - t0;
     let mut out = Vec::with_capacity(2 * buckets);
@@ -68,7 +70,7 @@ pub fn min_max_decimate(
     }
     let per_s = buckets as f64 / span;
     // the current column: its index, its minimum and maximum (t, v)
-    let mut col: Option<(usize, (f64, f64), (f64, f64))> = None;
+    let mut col: Option<(usize, TimeValue, TimeValue)> = None;
     let flush = |out: &mut Vec<[f64; 2]>, lo: (f64, f64), hi: (f64, f64)| {
         let (a, b) = if lo.0 <= hi.0 { (lo, hi) } else { (hi, lo) };
         out.push([a.0, a.1]);
@@ -241,7 +243,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
         ui.separator();
         let frozen = app.plots.frozen.is_some();
         if ui
-            .selectable_label(frozen, if frozen { "▶ Resume" } else { "⏸ Freeze" })
+            .selectable_label(frozen, if frozen { "Resume" } else { "Freeze" })
             .on_hover_text("freeze the plots (then drag and scroll to zoom, double-click to reset)")
             .clicked()
         {

@@ -327,7 +327,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
                 .hint_text("key or word")
                 .desired_width(160.0),
         );
-        ui.checkbox(&mut app.settings.only_changed, "only ≠ factory")
+        ui.checkbox(&mut app.settings.only_changed, "only changed from factory")
             .on_hover_text("show only the values that differ from the factory settings");
     });
     ui.label(
