@@ -27,6 +27,10 @@ use std::time::{Duration, Instant};
 /// homed axes, settings state come from it; position comes with every telemetry sample).
 const STATUS_EVERY: Duration = Duration::from_millis(100);
 
+/// The window is woken for new telemetry at most this often (60 frames/s: more would
+/// draw frames no screen shows).
+const FRAME_MIN: Duration = Duration::from_millis(16);
+
 /// The signals every telemetry sample carries besides its fixed fields, by default: the
 /// three axes' efforts (the law's output, N·m at the motor) and the contour error.
 pub const DEFAULT_SIGNALS: [&str; 3] = ["effort.x", "effort.y", "effort.z"];
@@ -191,19 +195,14 @@ impl Session {
         let thread = std::thread::Builder::new()
             .name("gantry-session".into())
             .spawn(move || {
-                let wake = std::sync::Arc::new(wake);
+                let wake = Waker::start(wake);
                 let result = connect(&args).and_then(|mut c| {
-                    let w = wake.clone();
-                    let tap = Waking {
-                        to: tap_tx,
-                        wake: Box::new(move || w()),
-                    };
-                    serve(&mut c, &args, tap, &cmd_rx, &key_rx, &ev_tx, &*wake)
+                    serve(&mut c, &args, tap_tx, &cmd_rx, &key_rx, &ev_tx, &wake)
                 });
                 if let Err(e) = result {
                     let _ = ev_tx.send(Event::Lost(format!("{e:#}")));
                 }
-                wake();
+                wake.wake();
             })
             .expect("spawning the session thread"); // allow-panic: host GUI start-up
         Self {
@@ -237,10 +236,35 @@ impl Drop for Session {
     }
 }
 
-/// The tap's sender, waking the window at most every few milliseconds.
-struct Waking {
-    to: Sender<Tapped>,
-    wake: Box<dyn Fn() + Send>,
+/// Wakes the window from the session without ever waiting for it: the window's wake
+/// call (egui's `request_repaint`) takes the window's context lock, which a frame holds
+/// while it is tessellated, hundreds of milliseconds on a loaded machine with software
+/// OpenGL, longer than the machine's link watchdog. A thread of its own makes that call;
+/// the session only leaves a note for it (a one-slot channel, never full for long).
+struct Waker(std::sync::mpsc::SyncSender<()>);
+
+impl Waker {
+    fn start(wake: impl Fn() + Send + 'static) -> Self {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<()>(1);
+        let spawned = std::thread::Builder::new()
+            .name("gantry-wake".into())
+            .spawn(move || {
+                for () in rx {
+                    wake();
+                }
+            });
+        if spawned.is_err() {
+            // (no waker: the window still repaints on its own timer)
+            let (dead, _) = std::sync::mpsc::sync_channel(1);
+            return Self(dead);
+        }
+        Self(tx)
+    }
+
+    /// Ask for a repaint; returns at once.
+    fn wake(&self) {
+        let _ = self.0.try_send(());
+    }
 }
 
 fn connect(args: &MachineArgs) -> Result<Client<AnyTransport>> {
@@ -251,23 +275,24 @@ fn connect(args: &MachineArgs) -> Result<Client<AnyTransport>> {
 fn serve(
     c: &mut Client<AnyTransport>,
     args: &MachineArgs,
-    tap: Waking,
+    tap: Sender<Tapped>,
     commands: &Receiver<Command>,
     keys: &Receiver<char>,
     events: &Sender<Event>,
-    wake: &dyn Fn(),
+    wake: &Waker,
 ) -> Result<()> {
     let decimation = args.decimation();
     let mut signals: Vec<String> = DEFAULT_SIGNALS.iter().map(|s| s.to_string()).collect();
     subscribe(c, decimation, &signals)?;
-    c.tap(tap.to.clone());
+    c.tap(tap);
     let _ = events.send(Event::Connected {
         rate_hz: CONTROL_RATE_HZ,
         decimation,
     });
     let _ = events.send(Event::Signals(signals.clone()));
-    wake();
+    wake.wake();
     let mut last_status = Instant::now() - STATUS_EVERY;
+    let mut scope: Option<PendingScope> = None;
     let mut last_wake = Instant::now();
     loop {
         match commands.try_recv() {
@@ -276,8 +301,8 @@ fn serve(
                 while keys.try_recv().is_ok() {}
                 let what = cmd.what();
                 let _ = events.send(Event::Started(what.clone()));
-                wake();
-                let result = execute(c, cmd, decimation, keys, events, &mut signals);
+                wake.wake();
+                let result = execute(c, cmd, decimation, keys, events, &mut signals, &mut scope);
                 // a link that failed ends the session; a refused command does not
                 let result = match result {
                     Err(e) if is_link_failure(&e) => return Err(e),
@@ -285,7 +310,7 @@ fn serve(
                 };
                 interrupt::clear();
                 let _ = events.send(Event::Finished { what, result });
-                (tap.wake)();
+                wake.wake();
                 continue;
             }
             Err(TryRecvError::Disconnected) => break,
@@ -293,12 +318,15 @@ fn serve(
         }
         c.pump()?;
         if last_status.elapsed() >= STATUS_EVERY {
-            c.status()?;
+            let st = c.status()?;
             last_status = Instant::now();
+            if let Some(p) = scope.take() {
+                scope = p.check(c, &st, events)?;
+            }
         }
         // (the tap has them: the client's own copy is dropped)
-        if !c.take_telemetry().is_empty() && last_wake.elapsed() >= Duration::from_millis(8) {
-            (tap.wake)();
+        if !c.take_telemetry().is_empty() && last_wake.elapsed() >= FRAME_MIN {
+            wake.wake();
             last_wake = Instant::now();
         }
         c.transport.wait()?;
@@ -338,6 +366,7 @@ fn execute(
     keys: &Receiver<char>,
     events: &Sender<Event>,
     signals: &mut Vec<String>,
+    scope: &mut Option<PendingScope>,
 ) -> Result<String> {
     let done = |c: &mut Client<AnyTransport>, what: &str, r: Request| -> Result<String> {
         expect_done(what, c.exec(r)?)?;
@@ -477,29 +506,84 @@ fn execute(
             timeout_s,
             run,
         } => {
-            // `gantry scope --run`: the program runs while the scope waits (the session
-            // runs one command at a time, so nothing else could move the machine then)
-            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
-            let mut report = None;
-            let cap = cli::scope::capture(c, config, names, CONTROL_RATE_HZ, timeout_s, |c| {
-                if let Some(path) = &run {
-                    report = Some(cli::run_program_with(
-                        c,
-                        path,
-                        period_s,
-                        false,
-                        None,
-                        Some(keys),
-                    )?);
-                }
-                Ok(())
-            })?;
-            let n = cap.rows.len();
-            let _ = events.send(Event::Scope(Box::new(cap)));
-            if let Some(r) = report {
-                let _ = events.send(Event::RunReport(Box::new(r)));
+            // armed, then the session goes on: the capture is read when the machine's
+            // status says it is done, and meanwhile the operator can jog, run or stop
+            // (what usually triggers it); `gantry scope --run`'s program runs here
+            cli::scope::arm(c, config)?;
+            if !(timeout_s > 0.0 && timeout_s <= 3600.0) {
+                anyhow::bail!("the scope's timeout must be within (0, 3600] s, got {timeout_s}");
             }
-            Ok(format!("scope: {n} samples"))
+            let armed_at = c.status()?.period;
+            *scope = Some(PendingScope {
+                names,
+                armed_at,
+                timeout_periods: (f64::from(timeout_s) * f64::from(CONTROL_RATE_HZ)) as u32,
+            });
+            if let Some(path) = &run {
+                let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+                let r = cli::run_program_with(c, path, period_s, false, None, Some(keys))?;
+                let text = format!("{}: {} ({})", path.display(), r.status, r.program_end);
+                let _ = events.send(Event::RunReport(Box::new(r)));
+                return Ok(format!("scope armed; {text}"));
+            }
+            Ok("scope armed: waiting for its trigger".into())
+        }
+    }
+}
+
+/// A scope capture armed and not read yet.
+#[derive(Debug)]
+pub struct PendingScope {
+    names: Vec<String>,
+    /// The machine's period when it was armed.
+    armed_at: u32,
+    timeout_periods: u32,
+}
+
+impl PendingScope {
+    /// Read the capture once the machine says it is done (then `None`); say why it ended
+    /// when the scope was disarmed or timed out; else keep waiting.
+    fn check(
+        self,
+        c: &mut Client<AnyTransport>,
+        st: &Status,
+        events: &Sender<Event>,
+    ) -> Result<Option<Self>> {
+        use controller_core::machine::scope::ScopeState;
+        let ended = |why: String| {
+            let _ = events.send(Event::Finished {
+                what: "scope".into(),
+                result: Err(why),
+            });
+        };
+        match st.scope {
+            ScopeState::Done => {
+                let cap = cli::scope::read(c, self.names, CONTROL_RATE_HZ)?;
+                let n = cap.rows.len();
+                let _ = events.send(Event::Scope(Box::new(cap)));
+                let _ = events.send(Event::Finished {
+                    what: "scope".into(),
+                    result: Ok(format!("scope: {n} samples read")),
+                });
+                Ok(None)
+            }
+            ScopeState::Off => {
+                ended("the scope was disarmed".into());
+                Ok(None)
+            }
+            _ if st.period.wrapping_sub(self.armed_at) > self.timeout_periods => {
+                let what = if st.scope == ScopeState::Waiting {
+                    "trigger"
+                } else {
+                    "complete"
+                };
+                ended(format!(
+                    "the scope did not {what} within {:.1} s of machine time",
+                    f64::from(self.timeout_periods) / f64::from(CONTROL_RATE_HZ)
+                ));
+                Ok(None)
+            }
+            _ => Ok(Some(self)),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! The window never blocks the link: the session thread keeps the machine's heartbeat
-//! and telemetry going while the window takes nothing for seconds (a stalled frame), and
-//! the machine is still armed, with no `link_lost`, when the window comes back.
+//! and telemetry going while the window takes nothing for seconds (a stalled frame) and
+//! while waking the window blocks (a frame holding egui's context lock), and the machine
+//! is still armed, with no `link_lost`, when the window comes back.
 
 use controller_core::machine::messages::MachineState;
 use gantry_gui::served::Served;
@@ -31,7 +32,9 @@ fn a_stalled_window_does_not_stop_the_machines_heartbeat() {
         ..MachineArgs::default()
     };
     let (_served, args) = Served::start(&sim).expect("serve the simulated gantry");
-    let s = Session::start(args, || {});
+    // waking the window blocks for a second each time: a window whose frames hold its
+    // context lock that long
+    let s = Session::start(args, || std::thread::sleep(Duration::from_secs(1)));
     s.send(Command::Arm);
     let armed = wait_finished(&s, "arm", Duration::from_secs(20));
     assert!(armed.is_ok(), "{armed:?}");

@@ -29,6 +29,10 @@ use std::time::{Duration, Instant};
 const BACKLOG_MAX_BYTES: usize = 1 << 20;
 /// Machine time run between two looks at the pty, ms (a reply's latency at most).
 const SLICE_MS: u32 = 1;
+/// How far (ms of machine time) the served machine may fall behind the wall clock before
+/// it slows down instead of catching up (a starved host: the machine is slow, never lost,
+/// as the QEMU rig's is).
+const MAX_LAG_MS: u32 = 20;
 /// Telemetry decimation until a host subscribes (1 kHz at 10 kHz).
 const IDLE_TELEMETRY_PERIODS: u32 = 10;
 
@@ -177,6 +181,8 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
     let mut out = Vec::new();
     let mut inbuf = [0u8; 4096];
     let mut last_ms = 0u32;
+    // machine periods given up to starvation (see MAX_LAG_MS)
+    let mut slipped = 0u64;
     while !stop.load(Ordering::Relaxed) {
         if end_periods.is_some_and(|e| sim.periods() >= e) {
             break;
@@ -190,9 +196,20 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
                 Err(e) => return Err(e).context("pseudo-terminal read"),
             }
         }
-        // the machine's time
+        // the machine's time: paced by the wall clock, but never more than MAX_LAG_MS
+        // behind it; a serve starved of the CPU (a loaded host) slows the machine down
+        // instead of running the lost time in one burst, during which a host starved
+        // alongside could not send and the machine's link watchdog would expire
         let due = match opts.speed {
-            Speed::Times(f) => (t0.elapsed().as_secs_f64() * f * rate as f64) as u64,
+            Speed::Times(f) => {
+                let wall = (t0.elapsed().as_secs_f64() * f * rate as f64) as u64;
+                let lag_max = u64::from(MAX_LAG_MS) * rate / 1000;
+                let behind = wall.saturating_sub(slipped + sim.periods());
+                if behind > lag_max {
+                    slipped += behind - lag_max;
+                }
+                wall.saturating_sub(slipped)
+            }
             Speed::Max => sim.periods() + u64::from(slice),
         };
         if due > sim.periods() {
