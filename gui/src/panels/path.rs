@@ -307,7 +307,7 @@ impl Camera {
         let d = |a: [f32; 3]| a[0] * p[0] + a[1] * p[1] + a[2] * p[2];
         [d(self.right), d(self.up)]
     }
-    fn to_screen(&self, p: [f32; 3]) -> Pos2 {
+    fn screen_of(&self, p: [f32; 3]) -> Pos2 {
         let [u, v] = self.view_mm(p);
         Pos2::new(
             self.origin.x + (u - self.center_mm[0]) * self.scale_pt_per_mm,
@@ -315,7 +315,7 @@ impl Camera {
         )
     }
     /// View coordinates (mm) of a screen point.
-    fn from_screen(&self, s: Pos2) -> [f32; 2] {
+    fn view_of_screen(&self, s: Pos2) -> [f32; 2] {
         [
             self.center_mm[0] + (s.x - self.origin.x) / self.scale_pt_per_mm,
             self.center_mm[1] - (s.y - self.origin.y) / self.scale_pt_per_mm,
@@ -411,7 +411,7 @@ fn screen_polylines(
         line.clear();
     };
     for p in points {
-        let s = cam.to_screen(p);
+        let s = cam.screen_of(p);
         if !(s.x.is_finite() && s.y.is_finite()) {
             flush(&mut line, &mut pending, &mut out);
             prev = None;
@@ -509,7 +509,7 @@ fn trail_mesh(points: &[TrailPoint], key: &MeshKey) -> Mesh {
         }
     };
     for p in points {
-        let s = key.camera.to_screen(p.pos_mm);
+        let s = key.camera.screen_of(p.pos_mm);
         let e = err_of(p);
         if !(s.x.is_finite() && s.y.is_finite()) {
             if let (Some(a), Some(b)) = (kept, pending) {
@@ -556,7 +556,7 @@ fn segment_quad(
     }
     let d = b.0 - a.0;
     let len = d.length();
-    if !(len > 0.0) {
+    if len.is_nan() || len <= 0.0 {
         return;
     }
     let n = Vec2::new(-d.y, d.x) / len;
@@ -705,7 +705,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
         if factor.is_finite() && factor > 0.0 && factor != 1.0 {
             let before = view.camera(rect);
             let at = response.hover_pos().unwrap_or(rect.center());
-            let fixed = before.from_screen(at);
+            let fixed = before.view_of_screen(at);
             view.scale_pt_per_mm =
                 (view.scale_pt_per_mm * factor).clamp(SCALE_RANGE.0, SCALE_RANGE.1);
             let s = view.scale_pt_per_mm;
@@ -780,7 +780,7 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
 
     // the tool
     if let Some(p) = app.live.pos_mm() {
-        let s = cam.to_screen(p);
+        let s = cam.screen_of(p);
         if rect.expand(8.0).contains(s) {
             let c = if dark { Color32::WHITE } else { Color32::BLACK };
             painter.circle_stroke(s, 6.0, Stroke::new(2.0, c));
@@ -832,8 +832,8 @@ fn text_colour(dark: bool) -> Color32 {
 
 /// A 2-D view's grid and its axes in mm.
 fn draw_grid(painter: &egui::Painter, cam: &Camera, rect: Rect, names: (&str, &str), dark: bool) {
-    let lo = cam.from_screen(rect.left_bottom());
-    let hi = cam.from_screen(rect.right_top());
+    let lo = cam.view_of_screen(rect.left_bottom());
+    let hi = cam.view_of_screen(rect.right_top());
     let grid = Stroke::new(
         1.0,
         if dark {
@@ -893,14 +893,14 @@ fn draw_grid(painter: &egui::Painter, cam: &Camera, rect: Rect, names: (&str, &s
     painter.text(
         rect.right_bottom() + Vec2::new(-6.0, -16.0),
         Align2::RIGHT_BOTTOM,
-        format!("{} mm →", names.0),
+        format!("{} (mm)", names.0),
         bold.clone(),
         tc,
     );
     painter.text(
         rect.left_top() + Vec2::new(6.0, 6.0),
         Align2::LEFT_TOP,
-        format!("↑ {} mm", names.1),
+        format!("{} (mm)", names.1),
         bold,
         tc,
     );
