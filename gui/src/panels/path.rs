@@ -577,6 +577,14 @@ fn segment_quad(
     }
 }
 
+fn same_bits(a: &TrailPoint, b: &TrailPoint) -> bool {
+    a.contour_mm.to_bits() == b.contour_mm.to_bits()
+        && a.pos_mm
+            .iter()
+            .zip(b.pos_mm)
+            .all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 /// The trail's meshes: full chunks of [`TRAIL_CHUNK`] points kept while the view and the
 /// trail's start stay, the growing last chunk rebuilt every frame.
 #[derive(Debug, Default)]
@@ -591,10 +599,12 @@ impl TrailChunks {
         // a new view, or a trail that was cleared or thinned (the live trail halves its
         // density when full): what was cached no longer matches
         let stale = self.key.as_ref() != Some(key)
-            || self
-                .chunks
-                .iter()
-                .any(|(end, last, _)| trail.get(end.wrapping_sub(1)) != Some(last));
+            || self.chunks.iter().any(|(end, last, _)| {
+                // (bitwise: a NaN point must not make its chunk stale every frame)
+                trail
+                    .get(end.wrapping_sub(1))
+                    .is_none_or(|p| !same_bits(p, last))
+            });
         if stale {
             self.chunks.clear();
             self.key = Some(*key);
@@ -722,7 +732,18 @@ pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
             .as_ref()
             .and_then(|p| p.bounds_mm)
             .or_else(|| bounds_of(app.live.trail.iter().map(|t| t.pos_mm)));
-        view.fit_to(bounds, rect);
+        // fit beside the legend (top right) when there is room
+        let fit_rect = if rect.width() > 3.0 * LEGEND_WIDTH_PT {
+            Rect::from_min_max(
+                rect.min,
+                Pos2::new(rect.right() - LEGEND_WIDTH_PT, rect.bottom()),
+            )
+        } else {
+            rect
+        };
+        view.fit_to(bounds, fit_rect);
+        // (the camera's origin is the whole rect's centre)
+        view.center_mm[0] += (rect.center().x - fit_rect.center().x) / view.scale_pt_per_mm;
     }
 
     let cam = view.camera(rect);
@@ -958,11 +979,14 @@ fn draw_scale_bar(painter: &egui::Painter, cam: &Camera, rect: Rect, dark: bool)
     );
 }
 
+/// The legend's width, screen points.
+const LEGEND_WIDTH_PT: f32 = 180.0;
+
 /// The legend: what the lines are, and the contour-error colour bar in µm.
 fn draw_legend(painter: &egui::Painter, rect: Rect, tolerance_mm: f32, dark: bool) {
     let tc = text_colour(dark);
     let font = FontId::proportional(11.0);
-    let w = 170.0;
+    let w = LEGEND_WIDTH_PT - 10.0;
     let x0 = rect.right() - w;
     let top = rect.top() + 8.0;
     if x0 < rect.left() + 40.0 || rect.height() < 200.0 {
@@ -1201,6 +1225,47 @@ mod tests {
             contour_mm: f32::NAN,
         }; 3];
         assert!(trail_mesh(&nan, &key).vertices.is_empty());
+    }
+
+    /// Full chunks are kept while the trail grows, dropped when it is thinned or cleared.
+    #[test]
+    fn trail_chunks_are_kept_until_the_trail_changes() {
+        let key = MeshKey {
+            camera: Camera {
+                right: [1.0, 0.0, 0.0],
+                up: [0.0, 1.0, 0.0],
+                center_mm: [0.0, 0.0],
+                scale_pt_per_mm: 1.0,
+                origin: Pos2::new(100.0, 100.0),
+            },
+            clip: Rect::from_min_size(Pos2::ZERO, Vec2::splat(200.0)),
+            pixels_per_point: 1.0,
+            program: 0,
+            rapids: true,
+            dark: false,
+            tolerance_mm: 0.01,
+        };
+        let point = |i: usize| TrailPoint {
+            pos_mm: [
+                (i as f32 * 0.01).sin() * 50.0,
+                (i as f32 * 0.01).cos() * 50.0,
+                0.0,
+            ],
+            contour_mm: 0.001,
+        };
+        let mut trail: Vec<TrailPoint> = (0..3 * TRAIL_CHUNK).map(point).collect();
+        let mut chunks = TrailChunks::default();
+        let first = chunks.meshes(&trail, &key);
+        assert_eq!(chunks.chunks.len(), 2);
+        assert_eq!(first.len(), 3);
+        trail.extend((3 * TRAIL_CHUNK..3 * TRAIL_CHUNK + 10).map(point));
+        let again = chunks.meshes(&trail, &key);
+        assert!(Arc::ptr_eq(&first[0], &again[0]) && Arc::ptr_eq(&first[1], &again[1]));
+        // thinned (every other point), as the live trail does when full
+        let thinned: Vec<TrailPoint> = trail.iter().step_by(2).copied().collect();
+        let after = chunks.meshes(&thinned, &key);
+        assert!(!Arc::ptr_eq(&first[0], &after[0]));
+        assert!(chunks.meshes(&[], &key).is_empty());
     }
 
     #[test]

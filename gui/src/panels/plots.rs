@@ -51,6 +51,9 @@ impl Default for Plots {
     }
 }
 
+/// A decimation column: its index, its minimum and its maximum `(t, v)`.
+type Column = (usize, (f64, f64), (f64, f64));
+
 /// `(t, v)` decimated to `buckets` columns of `[t0, t1]`: each column keeps its minimum
 /// and its maximum, in time order (one point when they are the same sample). Samples
 /// outside `[t0, t1]` and non-finite values are left out. At most `2 × buckets` points.
@@ -60,8 +63,6 @@ pub fn min_max_decimate(
     t1: f64,
     buckets: usize,
 ) -> Vec<[f64; 2]> {
-    /// A sample: time (s), value.
-    type TimeValue = (f64, f64);
     let buckets = buckets.max(1);
     let span = t1 - t0;
     let mut out = Vec::with_capacity(2 * buckets);
@@ -70,7 +71,7 @@ pub fn min_max_decimate(
     }
     let per_s = buckets as f64 / span;
     // the current column: its index, its minimum and maximum (t, v)
-    let mut col: Option<(usize, TimeValue, TimeValue)> = None;
+    let mut col: Option<Column> = None;
     let flush = |out: &mut Vec<[f64; 2]>, lo: (f64, f64), hi: (f64, f64)| {
         let (a, b) = if lo.0 <= hi.0 { (lo, hi) } else { (hi, lo) };
         out.push([a.0, a.1]);
@@ -155,14 +156,14 @@ fn panels(signals: &[String]) -> Vec<Panel<'static>> {
     let mut out = vec![
         Panel {
             id: "tracking",
-            unit: "tracking error (pos − ref), µm".into(),
+            unit: "tracking (pos − ref), µm".into(),
             series: axis_series("tracking", |t, a| {
                 1000.0 * (f64::from(t.pos_mm[a]) - f64::from(t.reference_mm[a]))
             }),
         },
         Panel {
             id: "contour",
-            unit: "contour error, µm".into(),
+            unit: "contour, µm".into(),
             series: vec![Series {
                 name: "contour".into(),
                 colour: COLOURS[3],
@@ -171,7 +172,7 @@ fn panels(signals: &[String]) -> Vec<Panel<'static>> {
         },
         Panel {
             id: "velocity",
-            unit: "reference velocity, mm/s".into(),
+            unit: "ref. velocity, mm/s".into(),
             series: axis_series("velocity", |t, a| f64::from(t.ref_vel_mm_s[a])),
         },
     ];
@@ -194,8 +195,14 @@ fn panels(signals: &[String]) -> Vec<Panel<'static>> {
             series: effort,
         });
     }
-    if !signals.is_empty() {
-        let units: Vec<&str> = signals.iter().map(|s| signal_unit(s)).collect();
+    // the chosen signals not already plotted above (the efforts)
+    let others: Vec<(usize, &String)> = signals
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !(s.starts_with("effort.") && AXES.iter().any(|a| s.ends_with(a))))
+        .collect();
+    if !others.is_empty() {
+        let units: Vec<&str> = others.iter().map(|(_, s)| signal_unit(s)).collect();
         let unit = if units.windows(2).all(|w| w[0] == w[1]) {
             format!("signals, {}", units[0])
         } else {
@@ -204,9 +211,8 @@ fn panels(signals: &[String]) -> Vec<Panel<'static>> {
         out.push(Panel {
             id: "signals",
             unit,
-            series: signals
-                .iter()
-                .enumerate()
+            series: others
+                .into_iter()
                 .map(|(i, s)| Series {
                     name: format!("{s} ({})", signal_unit(s)),
                     colour: COLOURS[i % COLOURS.len()],
