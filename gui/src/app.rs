@@ -92,6 +92,11 @@ impl GantryApp {
     /// A window on the machine `args` names; `wake` repaints it (eframe's context).
     pub fn new(args: MachineArgs, script: Script, wake: impl Fn() + Send + Sync + 'static) -> Self {
         let session = Session::start(args.clone(), wake);
+        Self::with_session(args, script, session)
+    }
+
+    /// A window on the session already started on the machine `args` names.
+    pub fn with_session(args: MachineArgs, script: Script, session: Session) -> Self {
         let mut app = Self::detached(args, script);
         app.session = Some(session);
         if let Some(p) = app.script.program.clone() {

@@ -5,10 +5,12 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use gantry_gui::app::{GantryApp, Script, Tab};
+use gantry_gui::session::Session;
 use host_sim::cli::machine::MachineArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
+use std::sync::{Arc, OnceLock};
 
 #[derive(Parser)]
 #[command(
@@ -48,6 +50,20 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Nice value of the window's threads (this one and those it starts: the renderer's):
+/// below the link's and the served machine's, which were started before.
+const WINDOW_NICE: libc::c_int = 10;
+
+/// Lower the calling thread's priority (Linux: the nice value is per thread, inherited by
+/// the threads it starts); a failure only leaves the priority as it was.
+fn lower_this_threads_priority() {
+    // SAFETY: setpriority only reads its arguments; `0` names the calling thread.
+    let r = unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, WINDOW_NICE) };
+    if r != 0 {
+        eprintln!("gantry-gui: could not lower the window's priority (the link keeps its own)");
     }
 }
 
@@ -109,14 +125,22 @@ fn run(cli: Cli) -> Result<ExitCode> {
             .with_inner_size(size),
         ..Default::default()
     };
+    // the session first, then the window's own threads at a lower priority: on a loaded
+    // computer the link (and the served machine) get the CPU before the drawing does
+    let window: Arc<OnceLock<egui::Context>> = Arc::default();
+    let wake = window.clone();
+    let session = Session::start(machine.clone(), move || {
+        if let Some(ctx) = wake.get() {
+            ctx.request_repaint();
+        }
+    });
+    lower_this_threads_priority();
     eframe::run_native(
         "gantry",
         options,
         Box::new(move |cc| {
-            let ctx = cc.egui_ctx.clone();
-            Ok(Box::new(GantryApp::new(machine, script, move || {
-                ctx.request_repaint()
-            })))
+            let _ = window.set(cc.egui_ctx.clone());
+            Ok(Box::new(GantryApp::with_session(machine, script, session)))
         }),
     )
     .map_err(|e| anyhow::anyhow!("cannot open the window: {e}"))?;

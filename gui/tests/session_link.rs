@@ -75,3 +75,52 @@ fn a_stalled_window_does_not_stop_the_machines_heartbeat() {
     let disarmed = wait_finished(&s, "disarm", Duration::from_secs(10));
     assert!(disarmed.is_ok(), "{disarmed:?}");
 }
+
+/// The scope is armed and the session goes on (the operator can jog or run what triggers
+/// it); the capture is read when the machine says it is done. The tab's default form
+/// (gantry scope's defaults, an immediate trigger) captures at rest.
+#[test]
+fn a_scope_capture_arrives_while_the_session_takes_other_commands() {
+    let sim = MachineArgs {
+        sim: true,
+        telemetry_hz: 1000,
+        ..MachineArgs::default()
+    };
+    let (_served, args) = Served::start(&sim).expect("serve the simulated gantry");
+    let s = Session::start(args, || {});
+    let form = gantry_gui::panels::scope::ScopePanel::default();
+    let (config, names) = form.config().expect("the default form is valid");
+    let samples = usize::from(config.samples);
+    s.send(Command::Scope {
+        config,
+        names: names.clone(),
+        timeout_s: 30.0,
+        run: None,
+    });
+    let armed = wait_finished(&s, "scope", Duration::from_secs(20));
+    assert!(armed.is_ok(), "{armed:?}");
+    // the session takes a command while the capture is pending
+    s.send(Command::Arm);
+    let t0 = Instant::now();
+    let (mut capture, mut armed_again) = (None, false);
+    while t0.elapsed() < Duration::from_secs(30) && !(capture.is_some() && armed_again) {
+        while s.tapped.try_recv().is_ok() {}
+        match s.events.recv_timeout(Duration::from_millis(50)) {
+            Ok(Event::Scope(cap)) => capture = Some(cap),
+            Ok(Event::Finished { what, result }) if what == "arm" => {
+                assert!(result.is_ok(), "{result:?}");
+                armed_again = true;
+            }
+            Ok(Event::Lost(why)) => panic!("session lost: {why}"),
+            _ => {}
+        }
+    }
+    assert!(
+        armed_again,
+        "arm did not finish while the scope was pending"
+    );
+    let cap = capture.expect("the capture arrived");
+    assert_eq!(cap.names, names);
+    assert_eq!(cap.rows.len(), samples);
+    assert!(cap.rows.iter().all(|(_, v)| v.len() == names.len()));
+}

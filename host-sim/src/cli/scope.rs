@@ -96,13 +96,10 @@ pub fn capture<T: Transport>(
     timeout_s: f32,
     during: impl FnOnce(&mut Client<T>) -> Result<()>,
 ) -> Result<Capture> {
-    if let Err(why) = cfg.check() {
-        bail!("{why}");
-    }
     if !(timeout_s > 0.0 && timeout_s <= 3600.0) {
         bail!("--timeout-s must be within (0, 3600], got {timeout_s}");
     }
-    expect_done("scope arm", c.exec(Request::ScopeArm(cfg))?)?;
+    arm(c, cfg)?;
     during(c)?;
     let t0 = c.last_period();
     let timeout_periods = (f64::from(timeout_s) * f64::from(rate_hz)) as u32;
@@ -125,6 +122,21 @@ pub fn capture<T: Transport>(
         }
         c.sleep_ms(POLL_MS)?;
     }
+    read(c, names, rate_hz)
+}
+
+/// Arm `cfg` (checked here first, then by the machine): a running capture is dropped.
+pub fn arm<T: Transport>(c: &mut Client<T>, cfg: ScopeConfig) -> Result<()> {
+    if let Err(why) = cfg.check() {
+        bail!("{why}");
+    }
+    expect_done("scope arm", c.exec(Request::ScopeArm(cfg))?)?;
+    Ok(())
+}
+
+/// Read the completed capture (its signals named `names`, in order); `rate_hz` is the
+/// machine's control rate.
+pub fn read<T: Transport>(c: &mut Client<T>, names: Vec<String>, rate_hz: u32) -> Result<Capture> {
     let mut values = Vec::new();
     let (mut total, mut trigger_at, mut every) = (1usize, 0usize, 1u16);
     while values.len() < total {

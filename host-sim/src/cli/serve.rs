@@ -101,6 +101,22 @@ fn write_flash(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// The pty's symlink and the clock file, removed when the server ends.
+/// `O_NONBLOCK` on the pty master: a write takes what fits and returns.
+fn set_nonblocking(port: &TTYPort) -> std::io::Result<()> {
+    use std::os::unix::io::AsRawFd;
+    let fd = port.as_raw_fd();
+    // SAFETY: fcntl on a descriptor this process owns, with integer arguments only.
+    let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+    if flags < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // SAFETY: as above.
+    if unsafe { libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK) } < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    Ok(())
+}
+
 struct Served {
     pty: PathBuf,
     clock_path: PathBuf,
@@ -159,6 +175,11 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
     master
         .set_timeout(Duration::ZERO)
         .context("pseudo-terminal timeout")?;
+    // writes that never wait: the timeout only bounds waiting for room, and a write of
+    // more than the pty takes then blocks until a reader takes it all; a client that
+    // stopped reading (gone, starved, stopped in a debugger) held the machine's loop
+    // there, with its clock, its link watchdog and Ctrl-C
+    set_nonblocking(&master).context("pseudo-terminal: non-blocking writes")?;
 
     eprintln!(
         "gantry: the simulated gantry serves its link at {} ({}), {}; settings flash: {} ({:?}). \
