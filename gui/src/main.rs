@@ -35,8 +35,9 @@ struct Cli {
     /// Seconds after start for the screenshot (or to close), without --run.
     #[arg(long, value_name = "S")]
     after_s: Option<f64>,
-    /// The tab shown at start: path, plots, scope, settings or identify.
-    #[arg(long, default_value = "path", value_parser = ["path", "plots", "scope", "settings", "identify"])]
+    /// The tab shown at start: path (its XY view), path-3d (its 3-D view), plots, scope,
+    /// settings or identify.
+    #[arg(long, default_value = "path", value_parser = ["path", "path-3d", "plots", "scope", "settings", "identify"])]
     tab: String,
     /// The window's size in pixels, WxH.
     #[arg(long, default_value = "1400x900", value_name = "WxH")]
@@ -93,6 +94,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         );
     }
     let size = size(&cli.size)?;
+    let three_d = cli.tab == "path-3d";
     let tab = match cli.tab.as_str() {
         "plots" => Tab::Plots,
         "scope" => Tab::Scope,
@@ -140,7 +142,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
         options,
         Box::new(move |cc| {
             let _ = window.set(cc.egui_ctx.clone());
-            Ok(Box::new(GantryApp::with_session(machine, script, session)))
+            let mut app = GantryApp::with_session(machine, script, session);
+            if three_d {
+                app.path_view.projection = gantry_gui::panels::path::Projection::ThreeD;
+            }
+            Ok(Box::new(app))
         }),
     )
     .map_err(|e| anyhow::anyhow!("cannot open the window: {e}"))?;

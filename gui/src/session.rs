@@ -394,13 +394,7 @@ fn execute(
             Ok(at("homed", &s))
         }
         Command::Jog { axis, vel_mm_s } => {
-            expect_done(
-                "jog",
-                c.exec(Request::Jog {
-                    axis: axis as u8,
-                    vel_mm_s,
-                })?,
-            )?;
+            cli::jog(c, axis, vel_mm_s)?;
             Ok(String::new())
         }
         Command::Step { axis, step_mm } => {

@@ -12,7 +12,6 @@
 use crate::app::GantryApp;
 use crate::session::Command;
 use controller_core::machine::messages::{Telemetry, TELEMETRY_SIGNALS};
-use controller_core::machine::scope::Signal;
 use egui::{Color32, Id};
 use egui_plot::{Corner, Legend, Line, Plot, PlotPoints};
 
@@ -107,27 +106,7 @@ pub fn min_max_decimate(
     out
 }
 
-/// The unit of a telemetry signal, by its name's kind.
-pub fn signal_unit(name: &str) -> &'static str {
-    match name.split('.').next().unwrap_or("") {
-        "pos" | "ref" | "tracking" | "contour" => "mm",
-        // (the sliding variable s = ė + λ·e of the sliding-mode laws is a velocity)
-        "vel" | "ref_vel" | "sliding" => "mm/s",
-        "effort" => "N·m",
-        "feed_ratio" => "1",
-        _ => "",
-    }
-}
-
-/// Every signal name the machine takes (`kind.axis`, or `kind`).
-pub fn signal_names() -> Vec<String> {
-    Signal::names()
-        .map(|(k, a)| match a {
-            Some(a) => format!("{k}.{a}"),
-            None => k.to_string(),
-        })
-        .collect()
-}
+pub use super::scope::{signal_names, signal_unit};
 
 /// One series: its name, colour and value of a sample.
 struct Series<'a> {
@@ -191,7 +170,7 @@ fn panels(signals: &[String]) -> Vec<Panel<'static>> {
     if !effort.is_empty() {
         out.push(Panel {
             id: "effort",
-            unit: "effort, N·m".into(),
+            unit: "effort, mN·m".into(),
             series: effort,
         });
     }
@@ -405,8 +384,15 @@ mod tests {
         assert!(names.contains(&"effort.x".to_string()));
         assert!(names.contains(&"contour".to_string()));
         for n in &names {
-            assert!(Signal::from_name(n).is_some(), "{n}");
-            assert!(!signal_unit(n).is_empty(), "{n} has no unit");
+            assert!(
+                controller_core::machine::scope::Signal::from_name(n).is_some(),
+                "{n}"
+            );
+            // (the feed ratio is a pure number)
+            assert!(
+                n == "feed_ratio" || !signal_unit(n).is_empty(),
+                "{n} has no unit"
+            );
         }
     }
 }

@@ -661,6 +661,19 @@ fn planner_start_mm<T: Transport>(c: &mut Client<T>, s: &Status) -> Result<[f64;
     Ok(at_rest.map_or(s.pos_mm, |t| t.reference_mm).map(f64::from))
 }
 
+/// Jog `axis` (0 = X) at `vel_mm_s` (0 stops); the machine stops the axis by itself when
+/// no jog request came for its jog timeout, so a held key or button repeats it.
+pub fn jog<T: Transport>(c: &mut Client<T>, axis: usize, vel_mm_s: f32) -> Result<()> {
+    expect_done(
+        "jog",
+        c.exec(Request::Jog {
+            axis: axis as u8,
+            vel_mm_s,
+        })?,
+    )?;
+    Ok(())
+}
+
 /// Move to `target_mm` at the rapid rate (a one-segment program: the planner's limits and
 /// the soft limits apply as for any program).
 pub fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<Status> {

@@ -5,11 +5,10 @@
 //! when it is released); `1`..`4` choose the step (0.01, 0.1, 1, 10 mm) and the speed (1,
 //! 5, 20, 50 mm/s); `q` or Ctrl-C ends it. One read-out line shows where the machine is.
 
-use super::client::{expect_done, Client};
+use super::client::Client;
 use super::keys::SingleKeys;
 use super::{interrupt, move_to, ready, view, Transport};
 use anyhow::{bail, Result};
-use controller_core::machine::messages::Request;
 use std::io::Write;
 use std::time::{Duration, Instant};
 
@@ -140,7 +139,7 @@ pub fn pendant<T: Transport>(c: &mut Client<T>) -> Result<()> {
                     let same = held.is_some_and(|(a, d, _, _)| a == axis && d == dir);
                     let until = now + if same { REPEAT_HOLD } else { FIRST_HOLD };
                     if !same {
-                        jog(c, axis, dir * SPEEDS_MM_S[level])?;
+                        super::jog(c, axis, dir * SPEEDS_MM_S[level])?;
                         held = Some((axis, dir, until, now));
                     } else if let Some(h) = held.as_mut() {
                         h.2 = h.2.max(until);
@@ -167,10 +166,10 @@ pub fn pendant<T: Transport>(c: &mut Client<T>) -> Result<()> {
         if let Some((axis, dir, until, sent)) = held {
             let now = Instant::now();
             if now >= until {
-                jog(c, axis, 0.0)?;
+                super::jog(c, axis, 0.0)?;
                 held = None;
             } else if now.duration_since(sent) >= RESEND {
-                jog(c, axis, dir * SPEEDS_MM_S[level])?;
+                super::jog(c, axis, dir * SPEEDS_MM_S[level])?;
                 held = Some((axis, dir, until, now));
             }
         }
@@ -185,24 +184,13 @@ pub fn pendant<T: Transport>(c: &mut Client<T>) -> Result<()> {
         c.sleep_ms(20)?;
     }
     if let Some((axis, _, _, _)) = held {
-        jog(c, axis, 0.0)?;
+        super::jog(c, axis, 0.0)?;
     }
     let s = c.status()?;
     eprintln!(
         "\r\npendant: at x {:.3} y {:.3} z {:.3} mm",
         s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
     );
-    Ok(())
-}
-
-fn jog<T: Transport>(c: &mut Client<T>, axis: usize, vel_mm_s: f32) -> Result<()> {
-    expect_done(
-        "jog",
-        c.exec(Request::Jog {
-            axis: axis as u8,
-            vel_mm_s,
-        })?,
-    )?;
     Ok(())
 }
 
