@@ -194,7 +194,14 @@ impl GantryApp {
             Event::RunReport(r) => self.report = Some(r),
             Event::Settings(all) => self.settings.set_values(all),
             Event::Identified(r) => self.identify.results.extend(r),
-            Event::Signals(names) => self.live.signals = names,
+            Event::Signals(names) => {
+                // the samples kept carry the old signals' values: not to be drawn under
+                // the new names
+                if names != self.live.signals {
+                    self.live.history.clear();
+                }
+                self.live.signals = names;
+            }
             Event::Scope(cap) => self.scope.capture = Some(*cap),
             Event::Lost(why) => {
                 self.say(format!("session ended: {why}"));
