@@ -1,6 +1,6 @@
 //! The session with the machine, on a thread of its own: it owns the link's [`Client`],
 //! runs the window's commands one at a time with the same functions the `gantry` command
-//! line runs (`ready`, `run_program_with`, `identify`, `scope::capture`, …), and keeps the
+//! line runs (`ready`, `run_program_with`, `identify`, `scope::arm` and `read`, …), and keeps the
 //! link serviced between them. The window never touches the link: it sends [`Command`]s,
 //! reads [`Event`]s and the tapped status and telemetry, all through channels that never
 //! block the session. A window that stalls (a slow frame, a dragged window) therefore
