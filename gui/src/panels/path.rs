@@ -1190,11 +1190,9 @@ mod tests {
         assert_eq!(lines, vec![2]);
     }
 
-    /// 1,000 trail points within half a screen point, one of them 1 mm off: the mesh is
-    /// one segment, and it shows red.
-    #[test]
-    fn a_trail_spike_stays_red_when_decimated() {
-        let key = MeshKey {
+    /// The XY view of a 200-point square at 1 point per mm, tolerance 10 µm.
+    fn xy_key() -> MeshKey {
+        MeshKey {
             camera: Camera {
                 right: [1.0, 0.0, 0.0],
                 up: [0.0, 1.0, 0.0],
@@ -1208,7 +1206,14 @@ mod tests {
             rapids: true,
             dark: false,
             tolerance_mm: 0.01,
-        };
+        }
+    }
+
+    /// 1,000 trail points within half a screen point, one of them 1 mm off: the mesh is
+    /// one segment, and it shows red.
+    #[test]
+    fn a_trail_spike_stays_red_when_decimated() {
+        let key = xy_key();
         let pts: Vec<TrailPoint> = (0..1000)
             .map(|i| TrailPoint {
                 pos_mm: [i as f32 * 0.0005, 0.0, 0.0],
@@ -1230,21 +1235,7 @@ mod tests {
     /// Full chunks are kept while the trail grows, dropped when it is thinned or cleared.
     #[test]
     fn trail_chunks_are_kept_until_the_trail_changes() {
-        let key = MeshKey {
-            camera: Camera {
-                right: [1.0, 0.0, 0.0],
-                up: [0.0, 1.0, 0.0],
-                center_mm: [0.0, 0.0],
-                scale_pt_per_mm: 1.0,
-                origin: Pos2::new(100.0, 100.0),
-            },
-            clip: Rect::from_min_size(Pos2::ZERO, Vec2::splat(200.0)),
-            pixels_per_point: 1.0,
-            program: 0,
-            rapids: true,
-            dark: false,
-            tolerance_mm: 0.01,
-        };
+        let key = xy_key();
         let point = |i: usize| TrailPoint {
             pos_mm: [
                 (i as f32 * 0.01).sin() * 50.0,
