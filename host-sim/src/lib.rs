@@ -27,5 +27,6 @@ pub mod gcode;
 pub mod jobs;
 pub mod output;
 pub mod overrides;
+pub mod sim_gantry;
 pub mod studies;
 pub mod twin_plant;

@@ -423,11 +423,13 @@ fn run_gcode(
     no_plots: bool,
     set: &[String],
 ) -> ExitCode {
-    use host_sim::studies::gcode;
+    use host_sim::gcode::report::{table, GcodeReport};
+    use host_sim::gcode::runner::run_with_settings;
+    use host_sim::sim_gantry::machine_and_planner;
     let started = Instant::now();
-    let res = (|| -> Result<gcode::GcodeReport> {
+    let res = (|| -> Result<GcodeReport> {
         // the overrides are checked at the machine's control rate, before anything runs
-        let (machine_cfg, _) = gcode::machine_and_planner(machine)?;
+        let (machine_cfg, _) = machine_and_planner(machine)?;
         let settings = host_sim::overrides::gcode_run_settings(
             &controller_core::settings::FACTORY,
             set,
@@ -436,9 +438,8 @@ fn run_gcode(
         if !set.is_empty() {
             println!("settings overrides: {}", set.join(", "));
         }
-        let r =
-            gcode::run_with_settings(file, machine, &settings, std::io::stderr().is_terminal())?;
-        print!("{}", gcode::table(&r));
+        let r = run_with_settings(file, machine, &settings, std::io::stderr().is_terminal())?;
+        print!("{}", table(&r));
         if let Some(j) = json {
             write_json(j, &r)?;
             println!("JSON: {}", j.display());

@@ -9,7 +9,7 @@ use controller_core::sim::world::Injection;
 use host_sim::cli::client::Client;
 use host_sim::cli::sim::{SimMachine, SimModels};
 use host_sim::cli::{self, Transport};
-use host_sim::studies::gcode::GcodeReport;
+use host_sim::gcode::report::GcodeReport;
 use std::path::Path;
 
 /// 1 kHz telemetry at 10 kHz.

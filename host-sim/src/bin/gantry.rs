@@ -467,7 +467,7 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             let cap = cli::scope::capture(c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
                 if let Some(file) = &run {
                     let r = cli::run_program(c, file, period_s, false, None)?;
-                    eprint!("{}", host_sim::studies::gcode::table(&r));
+                    eprint!("{}", host_sim::gcode::report::table(&r));
                     if r.status != "completed" {
                         bail!("the program did not complete: {}", r.status);
                     }
@@ -614,7 +614,7 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             let progress = std::io::stderr().is_terminal();
             let period_s = f64::from(decimation) / 10_000.0;
             let r = cli::run_program(c, &file, period_s, progress, hold)?;
-            print!("{}", host_sim::studies::gcode::table(&r));
+            print!("{}", host_sim::gcode::report::table(&r));
             if let Some(j) = json {
                 write_json(&j, &r)?;
             }

@@ -21,14 +21,16 @@ pub mod scope;
 pub mod serve;
 pub mod sim;
 pub mod trace;
+pub mod transport;
 pub mod view;
 
+pub use transport::Transport;
+
+use crate::gcode::measure::{distance, MetricSample, PathMetrics};
+use crate::gcode::program::{load_program_with, segments, PlanSegment};
+use crate::gcode::report::{ComputeJson, GcodeReport, LimitsJson};
 use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
-use crate::studies::gcode::distance;
-use crate::studies::gcode::{
-    load_program_with, machine_and_planner, segments, ComputeJson, GcodeReport, LimitsJson,
-    MetricSample, PathMetrics,
-};
+use crate::sim_gantry::machine_and_planner;
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
 use controller_core::link::RealtimeRequest;
@@ -39,26 +41,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-
-/// Bytes to and from a machine, and its clock.
-pub trait Transport {
-    /// Send bytes (whole frames).
-    fn send(&mut self, bytes: &[u8]) -> Result<()>;
-    /// Append what arrived.
-    fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()>;
-    /// The link's millisecond clock, which every host timeout counts (the link's
-    /// watchdog, heartbeats and retransmissions, the replies' timeouts): the machine's
-    /// own clock for the simulated machine and for QEMU (a starved emulator is then slow,
-    /// never lost: [`qemu`]), the wall clock for a board (it runs in real time).
-    fn now_ms(&self) -> u32;
-    /// Let time pass (about a millisecond); fails when the machine is gone.
-    fn wait(&mut self) -> Result<()>;
-    /// The machine's clock runs whether or not the host waits (a board, the board twin,
-    /// QEMU): work on the host between requests then has to keep the link serviced
-    /// ([`Client::while_busy`]), or the machine's link watchdog (500 ms of its time) ends
-    /// the session. The simulated machine's clock moves only in [`Transport::wait`].
-    fn clock_runs_alone(&self) -> bool;
-}
 
 /// Axis names on the command line.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
@@ -604,7 +586,7 @@ pub fn run_program_with<T: Transport>(
             .take_while(|g| g.seg.tag < end.program.tag)
             .count()
     };
-    let length = |g: &crate::studies::gcode::PlanSegment| -> f64 {
+    let length = |g: &PlanSegment| -> f64 {
         program
             .moves
             .get(g.moves.clone())

@@ -7,8 +7,8 @@
 //! path start (a hold case that then moves) or a reset (which must be refused while the
 //! cause persists).
 
-use super::resolve_all;
 use crate::builtin;
+use crate::builtin::resolve_all;
 use crate::jobs;
 use anyhow::{anyhow, bail, Context, Result};
 use controller_core::axes::Axis;

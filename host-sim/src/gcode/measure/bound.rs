@@ -54,7 +54,7 @@
 use super::directions::{self, projected, support};
 use super::distance::{dot, norm, sub, unit, Helix};
 use super::tolerance::Tolerances;
-use super::LimitsJson;
+use crate::gcode::report::LimitsJson;
 use crate::gcode::{Move, MoveKind, Program};
 
 /// Tangent jumps at or below this are smooth: the planner neither blends nor stops

@@ -16,7 +16,8 @@ use super::distance::{self, norm};
 #[cfg(test)]
 use super::tolerance::TOLERANCE_SLACK_MM;
 use super::tolerance::{slack_mm, Tolerances};
-use super::{GcodeReport, LimitsJson, PlanSegment, Trace};
+use crate::gcode::program::PlanSegment;
+use crate::gcode::report::{GcodeReport, LimitsJson, Trace};
 use crate::gcode::{MoveKind, Program};
 use std::ops::Range;
 
@@ -308,7 +309,7 @@ fn feed_of(kind: &MoveKind) -> Option<f64> {
 mod tests {
     use super::*;
     use crate::gcode::parse_str;
-    use crate::studies::gcode::segments;
+    use crate::gcode::program::segments;
 
     const LIMITS: LimitsJson = LimitsJson {
         vel: [250.0; 3],
