@@ -1,6 +1,6 @@
 //! The built-in scenario and machine files (`host-sim/scenarios/`, `host-sim/machines/`),
 //! compiled into the binary so every study runs on a machine without the source tree, and
-//! loading of scenario files from disk with the same schema.
+//! loading of scenario files from disk with the same schema, and resolving a file's runs.
 
 use anyhow::{Context, Result};
 use gantry_scenario::file::{load_str_with, EmbeddedIncludes, ScenarioFile};
