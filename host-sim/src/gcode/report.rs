@@ -276,6 +276,15 @@ pub fn table(r: &GcodeReport) -> String {
     s
 }
 
+/// Machine time over the compute time it took (0 when none was measured).
+pub fn realtime_ratio(machine_s: f64, compute_s: f64) -> f64 {
+    if compute_s > 0.0 {
+        machine_s / compute_s
+    } else {
+        0.0
+    }
+}
+
 /// Machine time over wall time, in words that read right on both sides of 1 ("5.0x
 /// slower", not "0.2x faster").
 pub fn speed_words(ratio: f64) -> String {

@@ -18,9 +18,11 @@
 //! [`Servo::set_planner_reference`]: controller_core::servo::Servo::set_planner_reference
 
 use crate::gcode::measure::{length, MetricSample, PathMetrics};
-use crate::gcode::program::{decimal, load_program_with, parse_options, segments, travel_of};
-use crate::gcode::report::{limits_of, ComputeJson, GcodeReport};
-use crate::gcode::MoveKind;
+use crate::gcode::program::{
+    decimal, load_program_with, parse_options, segments, travel_of, PlanSegment,
+};
+use crate::gcode::report::{limits_of, realtime_ratio, ComputeJson, GcodeReport};
+use crate::gcode::{MoveKind, Program};
 use crate::sim_gantry::machine_and_planner_with;
 use anyhow::{anyhow, bail, Result};
 use controller_core::motion::planner::PathSample;
@@ -59,6 +61,113 @@ fn run_while(run: &mut SimRun<f32>, state: ServoState, max: u64) -> Result<()> {
     Ok(())
 }
 
+/// Arm; home when the machine homes (it refuses `Run` before); `Run`: the servo then runs
+/// the planner.
+fn arm_home_and_run(run: &mut SimRun<f32>) -> Result<()> {
+    let s = *run.control_with(&[Command::Arm]);
+    run.finish_period();
+    if let Some((_, why)) = s.refused {
+        bail!("arming refused: {}", why.message());
+    }
+    let s = *run.control_with(&[Command::Run]);
+    let dt = run.servo().period_s();
+    if s.refused.is_some() {
+        let s = *run.control_with(&[Command::Home]);
+        run.finish_period();
+        if let Some((_, why)) = s.refused {
+            bail!("homing refused: {}", why.message());
+        }
+        run_while(run, ServoState::Homing, (HOMING_TIMEOUT_S / dt) as u64)?;
+        if run.servo().state() != ServoState::Idle {
+            bail!(
+                "homing failed: state {:?}, fault {:?}",
+                run.servo().state(),
+                run.servo().faults().first()
+            );
+        }
+        let s = *run.control_with(&[Command::Run]);
+        if let Some((_, why)) = s.refused {
+            bail!("running the program refused: {}", why.message());
+        }
+    }
+    run.finish_period();
+    Ok(())
+}
+
+/// The progress bar of a long simulation, over its `segments`.
+fn progress_bar(segments: usize) -> ProgressBar {
+    let b = ProgressBar::new(segments as u64);
+    b.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} segments, {elapsed} ({eta} left)")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    b
+}
+
+/// Segments from `segs[next..]` into the planner's queue while it has free slots, as the
+/// link streams them; the index of the next one to send.
+fn stream(
+    mp: &mut Planner,
+    segs: &[PlanSegment],
+    mut next: usize,
+    program: &Program,
+    name: &str,
+) -> Result<usize> {
+    while next < segs.len() && mp.free_slots() > 0 {
+        mp.push(&segs[next].seg).map_err(|e| {
+            let line = program
+                .moves
+                .get(segs[next].moves.start)
+                .map_or(0, |m| m.line);
+            anyhow!("{name}:{line}: the planner rejected the move: {e:?}")
+        })?;
+        next += 1;
+    }
+    Ok(next)
+}
+
+/// The periods a program may take at most (a generous bound on its machine time: every
+/// move at 1 mm/s plus its dwells), and an estimate of those it takes (for the progress
+/// bar and the plots' decimation).
+fn period_bounds(program: &Program, dt: f64) -> (u64, u64) {
+    let path_length_mm: f64 = program.moves.iter().map(length).sum();
+    let dwell_s: f64 = program
+        .moves
+        .iter()
+        .map(|m| match m.kind {
+            MoveKind::Dwell { s } => s,
+            _ => 0.0,
+        })
+        .sum();
+    let max_periods = ((path_length_mm + dwell_s + 10.0) / dt) as u64 + 100_000;
+    let estimate = ((path_length_mm / 20.0 + dwell_s) / dt) as u64;
+    (max_periods, estimate)
+}
+
+/// One period's figures' sample: the planner's reference at program time `t_s`, the true
+/// tool position and the distance along the reference, mm.
+fn metric_sample(sample: &PathSample, t_s: f64, truth_mm: [f64; 3], along_mm: f64) -> MetricSample {
+    MetricSample {
+        t_s,
+        tag: sample.tag as usize,
+        planned_mm: sample.pos_mm.to_array().map(f64::from),
+        vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
+        acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
+        actual_mm: truth_mm,
+        along_mm,
+    }
+}
+
+/// The machine stopped on a fault: the planner aborted, the servo run until it has
+/// stopped; the fault, as the report names it.
+fn stop_on_fault(run: &mut SimRun<f32>, mp: &mut Planner) -> Result<String> {
+    let f = run.servo().faults().first();
+    let fault = format!("{f:?}");
+    mp.abort();
+    run_while(run, ServoState::Stopping, 1_000_000)?;
+    Ok(fault)
+}
+
 /// Run `program_path` on the built-in gantry or on `machine`; a rejected program is a
 /// report with status `rejected`, not an error (errors: the machine file, a refused
 /// command, a planner that never finishes).
@@ -89,34 +198,8 @@ pub fn run_with_settings(
         return Ok(GcodeReport::rejected(&name, &e, limits, tol));
     }
 
-    // arm; home when the machine homes
-    let s = *run.control_with(&[Command::Arm]);
-    run.finish_period();
-    if let Some((_, why)) = s.refused {
-        bail!("arming refused: {}", why.message());
-    }
-    let s = *run.control_with(&[Command::Run]);
+    arm_home_and_run(&mut run)?;
     let dt = run.servo().period_s();
-    if s.refused.is_some() {
-        let s = *run.control_with(&[Command::Home]);
-        run.finish_period();
-        if let Some((_, why)) = s.refused {
-            bail!("homing refused: {}", why.message());
-        }
-        run_while(&mut run, ServoState::Homing, (HOMING_TIMEOUT_S / dt) as u64)?;
-        if run.servo().state() != ServoState::Idle {
-            bail!(
-                "homing failed: state {:?}, fault {:?}",
-                run.servo().state(),
-                run.servo().faults().first()
-            );
-        }
-        let s = *run.control_with(&[Command::Run]);
-        if let Some((_, why)) = s.refused {
-            bail!("running the program refused: {}", why.message());
-        }
-    }
-    run.finish_period();
     let here = run
         .servo()
         .planner_start_mm()
@@ -134,26 +217,8 @@ pub fn run_with_settings(
     let compress_s = compress_started.elapsed().as_secs_f64();
     let mut mp = Box::new(Planner::new(&pcfg, here).map_err(|e| anyhow!("planner: {e:?}"))?);
 
-    let path_length_mm: f64 = program.moves.iter().map(length).sum();
-    // a generous bound on the machine time: every move at 1 mm/s plus its dwells
-    let dwell_s: f64 = program
-        .moves
-        .iter()
-        .map(|m| match m.kind {
-            MoveKind::Dwell { s } => s,
-            _ => 0.0,
-        })
-        .sum();
-    let max_periods = ((path_length_mm + dwell_s + 10.0) / dt) as u64 + 100_000;
-    let estimate = ((path_length_mm / 20.0 + dwell_s) / dt) as u64;
-    let bar = (progress && estimate > PROGRESS_PERIODS).then(|| {
-        let b = ProgressBar::new(segs.len() as u64);
-        b.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} segments, {elapsed} ({eta} left)")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        b
-    });
+    let (max_periods, estimate) = period_bounds(&program, dt);
+    let bar = (progress && estimate > PROGRESS_PERIODS).then(|| progress_bar(segs.len()));
     let every = (estimate / PLOT_POINTS).max(1);
 
     let started = Instant::now();
@@ -169,18 +234,9 @@ pub fn run_with_settings(
     // time begins after them (its clock stood still)
     let mut held_periods = 0u64;
     loop {
-        while next < segs.len() && mp.free_slots() > 0 {
-            mp.push(&segs[next].seg).map_err(|e| {
-                let line = program
-                    .moves
-                    .get(segs[next].moves.start)
-                    .map_or(0, |m| m.line);
-                anyhow!("{name}:{line}: the planner rejected the move: {e:?}")
-            })?;
-            next += 1;
-            if let Some(b) = &bar {
-                b.set_position(next as u64);
-            }
+        next = stream(&mut mp, &segs, next, &program, &name)?;
+        if let Some(b) = &bar {
+            b.set_position(next as u64);
         }
         // the program's clock stands still while the servo holds its start for the brakes
         // to open (`Servo::motion_held`), as the machine's supervisor does
@@ -200,26 +256,12 @@ pub fn run_with_settings(
             held_periods += 1;
         } else {
             along += f64::from(sample.path_speed_mm_s.abs()) * dt;
-            metrics.add(
-                &MetricSample {
-                    t_s: (k - held_periods) as f64 * dt,
-                    tag: sample.tag as usize,
-                    planned_mm: sample.pos_mm.to_array().map(f64::from),
-                    vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
-                    acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
-                    actual_mm: truth,
-                    along_mm: along,
-                },
-                finished_at.is_none(),
-                k.is_multiple_of(every),
-            );
+            let m = metric_sample(&sample, (k - held_periods) as f64 * dt, truth, along);
+            metrics.add(&m, finished_at.is_none(), k.is_multiple_of(every));
         }
 
         if snap.state == ServoState::Fault || snap.state == ServoState::Stopping {
-            let f = run.servo().faults().first();
-            fault = Some(format!("{f:?}"));
-            mp.abort();
-            run_while(&mut run, ServoState::Stopping, 1_000_000)?;
+            fault = Some(stop_on_fault(&mut run, &mut mp)?);
             break;
         }
         if !held && finished_at.is_none() && next == segs.len() && mp.is_idle() {
@@ -245,11 +287,7 @@ pub fn run_with_settings(
         run.control_with(&[Command::Stop]);
         run.finish_period();
     }
-    let realtime = if compute_s > 0.0 {
-        k as f64 * dt / compute_s
-    } else {
-        0.0
-    };
+    let realtime = realtime_ratio(k as f64 * dt, compute_s);
     let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
     report.compression = compression;
     report.compute = ComputeJson {
