@@ -1,6 +1,7 @@
 //! `host-sim`: the simulated gantry on a PC. With no subcommand it reproduces the
 //! reference paper's Tables 1 and 3 and writes traces and plots (the main job); the
-//! subcommands run the other studies, any scenario file, and the QEMU verdict.
+//! subcommands run the other studies, a G-code program on the simulated machine
+//! (`gcode`), any scenario file, and the QEMU verdict.
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};

@@ -1,7 +1,7 @@
-//! `gantry run`'s report comes from what the machine executed (issue 20, item 10): a
-//! program that completed reports every segment and the programmed length; one stopped
-//! by an e-stop or a lost link reports `program_done` false, why it ended, fewer segments
-//! than planned, and a failing exit status.
+//! `gantry run`'s report comes from what the machine executed (its status), not from
+//! what the host sent: a program that completed reports every segment and the programmed
+//! length; one stopped by an e-stop or a lost link reports `program_done` false, why it
+//! ended, fewer segments than planned, and a failing exit status.
 
 use anyhow::Result;
 use controller_core::servo::ServoState;
