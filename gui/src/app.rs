@@ -85,7 +85,7 @@ pub struct GantryApp {
     /// Program runs that ended (with or without a report).
     pub runs_ended: u32,
     /// The last run's report.
-    pub report: Option<Box<host_sim::studies::gcode::GcodeReport>>,
+    pub report: Option<Box<host_sim::gcode::report::GcodeReport>>,
 }
 
 impl GantryApp {

@@ -17,8 +17,8 @@ use controller_core::machine::scope::{ScopeConfig, Signal};
 use host_sim::cli::client::{expect_done, Client, Tapped};
 use host_sim::cli::machine::{AnyTransport, MachineArgs, CONTROL_RATE_HZ};
 use host_sim::cli::{self, interrupt, IdentifyJson, AXES};
+use host_sim::gcode::program::load_program_with;
 use host_sim::gcode::{Move, ParseOptions};
-use host_sim::studies::gcode::load_program_with;
 use std::path::PathBuf;
 use std::sync::mpsc::{channel, Receiver, Sender, TryRecvError};
 use std::time::{Duration, Instant};
@@ -143,7 +143,7 @@ pub enum Event {
     },
     Program(Box<LoadedProgram>),
     /// A program's run ended: its report (the keys of `gantry run --json`).
-    RunReport(Box<host_sim::studies::gcode::GcodeReport>),
+    RunReport(Box<host_sim::gcode::report::GcodeReport>),
     Settings(Vec<(String, String)>),
     Identified(Vec<IdentifyJson>),
     /// The telemetry's signal names, in their order in each sample.

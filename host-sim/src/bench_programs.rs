@@ -17,11 +17,11 @@
 //! | --- | --- |
 //! | [`circle_chords`] | a circle posted as 10,000 tiny chords with a feed far above the machine: the naive-CAM case, the speed limited by the chords' number, not the feed |
 //! | [`collinear_tiny`] | 3,000 collinear 0.0254 mm moves: junctions that must not slow down at all |
-//! | [`surfacing_3d`] | a 3-D finishing raster in inches, `G64 P0.001`: the 3-D surfacing case |
+//! | [`surfacing_3d`] | a 3-D finishing raster in inches, `G64 P0.001`: the 3-D surfacing benchmark case |
 //! | [`spiral_arcs`] | an Archimedean spiral of quarter-turn arcs in and out: arcs whose radius shrinks to 2 mm |
 //! | [`zigzag`] | a zigzag pocket of 0.5-3 mm moves with 60-150° corners: corner blending at every move |
 //! | [`dense_curve_3d`] | a 3-D space curve as 5,000 chords of 0.07-0.2 mm: look-ahead depth at a high feed |
-//! | [`huge`] | a 170,000-line raster (42.9 m of path): the "170,000-line program" |
+//! | [`huge`] | a 170,000-line raster (42.9 m of path): the benchmark's "170,000-line program" |
 //! | [`rest_to_rest`] | one `G61` line from rest to rest: the planner's time against the time-optimal move (`host-sim/bench/ruckig_lines.py`) |
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -88,7 +88,7 @@ pub const SURFACING_PASS_MM: f64 = 80.0;
 /// +29.7).
 ///
 /// 2.7 mm, not 1 mm: at 1 mm over 80 × 60 mm the raster would be 61 passes and
-/// 5,000-7,000 moves, beyond the 1,900-2,500 of the case; the area (the surface's
+/// 5,000-7,000 moves, beyond the 1,900-2,500 of the surfacing benchmark case; the area (the surface's
 /// whole shape) is kept and the stepover widened instead.
 pub const SURFACING_STEPOVER_MM: f64 = 2.7;
 /// Chord-height tolerance of [`surfacing_3d`]'s chords (mm): each chord is as long as this

@@ -1,9 +1,10 @@
 //! The built-in scenario and machine files (`host-sim/scenarios/`, `host-sim/machines/`),
 //! compiled into the binary so every study runs on a machine without the source tree, and
-//! loading of scenario files from disk with the same schema.
+//! loading of scenario files from disk with the same schema, and resolving a file's runs.
 
 use anyhow::{Context, Result};
 use gantry_scenario::file::{load_str_with, EmbeddedIncludes, ScenarioFile};
+use gantry_scenario::Resolved;
 use std::path::Path;
 
 /// `(path relative to host-sim/scenarios/, contents)` of every built-in file; machine files
@@ -105,4 +106,12 @@ pub fn load_or(name: &str, path: Option<&Path>) -> Result<ScenarioFile> {
         Some(p) => load_path(p),
         None => load(name),
     }
+}
+
+/// Resolve every run of a file (each is validated; the first invalid one is the error).
+pub fn resolve_all(file: &ScenarioFile) -> Result<Vec<Resolved>> {
+    file.runs
+        .iter()
+        .map(|r| Resolved::new(&file.file, r).map_err(Into::into))
+        .collect()
 }

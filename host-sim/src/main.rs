@@ -1,6 +1,7 @@
 //! `host-sim`: the simulated gantry on a PC. With no subcommand it reproduces the
 //! reference paper's Tables 1 and 3 and writes traces and plots (the main job); the
-//! subcommands run the other studies, any scenario file, and the QEMU verdict.
+//! subcommands run the other studies, a G-code program on the simulated machine
+//! (`gcode`), any scenario file, and the QEMU verdict.
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -423,11 +424,13 @@ fn run_gcode(
     no_plots: bool,
     set: &[String],
 ) -> ExitCode {
-    use host_sim::studies::gcode;
+    use host_sim::gcode::report::{table, GcodeReport};
+    use host_sim::gcode::runner::run_with_settings;
+    use host_sim::sim_gantry::machine_and_planner;
     let started = Instant::now();
-    let res = (|| -> Result<gcode::GcodeReport> {
+    let res = (|| -> Result<GcodeReport> {
         // the overrides are checked at the machine's control rate, before anything runs
-        let (machine_cfg, _) = gcode::machine_and_planner(machine)?;
+        let (machine_cfg, _) = machine_and_planner(machine)?;
         let settings = host_sim::overrides::gcode_run_settings(
             &controller_core::settings::FACTORY,
             set,
@@ -436,9 +439,8 @@ fn run_gcode(
         if !set.is_empty() {
             println!("settings overrides: {}", set.join(", "));
         }
-        let r =
-            gcode::run_with_settings(file, machine, &settings, std::io::stderr().is_terminal())?;
-        print!("{}", gcode::table(&r));
+        let r = run_with_settings(file, machine, &settings, std::io::stderr().is_terminal())?;
+        print!("{}", table(&r));
         if let Some(j) = json {
             write_json(j, &r)?;
             println!("JSON: {}", j.display());

@@ -1,5 +1,5 @@
 //! The board twin's plant (`twin-plant`): the simulated physical gantry of `gantry --sim`
-//! ([`crate::cli::sim::gantry_world`], the same world, amplifiers, brakes, switches and
+//! ([`crate::sim_gantry::gantry_world`], the same world, amplifiers, brakes, switches and
 //! encoders) stepped by the twin (firmware/twin) over a pipe, one control period per
 //! request. The twin reads what the board's pins drive (TIM1's duty and the DIR, enable
 //! and brake pins), asks for one period, and puts the answer back on the board: the
@@ -206,7 +206,7 @@ pub fn serve(plant: &mut TwinPlant, input: &mut impl Read, output: &mut impl Wri
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cli::sim::gantry_world;
+    use crate::sim_gantry::gantry_world;
     use controller_core::settings::FACTORY;
 
     fn plant() -> TwinPlant {

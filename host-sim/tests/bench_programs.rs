@@ -5,8 +5,9 @@
 use std::f64::consts::TAU;
 
 use host_sim::bench_programs::{self as bp, Direction};
+use host_sim::gcode::program::travel_of;
 use host_sim::gcode::{check_travel, parse_str, MoveKind, Program, Travel};
-use host_sim::studies::gcode::{machine_and_planner, travel_of};
+use host_sim::sim_gantry::machine_and_planner;
 
 /// The travel of the default machine of `cargo sim gcode` (the built-in gcode.toml).
 fn default_travel() -> Travel {

@@ -334,7 +334,7 @@ fn a_program_uses_the_machines_offsets_and_its_g10_changes_are_written_back() {
     // set, not saved: the flash still holds nothing
     let (_, how) = block_on(c.transport.store().load(10_000));
     assert_eq!(how, LoadOutcome::Empty);
-    assert!(host_sim::studies::gcode::table(&r).contains("work.g55.x_mm = -21"));
+    assert!(host_sim::gcode::report::table(&r).contains("work.g55.x_mm = -21"));
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -1,7 +1,7 @@
-//! `gantry run`'s report comes from what the machine executed (issue 20, item 10): a
-//! program that completed reports every segment and the programmed length; one stopped
-//! by an e-stop or a lost link reports `program_done` false, why it ended, fewer segments
-//! than planned, and a failing exit status.
+//! `gantry run`'s report comes from what the machine executed (its status), not from
+//! what the host sent: a program that completed reports every segment and the programmed
+//! length; one stopped by an e-stop or a lost link reports `program_done` false, why it
+//! ended, fewer segments than planned, and a failing exit status.
 
 use anyhow::Result;
 use controller_core::servo::ServoState;
@@ -9,7 +9,7 @@ use controller_core::sim::world::Injection;
 use host_sim::cli::client::Client;
 use host_sim::cli::sim::{SimMachine, SimModels};
 use host_sim::cli::{self, Transport};
-use host_sim::studies::gcode::GcodeReport;
+use host_sim::gcode::report::GcodeReport;
 use std::path::Path;
 
 /// 1 kHz telemetry at 10 kHz.

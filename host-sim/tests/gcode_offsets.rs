@@ -642,7 +642,7 @@ fn the_g10_limits_are_the_machines_settings_ranges_and_the_settings_reach_the_op
     s.set_text("work.g55.x_mm", "0.1", 10_000).unwrap();
     s.set_text("work.g59_2.z_mm", "-12.345", 10_000).unwrap();
     s.set_text("tool.8.length_mm", "33.3", 10_000).unwrap();
-    let o = host_sim::studies::gcode::parse_options(&s, [1.0, 2.0, 3.0]);
+    let o = host_sim::gcode::program::parse_options(&s, [1.0, 2.0, 3.0]);
     assert_eq!(o.start_mm, [1.0, 2.0, 3.0]);
     assert_eq!(o.work_offsets_mm[1], [0.1, 0.0, 0.0]);
     assert_eq!(o.work_offsets_mm[7], [0.0, 0.0, -12.345]);

@@ -7,8 +7,8 @@ use std::process::Command;
 
 use controller_core::settings::FACTORY;
 use host_sim::bench_programs::{rest_to_rest, Direction};
+use host_sim::gcode::runner::run_with_settings;
 use host_sim::overrides::{gcode_run_settings, used_by_gcode_run};
-use host_sim::studies::gcode::run_with_settings;
 
 /// The default machine's control rate (10 kHz).
 const RATE_HZ: u32 = 10_000;

@@ -2,9 +2,11 @@
 //! the simulated gantry, measured against the programmed path.
 
 use controller_core::motion::planner::Blend;
+use host_sim::gcode::measure::tolerance::TOLERANCE_SLACK_MM;
 use host_sim::gcode::parse_str;
-use host_sim::studies::gcode::tolerance::TOLERANCE_SLACK_MM;
-use host_sim::studies::gcode::{run, segments, GcodeReport};
+use host_sim::gcode::program::segments;
+use host_sim::gcode::report::GcodeReport;
+use host_sim::gcode::runner::run;
 use std::path::{Path, PathBuf};
 
 fn program(name: &str) -> PathBuf {

@@ -12,7 +12,7 @@ use controller_core::machine::record::{RecordRef, Recorder};
 use controller_core::machine::{record::Record, Down};
 use controller_core::motion::planner::{Motion, Segment};
 use controller_core::settings::Apply;
-use host_sim::cli::sim::designed_settings;
+use host_sim::sim_gantry::designed_settings;
 use host_sim::studies::machine_replay::{parse, record_on_host, replay, Recording};
 
 const PERIODS: u32 = 12_000;

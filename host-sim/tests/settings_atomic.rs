@@ -1,4 +1,4 @@
-//! Settings changes over the link are all or nothing (issue 20 item 4): `gantry settings
+//! Settings changes over the link are all or nothing: `gantry settings
 //! import`, `settings set` of several keys and a defaults reset go to the machine as one
 //! transaction (`SettingsBegin`, `SettingSet`…, `SettingsCommit`), validated whole on the
 //! machine's link side and swapped in at a period boundary, or refused whole; and

@@ -20,7 +20,7 @@ use host_sim::cli::client::Client;
 use host_sim::cli::port::BoardPort;
 use host_sim::cli::sim::{SimMachine, SimModels};
 use host_sim::cli::{self, Transport, AXES};
-use host_sim::studies::gcode::GcodeReport;
+use host_sim::gcode::report::GcodeReport;
 
 /// Telemetry every 100 control periods (100 Hz at 10 kHz) on both machines: the contour
 /// figures are taken from it. (1 kHz, `gantry`'s default, works too: every telemetry

@@ -5,9 +5,9 @@
 use gantry_scenario::file::{load_str, EmbeddedIncludes};
 use gantry_scenario::Resolved;
 use host_sim::builtin;
+use host_sim::builtin::resolve_all;
 use host_sim::engine::discrete::{self, Observer};
 use host_sim::engine::{simulate, RunResult};
-use host_sim::studies::resolve_all;
 
 /// Resolve run `run` of built-in file `file` with `overrides` (TOML merged over the base
 /// scenario).

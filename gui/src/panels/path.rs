@@ -15,8 +15,8 @@ use crate::live::TrailPoint;
 use crate::session::LoadedProgram;
 use egui::epaint::{Mesh, PathShape, TessellationOptions, Tessellator};
 use egui::{Align2, Color32, FontId, Pos2, Rect, Sense, Shape, Stroke, Vec2};
+use host_sim::gcode::measure::distance::Helix;
 use host_sim::gcode::{Move, MoveKind};
-use host_sim::studies::gcode::distance::Helix;
 use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 

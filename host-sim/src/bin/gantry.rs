@@ -15,12 +15,13 @@ use controller_core::machine::messages::{MachineState, Request, Status};
 use controller_core::machine::scope::ScopeConfig;
 use host_sim::cli::client::{expect_done, Client};
 use host_sim::cli::machine::{MachineArgs, CONTROL_RATE_HZ};
+use host_sim::cli::scope::Capture;
 use host_sim::cli::serve::{ServeOptions, Speed};
 use host_sim::cli::sim::SimModels;
 use host_sim::cli::{self, view, Hold, Transport, AXES};
 use host_sim::output::report::write_json;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -380,64 +381,13 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
         Cmd::Sim { .. } | Cmd::Ports | Cmd::Completions { .. } | Cmd::Gui { .. } => {
             bail!("`gantry sim serve`, `ports`, `completions` and `gui` take no session")
         }
-        Cmd::Status { json } => {
-            let s = c.status()?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
-            } else {
-                print!("{}", view::status_text(&s, CONTROL_RATE_HZ));
-            }
-        }
-        Cmd::Watch { seconds, hz } => {
-            let every_ms = (1000.0 / hz) as u32;
-            let tty = std::io::stdout().is_terminal();
-            let t0 = c.transport.now_ms();
-            loop {
-                let s = c.status()?;
-                if tty {
-                    print!("\r{}\x1b[K", view::dro_line(&s));
-                    std::io::Write::flush(&mut std::io::stdout())?;
-                } else {
-                    println!("{}", view::dro_line(&s));
-                }
-                let elapsed_s = f64::from(c.transport.now_ms().wrapping_sub(t0)) / 1000.0;
-                if host_sim::cli::interrupt::requested()
-                    || seconds.is_some_and(|limit| elapsed_s >= f64::from(limit))
-                {
-                    break;
-                }
-                c.sleep_ms(every_ms)?;
-            }
-            if tty {
-                println!();
-            }
-        }
+        Cmd::Status { json } => status(c, json)?,
+        Cmd::Watch { seconds, hz } => watch(c, seconds, hz)?,
         Cmd::Log {
             out,
             seconds,
             signals,
-        } => {
-            let names: Vec<String> = match &signals {
-                Some(list) => {
-                    let chosen = cli::scope::parse_signals(list)?;
-                    expect_done(
-                        "telemetry subscription",
-                        c.exec(Request::Subscribe {
-                            every_periods: decimation,
-                            signals: heapless::Vec::from_slice(&chosen)
-                                .map_err(|_| anyhow::anyhow!("--signals: at most 4"))?,
-                        })?,
-                    )?;
-                    list.split(',')
-                        .map(|n| n.trim().to_string())
-                        .filter(|n| !n.is_empty())
-                        .collect()
-                }
-                None => Vec::new(),
-            };
-            let n = cli::log_telemetry(c, &out, seconds, &names)?;
-            println!("{n} samples written to {}", out.display());
-        }
+        } => log(c, &out, seconds, signals.as_deref(), decimation)?,
         Cmd::Scope {
             out,
             signals,
@@ -449,273 +399,428 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             timeout_s,
             no_plot,
         } => {
-            let channels = cli::scope::parse_signals(&signals)?;
-            let names: Vec<String> = signals
-                .split(',')
-                .map(|n| n.trim().to_string())
-                .filter(|n| !n.is_empty())
-                .collect();
-            let cfg = ScopeConfig {
-                channels: heapless::Vec::from_slice(&channels)
-                    .map_err(|_| anyhow::anyhow!("--signals: at most 4"))?,
-                samples,
-                every_periods: every,
-                pre_trigger: pre,
-                trigger: cli::scope::parse_trigger(&trigger)?,
-            };
-            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
-            let cap = cli::scope::capture(c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
-                if let Some(file) = &run {
-                    let r = cli::run_program(c, file, period_s, false, None)?;
-                    eprint!("{}", host_sim::studies::gcode::table(&r));
-                    if r.status != "completed" {
-                        bail!("the program did not complete: {}", r.status);
-                    }
-                }
-                Ok(())
-            })?;
-            cli::scope::write_csv(&out, &cap)?;
-            println!("{} samples written to {}", cap.rows.len(), out.display());
-            if !no_plot {
-                let dir = out.parent().filter(|p| !p.as_os_str().is_empty());
-                let dir = dir.unwrap_or(std::path::Path::new("."));
-                let stem = out
-                    .file_stem()
-                    .map_or("scope".into(), |s| s.to_string_lossy().into_owned());
-                host_sim::output::scope_plots::figure(dir, &stem, &cap)?;
-                println!("figure: {}", dir.join(format!("{stem}.png")).display());
-            }
+            let cfg = scope_config(&signals, samples, every, pre, &trigger)?;
+            let cap = scope_capture(c, cfg, &signals, run.as_deref(), timeout_s, decimation)?;
+            write_scope(&out, &cap, no_plot)?;
         }
-        Cmd::Faults { json } => {
-            let s = c.status()?;
-            let history = view::fault_history(&s);
-            if json {
-                let j = serde_json::json!({
-                    "first": s.first_fault.as_deref(),
-                    "system_bits": s.fault_bits.0,
-                    "axis_bits": s.fault_bits.1,
-                    "history": history,
-                });
-                println!("{}", serde_json::to_string_pretty(&j)?);
-            } else {
-                println!(
-                    "first fault: {}",
-                    s.first_fault.as_deref().unwrap_or("none")
-                );
-                println!(
-                    "history (oldest first, kept across resets): {}",
-                    if history.is_empty() {
-                        "none".into()
-                    } else {
-                        history.join(", ")
-                    }
-                );
-            }
-        }
+        Cmd::Faults { json } => faults(c, json)?,
         // what is wrong and what to do, from the status, before the machine's own refusal
-        Cmd::Arm => {
-            let s = c.status()?;
-            match s.state {
-                MachineState::Disabled => {
-                    expect_done("arm", c.exec(Request::Arm)?)?;
-                    println!("armed: holding position");
-                }
-                MachineState::Fault => bail!(
-                    "cannot arm: a fault is latched ({}): `gantry reset` once its cause is gone",
-                    s.first_fault.as_deref().unwrap_or("unknown")
-                ),
-                MachineState::Stopping | MachineState::EncoderCheck => bail!(
-                    "cannot arm now: {}; try again when it is done",
-                    view::state_words(&s)
-                ),
-                _ => println!("already armed: {}", view::state_words(&s)),
-            }
-        }
-        Cmd::Disarm => {
-            let s = c.status()?;
-            if matches!(s.state, MachineState::Disabled | MachineState::Fault) {
-                println!("already disarmed: {}", view::state_words(&s));
-            } else {
-                expect_done("disarm", c.exec(Request::Disarm)?)?;
-                println!("disarmed: outputs off");
-            }
-        }
-        Cmd::Reset => {
-            let s = c.status()?;
-            if s.state != MachineState::Fault {
-                println!(
-                    "no fault latched: nothing to reset ({})",
-                    view::state_words(&s)
-                );
-            } else {
-                expect_done("reset", c.exec(Request::Reset)?).map_err(|e| {
-                    anyhow::anyhow!(
-                        "{e} (latched: {}; `gantry status` shows what is still active)",
-                        s.first_fault.as_deref().unwrap_or("unknown")
-                    )
-                })?;
-                let after = cli::wait_while(c, |s| s.state == MachineState::EncoderCheck)?;
-                println!("reset: {}", view::state_words(&after));
-            }
-        }
-        Cmd::Home => {
-            let s = cli::ready(c, true)?;
-            println!(
-                "homed at x {:.3} y {:.3} z {:.3} mm",
-                s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
-            );
-        }
+        Cmd::Arm => arm(c)?,
+        Cmd::Disarm => disarm(c)?,
+        Cmd::Reset => reset(c)?,
+        Cmd::Home => home(c)?,
         Cmd::Jog {
             axis,
             vel_mm_s,
             seconds,
-        } => {
-            let i = axis_index(&axis)?;
-            cli::ready(c, true)?;
-            let ms = (seconds.max(0.0) * 1000.0) as u32;
-            let mut t = 0;
-            while t < ms && !host_sim::cli::interrupt::requested() {
-                // jog requests keep coming, or the jog stops by itself (the timeout)
-                let jog = Request::Jog {
-                    axis: i as u8,
-                    vel_mm_s,
-                };
-                expect_done("jog", c.exec(jog)?)?;
-                c.sleep_ms(100)?;
-                t += 100;
-            }
-            let stop = Request::Jog {
-                axis: i as u8,
-                vel_mm_s: 0.0,
-            };
-            expect_done("jog", c.exec(stop)?)?;
-            let s = cli::wait_while(c, |s| s.state == MachineState::Jog)?;
-            println!("{} at {:.3} mm ({:?})", AXES[i], s.pos_mm[i], s.state);
-        }
+        } => jog(c, &axis, vel_mm_s, seconds)?,
         Cmd::Pendant => host_sim::cli::pendant::pendant(c)?,
-        Cmd::Move { x_mm, y_mm, z_mm } => {
-            cli::ready(c, true)?;
-            let s = cli::move_to(c, [x_mm, y_mm, z_mm])?;
-            println!(
-                "at x {:.3} y {:.3} z {:.3} mm",
-                s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
-            );
-        }
+        Cmd::Move { x_mm, y_mm, z_mm } => move_to(c, [x_mm, y_mm, z_mm])?,
         Cmd::Run {
             file,
             json,
             hold_at_s,
             hold_for_s,
-        } => {
-            let hold = hold_at_s.map(|at_s| Hold {
-                at_s,
-                for_s: hold_for_s,
-            });
-            let progress = std::io::stderr().is_terminal();
-            let period_s = f64::from(decimation) / 10_000.0;
-            let r = cli::run_program(c, &file, period_s, progress, hold)?;
-            print!("{}", host_sim::studies::gcode::table(&r));
-            if let Some(j) = json {
-                write_json(&j, &r)?;
-            }
-            if !r.completed() {
-                // the reason on stderr too: a script that reads only the exit status
-                // still leaves the operator a line saying why
-                eprintln!(
-                    "{}: not completed: {} (program_end {}, {} of {} segments executed)",
-                    file.display(),
-                    r.status,
-                    r.program_end,
-                    r.segments,
-                    r.segments_planned
-                );
-            }
-            return Ok(ExitCode::from(cli::run_exit_code(&r)));
-        }
+        } => return run_file(c, &file, json.as_deref(), hold_at_s, hold_for_s, decimation),
         Cmd::Identify {
             axis,
             accept,
             window_mm,
             json,
-        } => {
-            let axes: Vec<usize> = if axis.eq_ignore_ascii_case("all") {
-                vec![0, 1, 2]
-            } else {
-                vec![axis_index(&axis)?]
-            };
-            let r = cli::identify(c, &axes, accept, window_mm)?;
-            for a in &r {
-                println!(
-                    "{}: {}  J {}  B {}  f+ {}  f- {}  NRMSE {:.4}  R² {:.4}  {:.2} s{}",
-                    a.axis,
-                    a.status,
-                    fmt(a.j),
-                    fmt(a.b),
-                    fmt(a.f_pos),
-                    fmt(a.f_neg),
-                    a.nrmse,
-                    a.r2,
-                    a.machine_time_s,
-                    if a.accepted { "  (stored)" } else { "" }
-                );
-            }
-            if let Some(j) = json {
-                write_json(&j, &r)?;
-            }
-            if r.iter().any(|a| a.status != "done") {
-                return Ok(ExitCode::FAILURE);
-            }
-        }
-        Cmd::Settings { op } => match op {
-            SettingsOp::List => {
-                for k in controller_core::settings::keys::keys() {
-                    let v = cli::get(c, k.name).unwrap_or_else(|_| "-".into());
-                    println!("{:<36} {:>12} {:<10} {}", k.name, v, k.unit, k.doc);
-                }
-            }
-            SettingsOp::Get { key } => println!("{}", cli::get(c, &key)?),
-            SettingsOp::Set { args } => {
-                let changes = cli::parse_set_args(&args)?;
-                if let [(key, value)] = &changes[..] {
-                    cli::set(c, key, value)?;
-                } else {
-                    cli::apply_settings(c, &changes).map_err(|e| {
-                        anyhow::anyhow!("settings set rejected, nothing changed: {e}")
-                    })?;
-                }
-                for (key, _) in &changes {
-                    println!("{key} = {}", cli::get(c, key)?);
-                }
-            }
-            SettingsOp::Defaults => {
-                expect_done("settings defaults", c.exec(Request::SettingsDefaults)?)?;
-                println!("factory settings restored");
-            }
-            SettingsOp::Save => {
-                expect_done("settings save", c.exec(Request::SettingsSave)?)?;
-                println!("settings saved to the machine's flash (loaded at its next boot)");
-            }
-            SettingsOp::Repair => {
-                expect_done("settings repair", c.exec(Request::SettingsRepair)?)?;
-                println!("settings store erased and rewritten with the settings the machine runs");
-            }
-            SettingsOp::Export { file } => {
-                let all = cli::read_settings(c)?;
-                std::fs::write(&file, cli::export_toml(&all))
-                    .with_context(|| format!("cannot write {}", file.display()))?;
-                println!("{} settings written to {}", all.len(), file.display());
-            }
-            SettingsOp::Import { file } => {
-                let name = file.display().to_string();
-                let text = gantry_scenario::file::read_regular(&file, SETTINGS_FILE_MAX_BYTES)
-                    .map_err(anyhow::Error::msg)?;
-                let changes = cli::parse_settings_toml(&name, &text)?;
-                let changed = cli::import_settings(c, &changes, CONTROL_RATE_HZ)?;
-                println!("{} settings changed: {}", changed.len(), changed.join(", "));
-            }
-        },
+        } => return identify(c, &axis, accept, window_mm, json.as_deref()),
+        Cmd::Settings { op } => settings(c, op)?,
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `gantry status`: the machine's status, as text or JSON.
+fn status<T: Transport>(c: &mut Client<T>, json: bool) -> Result<()> {
+    let s = c.status()?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
+    } else {
+        print!("{}", view::status_text(&s, CONTROL_RATE_HZ));
+    }
+    Ok(())
+}
+
+/// `gantry watch`: the position line, `hz` times a second of machine time, for `seconds`
+/// or until Ctrl-C.
+fn watch<T: Transport>(c: &mut Client<T>, seconds: Option<f32>, hz: f32) -> Result<()> {
+    let every_ms = (1000.0 / hz) as u32;
+    let tty = std::io::stdout().is_terminal();
+    let t0 = c.transport.now_ms();
+    loop {
+        let s = c.status()?;
+        if tty {
+            print!("\r{}\x1b[K", view::dro_line(&s));
+            std::io::Write::flush(&mut std::io::stdout())?;
+        } else {
+            println!("{}", view::dro_line(&s));
+        }
+        let elapsed_s = f64::from(c.transport.now_ms().wrapping_sub(t0)) / 1000.0;
+        if host_sim::cli::interrupt::requested()
+            || seconds.is_some_and(|limit| elapsed_s >= f64::from(limit))
+        {
+            break;
+        }
+        c.sleep_ms(every_ms)?;
+    }
+    if tty {
+        println!();
+    }
+    Ok(())
+}
+
+/// `gantry log`: telemetry (with the chosen `signals` after the fixed columns) to a CSV
+/// file for `seconds` of machine time.
+fn log<T: Transport>(
+    c: &mut Client<T>,
+    out: &Path,
+    seconds: f32,
+    signals: Option<&str>,
+    decimation: u32,
+) -> Result<()> {
+    let names: Vec<String> = match signals {
+        Some(list) => {
+            let chosen = cli::scope::parse_signals(list)?;
+            expect_done(
+                "telemetry subscription",
+                c.exec(Request::Subscribe {
+                    every_periods: decimation,
+                    signals: heapless::Vec::from_slice(&chosen)
+                        .map_err(|_| anyhow::anyhow!("--signals: at most 4"))?,
+                })?,
+            )?;
+            list.split(',')
+                .map(|n| n.trim().to_string())
+                .filter(|n| !n.is_empty())
+                .collect()
+        }
+        None => Vec::new(),
+    };
+    let n = cli::log_telemetry(c, out, seconds, &names)?;
+    println!("{n} samples written to {}", out.display());
+    Ok(())
+}
+
+/// The scope's configuration from `gantry scope`'s words.
+fn scope_config(
+    signals: &str,
+    samples: u16,
+    every: u16,
+    pre: u16,
+    trigger: &str,
+) -> Result<ScopeConfig> {
+    let channels = cli::scope::parse_signals(signals)?;
+    let cfg = ScopeConfig {
+        channels: heapless::Vec::from_slice(&channels)
+            .map_err(|_| anyhow::anyhow!("--signals: at most 4"))?,
+        samples,
+        every_periods: every,
+        pre_trigger: pre,
+        trigger: cli::scope::parse_trigger(trigger)?,
+    };
+    Ok(cfg)
+}
+
+/// `gantry scope`: the capture of `cfg` (running the program `run` meanwhile, if any).
+fn scope_capture<T: Transport>(
+    c: &mut Client<T>,
+    cfg: ScopeConfig,
+    signals: &str,
+    run: Option<&Path>,
+    timeout_s: f32,
+    decimation: u32,
+) -> Result<Capture> {
+    let names: Vec<String> = signals
+        .split(',')
+        .map(|n| n.trim().to_string())
+        .filter(|n| !n.is_empty())
+        .collect();
+    let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+    cli::scope::capture(c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
+        if let Some(file) = run {
+            let r = cli::run_program(c, file, period_s, false, None)?;
+            eprint!("{}", host_sim::gcode::report::table(&r));
+            if r.status != "completed" {
+                bail!("the program did not complete: {}", r.status);
+            }
+        }
+        Ok(())
+    })
+}
+
+/// The capture to its CSV file, and its figure beside it unless `no_plot`.
+fn write_scope(out: &Path, cap: &Capture, no_plot: bool) -> Result<()> {
+    cli::scope::write_csv(out, cap)?;
+    println!("{} samples written to {}", cap.rows.len(), out.display());
+    if !no_plot {
+        let dir = out.parent().filter(|p| !p.as_os_str().is_empty());
+        let dir = dir.unwrap_or(std::path::Path::new("."));
+        let stem = out
+            .file_stem()
+            .map_or("scope".into(), |s| s.to_string_lossy().into_owned());
+        host_sim::output::scope_plots::figure(dir, &stem, cap)?;
+        println!("figure: {}", dir.join(format!("{stem}.png")).display());
+    }
+    Ok(())
+}
+
+/// `gantry faults`: the latched faults and their history.
+fn faults<T: Transport>(c: &mut Client<T>, json: bool) -> Result<()> {
+    let s = c.status()?;
+    let history = view::fault_history(&s);
+    if json {
+        let j = serde_json::json!({
+            "first": s.first_fault.as_deref(),
+            "system_bits": s.fault_bits.0,
+            "axis_bits": s.fault_bits.1,
+            "history": history,
+        });
+        println!("{}", serde_json::to_string_pretty(&j)?);
+    } else {
+        println!(
+            "first fault: {}",
+            s.first_fault.as_deref().unwrap_or("none")
+        );
+        println!(
+            "history (oldest first, kept across resets): {}",
+            if history.is_empty() {
+                "none".into()
+            } else {
+                history.join(", ")
+            }
+        );
+    }
+    Ok(())
+}
+
+/// `gantry arm`: outputs on, holding (what is wrong and what to do when it cannot).
+fn arm<T: Transport>(c: &mut Client<T>) -> Result<()> {
+    let s = c.status()?;
+    match s.state {
+        MachineState::Disabled => {
+            expect_done("arm", c.exec(Request::Arm)?)?;
+            println!("armed: holding position");
+        }
+        MachineState::Fault => bail!(
+            "cannot arm: a fault is latched ({}): `gantry reset` once its cause is gone",
+            s.first_fault.as_deref().unwrap_or("unknown")
+        ),
+        MachineState::Stopping | MachineState::EncoderCheck => bail!(
+            "cannot arm now: {}; try again when it is done",
+            view::state_words(&s)
+        ),
+        _ => println!("already armed: {}", view::state_words(&s)),
+    }
+    Ok(())
+}
+
+/// `gantry disarm`: outputs off.
+fn disarm<T: Transport>(c: &mut Client<T>) -> Result<()> {
+    let s = c.status()?;
+    if matches!(s.state, MachineState::Disabled | MachineState::Fault) {
+        println!("already disarmed: {}", view::state_words(&s));
+    } else {
+        expect_done("disarm", c.exec(Request::Disarm)?)?;
+        println!("disarmed: outputs off");
+    }
+    Ok(())
+}
+
+/// `gantry reset`: clear the faults whose cause is gone.
+fn reset<T: Transport>(c: &mut Client<T>) -> Result<()> {
+    let s = c.status()?;
+    if s.state != MachineState::Fault {
+        println!(
+            "no fault latched: nothing to reset ({})",
+            view::state_words(&s)
+        );
+    } else {
+        expect_done("reset", c.exec(Request::Reset)?).map_err(|e| {
+            anyhow::anyhow!(
+                "{e} (latched: {}; `gantry status` shows what is still active)",
+                s.first_fault.as_deref().unwrap_or("unknown")
+            )
+        })?;
+        let after = cli::wait_while(c, |s| s.state == MachineState::EncoderCheck)?;
+        println!("reset: {}", view::state_words(&after));
+    }
+    Ok(())
+}
+
+/// `gantry home`: arm and home.
+fn home<T: Transport>(c: &mut Client<T>) -> Result<()> {
+    let s = cli::ready(c, true)?;
+    println!(
+        "homed at x {:.3} y {:.3} z {:.3} mm",
+        s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
+    );
+    Ok(())
+}
+
+/// `gantry jog`: one axis at `vel_mm_s` for `seconds` of machine time (or until Ctrl-C).
+fn jog<T: Transport>(c: &mut Client<T>, axis: &str, vel_mm_s: f32, seconds: f32) -> Result<()> {
+    let i = axis_index(axis)?;
+    cli::ready(c, true)?;
+    let ms = (seconds.max(0.0) * 1000.0) as u32;
+    let mut t = 0;
+    while t < ms && !host_sim::cli::interrupt::requested() {
+        // jog requests keep coming, or the jog stops by itself (the timeout)
+        let jog = Request::Jog {
+            axis: i as u8,
+            vel_mm_s,
+        };
+        expect_done("jog", c.exec(jog)?)?;
+        c.sleep_ms(100)?;
+        t += 100;
+    }
+    let stop = Request::Jog {
+        axis: i as u8,
+        vel_mm_s: 0.0,
+    };
+    expect_done("jog", c.exec(stop)?)?;
+    let s = cli::wait_while(c, |s| s.state == MachineState::Jog)?;
+    println!("{} at {:.3} mm ({:?})", AXES[i], s.pos_mm[i], s.state);
+    Ok(())
+}
+
+/// `gantry move`: to a position in machine coordinates, mm.
+fn move_to<T: Transport>(c: &mut Client<T>, target_mm: [f32; 3]) -> Result<()> {
+    cli::ready(c, true)?;
+    let s = cli::move_to(c, target_mm)?;
+    println!(
+        "at x {:.3} y {:.3} z {:.3} mm",
+        s.pos_mm[0], s.pos_mm[1], s.pos_mm[2]
+    );
+    Ok(())
+}
+
+/// `gantry run FILE`: the program run on the machine and its report; the exit code says
+/// how it ended.
+fn run_file<T: Transport>(
+    c: &mut Client<T>,
+    file: &Path,
+    json: Option<&Path>,
+    hold_at_s: Option<f32>,
+    hold_for_s: f32,
+    decimation: u32,
+) -> Result<ExitCode> {
+    let hold = hold_at_s.map(|at_s| Hold {
+        at_s,
+        for_s: hold_for_s,
+    });
+    let progress = std::io::stderr().is_terminal();
+    let period_s = f64::from(decimation) / 10_000.0;
+    let r = cli::run_program(c, file, period_s, progress, hold)?;
+    print!("{}", host_sim::gcode::report::table(&r));
+    if let Some(j) = json {
+        write_json(j, &r)?;
+    }
+    if !r.completed() {
+        // the reason on stderr too: a script that reads only the exit status
+        // still leaves the operator a line saying why
+        eprintln!(
+            "{}: not completed: {} (program_end {}, {} of {} segments executed)",
+            file.display(),
+            r.status,
+            r.program_end,
+            r.segments,
+            r.segments_planned
+        );
+    }
+    Ok(ExitCode::from(cli::run_exit_code(&r)))
+}
+
+/// `gantry identify`: identify `axis` (x, y, z or all), storing the models if `accept`.
+fn identify<T: Transport>(
+    c: &mut Client<T>,
+    axis: &str,
+    accept: bool,
+    window_mm: Option<f32>,
+    json: Option<&Path>,
+) -> Result<ExitCode> {
+    let axes: Vec<usize> = if axis.eq_ignore_ascii_case("all") {
+        vec![0, 1, 2]
+    } else {
+        vec![axis_index(axis)?]
+    };
+    let r = cli::identify(c, &axes, accept, window_mm)?;
+    for a in &r {
+        println!(
+            "{}: {}  J {}  B {}  f+ {}  f- {}  NRMSE {:.4}  R² {:.4}  {:.2} s{}",
+            a.axis,
+            a.status,
+            fmt(a.j),
+            fmt(a.b),
+            fmt(a.f_pos),
+            fmt(a.f_neg),
+            a.nrmse,
+            a.r2,
+            a.machine_time_s,
+            if a.accepted { "  (stored)" } else { "" }
+        );
+    }
+    if let Some(j) = json {
+        write_json(j, &r)?;
+    }
+    if r.iter().any(|a| a.status != "done") {
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `gantry settings …`: list, get, set, defaults, save, repair, export, import.
+fn settings<T: Transport>(c: &mut Client<T>, op: SettingsOp) -> Result<()> {
+    match op {
+        SettingsOp::List => {
+            for k in controller_core::settings::keys::keys() {
+                let v = cli::get(c, k.name).unwrap_or_else(|_| "-".into());
+                println!("{:<36} {:>12} {:<10} {}", k.name, v, k.unit, k.doc);
+            }
+        }
+        SettingsOp::Get { key } => println!("{}", cli::get(c, &key)?),
+        SettingsOp::Set { args } => {
+            let changes = cli::parse_set_args(&args)?;
+            if let [(key, value)] = &changes[..] {
+                cli::set(c, key, value)?;
+            } else {
+                cli::apply_settings(c, &changes)
+                    .map_err(|e| anyhow::anyhow!("settings set rejected, nothing changed: {e}"))?;
+            }
+            for (key, _) in &changes {
+                println!("{key} = {}", cli::get(c, key)?);
+            }
+        }
+        SettingsOp::Defaults => {
+            expect_done("settings defaults", c.exec(Request::SettingsDefaults)?)?;
+            println!("factory settings restored");
+        }
+        SettingsOp::Save => {
+            expect_done("settings save", c.exec(Request::SettingsSave)?)?;
+            println!("settings saved to the machine's flash (loaded at its next boot)");
+        }
+        SettingsOp::Repair => {
+            expect_done("settings repair", c.exec(Request::SettingsRepair)?)?;
+            println!("settings store erased and rewritten with the settings the machine runs");
+        }
+        SettingsOp::Export { file } => {
+            let all = cli::read_settings(c)?;
+            std::fs::write(&file, cli::export_toml(&all))
+                .with_context(|| format!("cannot write {}", file.display()))?;
+            println!("{} settings written to {}", all.len(), file.display());
+        }
+        SettingsOp::Import { file } => {
+            let name = file.display().to_string();
+            let text = gantry_scenario::file::read_regular(&file, SETTINGS_FILE_MAX_BYTES)
+                .map_err(anyhow::Error::msg)?;
+            let changes = cli::parse_settings_toml(&name, &text)?;
+            let changed = cli::import_settings(c, &changes, CONTROL_RATE_HZ)?;
+            println!("{} settings changed: {}", changed.len(), changed.join(", "));
+        }
+    }
+    Ok(())
 }
 
 fn fmt(v: Option<f32>) -> String {

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use controller_core::settings::FACTORY;
-use host_sim::cli::sim::gantry_world;
+use host_sim::sim_gantry::gantry_world;
 use host_sim::twin_plant::{serve, TwinPlant};
 
 fn rate(args: &[String]) -> Result<Option<u32>> {

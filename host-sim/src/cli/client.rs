@@ -6,7 +6,7 @@
 //! ([`Status::executed`]) and keeps the last one's [`Outcome`]; the client sends one
 //! request, then asks for the status until the count reaches it.
 
-use super::Transport;
+use super::transport::Transport;
 use anyhow::{anyhow, bail, Result};
 use controller_core::link::host::DEFAULT_HOST_LINK_CONFIG;
 use controller_core::link::{

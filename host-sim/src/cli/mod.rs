@@ -21,14 +21,16 @@ pub mod scope;
 pub mod serve;
 pub mod sim;
 pub mod trace;
+pub mod transport;
 pub mod view;
 
-use crate::gcode::{ParseOptions, Program, Tool, Travel, WorkOffsets};
-use crate::studies::gcode::distance;
-use crate::studies::gcode::{
-    load_program_with, machine_and_planner, segments, ComputeJson, GcodeReport, LimitsJson,
-    MetricSample, PathMetrics,
-};
+pub use transport::Transport;
+
+use crate::gcode::measure::{distance, MetricSample, PathMetrics};
+use crate::gcode::program::{load_program_with, segments, PlanSegment};
+use crate::gcode::report::{realtime_ratio, ComputeJson, GcodeReport, LimitsJson};
+use crate::gcode::{compress, ParseOptions, Program, Tool, Travel, WorkOffsets};
+use crate::sim_gantry::machine_and_planner;
 use anyhow::{bail, Context, Result};
 use client::{expect_done, Client};
 use controller_core::link::RealtimeRequest;
@@ -39,26 +41,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-
-/// Bytes to and from a machine, and its clock.
-pub trait Transport {
-    /// Send bytes (whole frames).
-    fn send(&mut self, bytes: &[u8]) -> Result<()>;
-    /// Append what arrived.
-    fn recv(&mut self, buf: &mut Vec<u8>) -> Result<()>;
-    /// The link's millisecond clock, which every host timeout counts (the link's
-    /// watchdog, heartbeats and retransmissions, the replies' timeouts): the machine's
-    /// own clock for the simulated machine and for QEMU (a starved emulator is then slow,
-    /// never lost: [`qemu`]), the wall clock for a board (it runs in real time).
-    fn now_ms(&self) -> u32;
-    /// Let time pass (about a millisecond); fails when the machine is gone.
-    fn wait(&mut self) -> Result<()>;
-    /// The machine's clock runs whether or not the host waits (a board, the board twin,
-    /// QEMU): work on the host between requests then has to keep the link serviced
-    /// ([`Client::while_busy`]), or the machine's link watchdog (500 ms of its time) ends
-    /// the session. The simulated machine's clock moves only in [`Transport::wait`].
-    fn clock_runs_alone(&self) -> bool;
-}
 
 /// Axis names on the command line.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
@@ -428,50 +410,22 @@ pub fn run_program_with<T: Transport>(
     hold: Option<Hold>,
     buttons: Option<&std::sync::mpsc::Receiver<char>>,
 ) -> Result<GcodeReport> {
-    // the machine's planner limits, from its settings
-    let mut limits = LimitsJson {
-        vel: [0.0; 3],
-        acc: [0.0; 3],
-        jerk: [0.0; 3],
-    };
-    for (i, a) in AXES.iter().enumerate() {
-        limits.vel[i] = get_f64(c, &format!("axis.{a}.planner.vel_max_mm_s"))?;
-        limits.acc[i] = get_f64(c, &format!("axis.{a}.planner.acc_max_mm_s2"))?;
-        limits.jerk[i] = get_f64(c, &format!("axis.{a}.planner.jerk_max_mm_s3"))?;
-    }
-    let tol = get_f64(c, "planner.tolerance_mm")?;
+    let (limits, tol) = machine_limits(c)?;
     // the machine's control period (the telemetry's period numbers count it)
     let (run, _) = c.while_busy(|| machine_and_planner(None))??;
     let period_s = 1.0 / f64::from(run.servo.rate_hz);
     let name = path.display().to_string();
-    let travel = travel(c)?;
-    // the machine's work offsets and tool table: the program's coordinates are relative
-    // to them, its G10 changes them
-    let (work_offsets_mm, tools) = read_work_and_tools(c)?;
-    let options = |start_mm: [f64; 3]| ParseOptions {
-        start_mm,
-        work_offsets_mm,
-        tools: tools.clone(),
-        ..ParseOptions::default()
-    };
-    let s = c.status()?;
-    // rejected before any motion (also when the machine is not ready)
-    let here = s.pos_mm.map(f64::from);
-    if let Err(e) = c.while_busy(|| load_program_with(path, &options(here), &travel))? {
-        return Ok(GcodeReport::rejected(&name, &e, limits, tol));
-    }
-    let s = ready(c, true)?;
-    let start = planner_start_mm(c, &s)?;
-    let opts = options(start);
-    let parse_started = Instant::now();
-    let program = match c.while_busy(|| load_program_with(path, &opts, &travel))? {
-        Ok(p) => p,
+    let Loaded {
+        program,
+        opts,
+        segs,
+        compression,
+        parse_s,
+        compress_s,
+    } = match load_on_machine(c, path, tol)? {
+        Ok(loaded) => loaded,
         Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
     };
-    let parse_s = parse_started.elapsed().as_secs_f64();
-    let compress_started = Instant::now();
-    let (segs, compression) = c.while_busy(|| segments(&program, tol))?;
-    let compress_s = compress_started.elapsed().as_secs_f64();
     expect_done("run", c.exec(Request::Run)?)?;
     c.take_telemetry();
     let started = Instant::now();
@@ -488,54 +442,15 @@ pub fn run_program_with<T: Transport>(
         (None, Some((rx, single))) => (Some(rx), single.as_ref()),
         (None, None) => (None, None),
     };
-    let enter = if _single.is_some() { "" } else { " + Enter" };
-    let bar = progress.then(|| {
-        let b = ProgressBar::new(segs.len() as u64);
-        b.set_style(
-            ProgressStyle::with_template(&format!(
-                "{{bar:30}} {{pos}}/{{len}} segments run, ETA {{eta}}  {{msg}}  (h/r/a{enter}: hold/resume/abort)",
-            ))
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        b
-    });
+    let bar = progress.then(|| run_progress_bar(segs.len(), _single.is_some()));
     let mut aborted = false;
-    // figures from telemetry as it comes (no sample kept: a long program runs for hours):
-    // every sample in Run (a jerk only between consecutive ones)
-    let mut metrics =
-        c.while_busy(|| PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s))?;
-    // the bar follows the machine's executor (the telemetry's segment tag), not what was
-    // sent: a short program is sent at once and runs for seconds
-    let tags: Vec<u32> = segs.iter().map(|g| g.seg.tag).collect();
-    let show = |bar: &Option<ProgressBar>, t: &Telemetry| {
-        if let Some(b) = bar {
-            b.set_position(tags.partition_point(|g| *g < t.tag) as u64);
-            b.set_message(format!(
-                "X {:.3} Y {:.3} Z {:.3} mm",
-                t.pos_mm[0], t.pos_mm[1], t.pos_mm[2]
-            ));
-        }
-    };
-    let mut account = |samples: Vec<Telemetry>| {
-        if let Some(t) = samples.last() {
-            show(&bar, t);
-        }
-        for t in samples
-            .iter()
-            .filter(|t| matches!(t.state, MachineState::Run { .. }))
-        {
-            let sample = MetricSample {
-                t_s: f64::from(t.period) * period_s,
-                tag: t.tag as usize,
-                planned_mm: t.reference_mm.map(f64::from),
-                vel_mm_s: t.ref_vel_mm_s.map(f64::from),
-                acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
-                actual_mm: t.pos_mm.map(f64::from),
-                along_mm: 0.0,
-            };
-            // (no plot trace: `gantry run` draws none)
-            metrics.add(&sample, true, false);
-        }
+    let mut follow = Follow {
+        metrics: c.while_busy(|| {
+            PathMetrics::new(&program, &segs, limits, tol, 1.5 * telemetry_period_s)
+        })?,
+        bar,
+        tags: segs.iter().map(|g| g.seg.tag).collect(),
+        period_s,
     };
     let (mut held_at, mut resumed) = (None, false);
     for seg in &segs {
@@ -554,7 +469,7 @@ pub fn run_program_with<T: Transport>(
         c.pump()?;
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed, &mut aborted)?;
-        account(c.take_telemetry());
+        follow.account(c.take_telemetry());
     }
     if !aborted {
         c.send(Request::EndProgram)?;
@@ -563,11 +478,8 @@ pub fn run_program_with<T: Transport>(
         operator(c, hold, p0, period_s, &mut held_at, &mut resumed)?;
         keys(c, typed, &mut aborted)?;
         let s = c.status()?;
-        account(c.take_telemetry());
-        if matches!(s.last, Outcome::Refused(_)) {
-            let Outcome::Refused(why) = &s.last else {
-                unreachable!()
-            };
+        follow.account(c.take_telemetry());
+        if let Outcome::Refused(why) = &s.last {
             bail!("{name}: the machine refused a segment: {why}");
         }
         let waiting = hold.is_some() && !resumed && !aborted;
@@ -582,18 +494,189 @@ pub fn run_program_with<T: Transport>(
         }
         c.sleep_ms(POLL_MS)?;
     };
-    if let Some(b) = bar {
+    if let Some(b) = follow.bar.take() {
         b.finish_and_clear();
     }
     let duration_s = f64::from(end.period.wrapping_sub(p0)) * period_s;
     let compute_s = started.elapsed().as_secs_f64();
-
-    let fault = (end.state == MachineState::Fault).then(|| fault_text(&end));
-    let realtime = if compute_s > 0.0 {
-        duration_s / compute_s
-    } else {
-        0.0
+    let run = RunEnd {
+        end,
+        duration_s,
+        compute_s,
+        compute: ComputeJson {
+            parse_s,
+            compress_s,
+            run_s: compute_s,
+        },
+        compression,
     };
+    let metrics = follow.metrics;
+    let mut report = c.while_busy(|| run_report(&program, &segs, metrics, &run, limits))?;
+    write_back_g10(c, &name, &program, &opts, &mut report)?;
+    Ok(report)
+}
+
+/// A program run followed from its telemetry as it comes: the figures (no sample kept: a
+/// long program runs for hours), every sample in Run (a jerk only between consecutive
+/// ones), and the progress bar.
+struct Follow<'p> {
+    metrics: PathMetrics<'p>,
+    bar: Option<ProgressBar>,
+    /// The segments' tags: the bar follows the machine's executor (the telemetry's segment
+    /// tag), not what was sent (a short program is sent at once and runs for seconds).
+    tags: Vec<u32>,
+    /// The machine's control period, s (the telemetry's period numbers count it).
+    period_s: f64,
+}
+
+impl Follow<'_> {
+    /// The telemetry that arrived: the bar at the latest sample, the samples in Run into
+    /// the figures.
+    fn account(&mut self, samples: Vec<Telemetry>) {
+        if let (Some(b), Some(t)) = (&self.bar, samples.last()) {
+            b.set_position(self.tags.partition_point(|g| *g < t.tag) as u64);
+            b.set_message(format!(
+                "X {:.3} Y {:.3} Z {:.3} mm",
+                t.pos_mm[0], t.pos_mm[1], t.pos_mm[2]
+            ));
+        }
+        for t in samples
+            .iter()
+            .filter(|t| matches!(t.state, MachineState::Run { .. }))
+        {
+            let sample = MetricSample {
+                t_s: f64::from(t.period) * self.period_s,
+                tag: t.tag as usize,
+                planned_mm: t.reference_mm.map(f64::from),
+                vel_mm_s: t.ref_vel_mm_s.map(f64::from),
+                acc_mm_s2: t.ref_acc_mm_s2.map(f64::from),
+                actual_mm: t.pos_mm.map(f64::from),
+                along_mm: 0.0,
+            };
+            // (no plot trace: `gantry run` draws none)
+            self.metrics.add(&sample, true, false);
+        }
+    }
+}
+
+/// The machine's planner limits and its configured tolerance (G64 without P), mm, from
+/// its settings.
+fn machine_limits<T: Transport>(c: &mut Client<T>) -> Result<(LimitsJson, f64)> {
+    let mut limits = LimitsJson {
+        vel: [0.0; 3],
+        acc: [0.0; 3],
+        jerk: [0.0; 3],
+    };
+    for (i, a) in AXES.iter().enumerate() {
+        limits.vel[i] = get_f64(c, &format!("axis.{a}.planner.vel_max_mm_s"))?;
+        limits.acc[i] = get_f64(c, &format!("axis.{a}.planner.acc_max_mm_s2"))?;
+        limits.jerk[i] = get_f64(c, &format!("axis.{a}.planner.jerk_max_mm_s3"))?;
+    }
+    let tol = get_f64(c, "planner.tolerance_mm")?;
+    Ok((limits, tol))
+}
+
+/// A program loaded for the machine: parsed where its planner starts, in its context,
+/// and as the planner's segments.
+struct Loaded {
+    program: Program,
+    /// The machine context it was parsed in (its G10 changes are relative to it).
+    opts: ParseOptions,
+    segs: Vec<PlanSegment>,
+    compression: compress::Stats,
+    parse_s: f64,
+    compress_s: f64,
+}
+
+/// Parse `path` in the machine's context (its work offsets and tool table), check it
+/// against its travel before any motion (also when the machine is not ready), make the
+/// machine ready (homed, armed) and parse it again from where its planner starts; the
+/// parser's error when the program is rejected.
+fn load_on_machine<T: Transport>(
+    c: &mut Client<T>,
+    path: &Path,
+    tol: f64,
+) -> Result<Result<Loaded, crate::gcode::Error>> {
+    let travel = travel(c)?;
+    // the machine's work offsets and tool table: the program's coordinates are relative
+    // to them, its G10 changes them
+    let (work_offsets_mm, tools) = read_work_and_tools(c)?;
+    let options = |start_mm: [f64; 3]| ParseOptions {
+        start_mm,
+        work_offsets_mm,
+        tools: tools.clone(),
+        ..ParseOptions::default()
+    };
+    let s = c.status()?;
+    // rejected before any motion (also when the machine is not ready)
+    let here = s.pos_mm.map(f64::from);
+    if let Err(e) = c.while_busy(|| load_program_with(path, &options(here), &travel))? {
+        return Ok(Err(e));
+    }
+    let s = ready(c, true)?;
+    let start = planner_start_mm(c, &s)?;
+    let opts = options(start);
+    let parse_started = Instant::now();
+    let program = match c.while_busy(|| load_program_with(path, &opts, &travel))? {
+        Ok(p) => p,
+        Err(e) => return Ok(Err(e)),
+    };
+    let parse_s = parse_started.elapsed().as_secs_f64();
+    let compress_started = Instant::now();
+    let (segs, compression) = c.while_busy(|| segments(&program, tol))?;
+    let compress_s = compress_started.elapsed().as_secs_f64();
+    Ok(Ok(Loaded {
+        program,
+        opts,
+        segs,
+        compression,
+        parse_s,
+        compress_s,
+    }))
+}
+
+/// The progress bar of `gantry run` over `segments` (the keys' hint: single keys, or
+/// keys and Enter).
+fn run_progress_bar(segments: usize, single_keys: bool) -> ProgressBar {
+    let enter = if single_keys { "" } else { " + Enter" };
+    let b = ProgressBar::new(segments as u64);
+    b.set_style(
+        ProgressStyle::with_template(&format!(
+            "{{bar:30}} {{pos}}/{{len}} segments run, ETA {{eta}}  {{msg}}  (h/r/a{enter}: hold/resume/abort)",
+        ))
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    b
+}
+
+/// How a program run on the machine ended: its last status, machine and compute time,
+/// and the host's compute times and compression.
+struct RunEnd {
+    end: Status,
+    duration_s: f64,
+    compute_s: f64,
+    compute: ComputeJson,
+    compression: compress::Stats,
+}
+
+/// The report of a program run on the machine: the figures of `metrics`, and what
+/// executed from the machine's status.
+fn run_report(
+    program: &Program,
+    segs: &[PlanSegment],
+    metrics: PathMetrics,
+    run: &RunEnd,
+    limits: LimitsJson,
+) -> GcodeReport {
+    let RunEnd {
+        end,
+        duration_s,
+        compute_s,
+        ..
+    } = run;
+    let (duration_s, compute_s) = (*duration_s, *compute_s);
+    let fault = (end.state == MachineState::Fault).then(|| fault_text(end));
+    let realtime = realtime_ratio(duration_s, compute_s);
     // what executed, from the machine's status: every segment when it completed, else
     // those before the one its executor was on when it stopped
     let completed = end.program.end == ProgramEnd::Completed;
@@ -604,32 +687,39 @@ pub fn run_program_with<T: Transport>(
             .take_while(|g| g.seg.tag < end.program.tag)
             .count()
     };
-    let length = |g: &crate::studies::gcode::PlanSegment| -> f64 {
+    let length = |g: &PlanSegment| -> f64 {
         program
             .moves
             .get(g.moves.clone())
             .map_or(0.0, |m| m.iter().map(distance::length).sum())
     };
-    let mut report =
-        c.while_busy(|| metrics.report(&program, executed, duration_s, limits, fault, realtime))?;
+    let mut report = metrics.report(program, executed, duration_s, limits, fault, realtime);
     report.segments_planned = segs.len();
     if !completed {
         report.path_length_mm = segs.iter().take(executed).map(length).sum();
     }
     report.program_done = end.program_done;
     report.program_end = program_end_name(end.program.end);
-    report.compression = compression;
-    report.compute = ComputeJson {
-        parse_s,
-        compress_s,
-        run_s: compute_s,
-    };
+    report.compression = run.compression;
+    report.compute = run.compute;
     if !completed && report.status == "completed" {
         report.status = "aborted".into();
     }
+    report
+}
+
+/// A completed program's G10 changes written back to the machine (into `report`), or
+/// word that they were not.
+fn write_back_g10<T: Transport>(
+    c: &mut Client<T>,
+    name: &str,
+    program: &Program,
+    opts: &ParseOptions,
+    report: &mut GcodeReport,
+) -> Result<()> {
     // LinuxCNC keeps a program's G10 changes: written back (set, not saved) once it
     // completed; a program that stopped early leaves the machine's offsets as they were
-    let changes = g10_changes(&program, &opts);
+    let changes = g10_changes(program, opts);
     if report.status == "completed" {
         for (key, value) in &changes {
             set(c, key, value).with_context(|| {
@@ -643,7 +733,7 @@ pub fn run_program_with<T: Transport>(
             report.status
         );
     }
-    Ok(report)
+    Ok(())
 }
 
 /// Where the machine's planner starts a program: the reference the servo holds at rest (the

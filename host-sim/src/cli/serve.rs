@@ -145,41 +145,7 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
             },
         )?;
     let mut kept = sim.flash_image().to_vec();
-
-    if let Some(dir) = opts.pty.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if !dir.is_dir() {
-            bail!("{}: no such directory for the pty", dir.display());
-        }
-    }
-    if std::fs::symlink_metadata(&opts.pty).is_ok_and(|m| !m.file_type().is_symlink()) {
-        bail!(
-            "{} exists and is not a pty link: choose another path",
-            opts.pty.display()
-        );
-    }
-    let (mut master, slave) = TTYPort::pair().context("cannot open a pseudo-terminal")?;
-    let dev = slave
-        .name()
-        .context("the pseudo-terminal has no device name")?;
-    let _ = std::fs::remove_file(&opts.pty);
-    std::os::unix::fs::symlink(&dev, &opts.pty)
-        .with_context(|| format!("cannot link {} to {dev}", opts.pty.display()))?;
-    let clock_path = PathBuf::from(format!("{}.clock", opts.pty.display()));
-    let served = Served {
-        pty: opts.pty.clone(),
-        clock_path: clock_path.clone(),
-    };
-    let clock = std::fs::File::create(&clock_path)
-        .with_context(|| format!("cannot write the clock file {}", clock_path.display()))?;
-    clock.write_all_at(&0u32.to_le_bytes(), 0)?;
-    master
-        .set_timeout(Duration::ZERO)
-        .context("pseudo-terminal timeout")?;
-    // writes that never wait: the timeout only bounds waiting for room, and a write of
-    // more than the pty takes then blocks until a reader takes it all; a client that
-    // stopped reading (gone, starved, stopped in a debugger) held the machine's loop
-    // there, with its clock, its link watchdog and Ctrl-C
-    set_nonblocking(&master).context("pseudo-terminal: non-blocking writes")?;
+    let (mut master, slave, dev, served, clock) = open_pty(&opts.pty)?;
 
     eprintln!(
         "gantry: the simulated gantry serves its link at {} ({}), {}; settings flash: {} ({:?}). \
@@ -208,15 +174,7 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
         if end_periods.is_some_and(|e| sim.periods() >= e) {
             break;
         }
-        // the host's bytes
-        loop {
-            match master.read(&mut inbuf) {
-                Ok(0) => break,
-                Ok(n) => sim.send(&inbuf[..n])?,
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => break,
-                Err(e) => return Err(e).context("pseudo-terminal read"),
-            }
-        }
+        host_to_machine(&mut master, &mut sim, &mut inbuf)?;
         // the machine's time: paced by the wall clock, but never more than MAX_LAG_MS
         // behind it; a serve starved of the CPU (a loaded host) slows the machine down
         // instead of running the lost time in one burst, during which a host starved
@@ -241,21 +199,7 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
         // its bytes to the host
         sim.recv(&mut out)?;
         backlog.extend(out.drain(..));
-        if backlog.len() > BACKLOG_MAX_BYTES {
-            let extra = backlog.len() - BACKLOG_MAX_BYTES;
-            backlog.drain(..extra);
-        }
-        while !backlog.is_empty() {
-            let (front, _) = backlog.as_slices();
-            match master.write(front) {
-                Ok(0) => break,
-                Ok(n) => {
-                    backlog.drain(..n);
-                }
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => break,
-                Err(e) => return Err(e).context("pseudo-terminal write"),
-            }
-        }
+        machine_to_host(&mut master, &mut backlog)?;
         let ms = sim.clock_ms();
         if ms != last_ms {
             clock.write_all_at(&ms.to_le_bytes(), 0)?;
@@ -277,5 +221,82 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
         "gantry: the simulated gantry stopped after {:.3} s of machine time",
         sim.periods() as f64 / rate as f64
     );
+    Ok(())
+}
+
+/// The pty at `path` (a link to a fresh pseudo-terminal's device, checked not to replace
+/// anything else) and its clock file beside it (`PATH.clock`, the machine's millisecond
+/// clock, 0 at the start): the master end (reads and writes that never wait), the slave
+/// end (kept open while serving), the device's name, and what removes both links.
+fn open_pty(pty: &Path) -> Result<(TTYPort, TTYPort, String, Served, std::fs::File)> {
+    if let Some(dir) = pty.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            bail!("{}: no such directory for the pty", dir.display());
+        }
+    }
+    if std::fs::symlink_metadata(pty).is_ok_and(|m| !m.file_type().is_symlink()) {
+        bail!(
+            "{} exists and is not a pty link: choose another path",
+            pty.display()
+        );
+    }
+    let (mut master, slave) = TTYPort::pair().context("cannot open a pseudo-terminal")?;
+    let dev = slave
+        .name()
+        .context("the pseudo-terminal has no device name")?;
+    let _ = std::fs::remove_file(pty);
+    std::os::unix::fs::symlink(&dev, pty)
+        .with_context(|| format!("cannot link {} to {dev}", pty.display()))?;
+    let clock_path = PathBuf::from(format!("{}.clock", pty.display()));
+    let served = Served {
+        pty: pty.to_path_buf(),
+        clock_path: clock_path.clone(),
+    };
+    let clock = std::fs::File::create(&clock_path)
+        .with_context(|| format!("cannot write the clock file {}", clock_path.display()))?;
+    clock.write_all_at(&0u32.to_le_bytes(), 0)?;
+    master
+        .set_timeout(Duration::ZERO)
+        .context("pseudo-terminal timeout")?;
+    // writes that never wait: the timeout only bounds waiting for room, and a write of
+    // more than the pty takes then blocks until a reader takes it all; a client that
+    // stopped reading (gone, starved, stopped in a debugger) held the machine's loop
+    // there, with its clock, its link watchdog and Ctrl-C
+    set_nonblocking(&master).context("pseudo-terminal: non-blocking writes")?;
+    Ok((master, slave, dev, served, clock))
+}
+
+/// The host's bytes waiting at the pty, to the machine.
+fn host_to_machine(master: &mut TTYPort, sim: &mut SimMachine, inbuf: &mut [u8]) -> Result<()> {
+    loop {
+        match master.read(inbuf) {
+            Ok(0) => break,
+            Ok(n) => sim.send(&inbuf[..n])?,
+            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => break,
+            Err(e) => return Err(e).context("pseudo-terminal read"),
+        }
+    }
+    Ok(())
+}
+
+/// The machine's bytes in `backlog` to the pty, as many as it takes now; the backlog
+/// kept to its newest [`BACKLOG_MAX_BYTES`] (a client that stopped reading loses the
+/// oldest).
+fn machine_to_host(master: &mut TTYPort, backlog: &mut VecDeque<u8>) -> Result<()> {
+    if backlog.len() > BACKLOG_MAX_BYTES {
+        let extra = backlog.len() - BACKLOG_MAX_BYTES;
+        backlog.drain(..extra);
+    }
+    while !backlog.is_empty() {
+        let (front, _) = backlog.as_slices();
+        match master.write(front) {
+            Ok(0) => break,
+            Ok(n) => {
+                backlog.drain(..n);
+            }
+            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => break,
+            Err(e) => return Err(e).context("pseudo-terminal write"),
+        }
+    }
     Ok(())
 }

@@ -8,7 +8,7 @@
 //! it lasts as long as the simulated machine (one `gantry --sim` invocation).
 
 use super::Transport;
-use crate::studies::gcode::machine_and_planner;
+use crate::sim_gantry::{designed_settings, gantry_world, machine_and_planner};
 use anyhow::{anyhow, bail, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
 use controller_core::machine::{
@@ -18,8 +18,8 @@ use controller_core::servo::faults::FaultKind;
 use controller_core::settings::store::{
     block_on, BlockingFlash, LoadOutcome, RamFlash, SettingsStore,
 };
-use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
-use controller_core::sim::world::{Injection, SwitchConfig, World};
+use controller_core::settings::FACTORY;
+use controller_core::sim::world::{Injection, World};
 
 /// Simulated time one [`Transport::wait`] advances, ms.
 const WAIT_MS: u32 = 1;
@@ -50,55 +50,6 @@ pub enum SimModels {
     Designed,
     /// Factory settings: no axis model (identify first).
     Factory,
-}
-
-/// The simulated physical gantry of `gantry --sim` (host-sim/scenarios/gcode.toml: travel
-/// ±150/±150/±50 mm around where it starts) with limit switches where `settings`' homing
-/// expects them and the machine's encoder index pulses (one per revolution, 8000 counts:
-/// host-sim/machines/gantry.toml), at `rate_hz` (default: the scenario's), and its control
-/// rate. Also the
-/// board twin's plant (`twin-plant`), which passes `board_amplifier`: the amplifier
-/// applies the duty the board's timer drives, unquantised here (the timer's own
-/// resolution is the board's quantisation).
-pub fn gantry_world(
-    settings: &Settings,
-    rate_hz: Option<u32>,
-    board_amplifier: bool,
-) -> Result<(World, u32)> {
-    let (run, _) = machine_and_planner(None)?;
-    let mut wcfg = run.world;
-    // the switches where homing expects them; the index pulses the machine's encoders give
-    for (sw, homing) in wcfg
-        .switches
-        .iter_mut()
-        .zip(SwitchConfig::for_homing(settings))
-    {
-        *sw = SwitchConfig {
-            index_period_counts: sw.index_period_counts,
-            ..homing
-        };
-    }
-    let rate_hz = rate_hz.unwrap_or(run.servo.rate_hz);
-    let mut servo_cfg = settings
-        .servo_config(rate_hz)
-        .map_err(|e| anyhow!("settings: {e:?}"))?;
-    if board_amplifier {
-        for a in &mut servo_cfg.amplifiers {
-            a.resolution_bits = 0;
-        }
-    }
-    let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
-    Ok((world, rate_hz))
-}
-
-/// Factory settings with the designed gantry's axis models entered (`gantry --sim`'s
-/// machine, and the QEMU link rig's).
-pub fn designed_settings() -> Settings {
-    let mut settings: Settings = FACTORY;
-    for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
-        a.model = Some(m);
-    }
-    settings
 }
 
 impl SimMachine {

@@ -43,6 +43,7 @@
 //! compresses in well under a second).
 
 use super::{Blend, MoveKind, Program};
+use controller_core::num::vec3::Vec3;
 use std::ops::Range;
 
 /// Share of a run's path tolerance P the compressor may use; the planner's blends at the
@@ -111,26 +112,9 @@ pub struct Stats {
 }
 
 type V = [f64; 3];
+/// The vector algebra's type (points stay arrays, as the program and the planner have them).
+type V3 = Vec3<f64>;
 
-fn sub(a: V, b: V) -> V {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: V, b: V) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn norm(a: V) -> f64 {
-    dot(a, a).sqrt()
-}
-fn cross(a: V, b: V) -> V {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn scale(a: V, k: f64) -> V {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
 /// The point as the planner gets it (f32 on the link).
 fn f32r(p: V) -> V {
     p.map(|x| f64::from(x as f32))
@@ -160,29 +144,30 @@ pub fn budget_mm(blend: Blend, default_tol_mm: f64, resolution_mm: f64) -> f64 {
 /// within `tol` and no chord runs backwards along it.
 fn line_fit(pts: &[V], tol: f64) -> Option<f64> {
     let (&a, &b) = (pts.first()?, pts.last()?);
-    let (a, b) = (f32r(a), f32r(b));
-    let d = sub(b, a);
-    let len = norm(d);
+    let (a, b) = (V3::from_array(f32r(a)), V3::from_array(f32r(b)));
+    let d = b - a;
+    let len = d.norm();
     if !(len > 0.0) {
         return None;
     }
-    let u = scale(d, 1.0 / len);
+    let u = d.scale(1.0 / len);
     let mut dev = 0.0f64;
     let mut last_t = 0.0;
     for &p in pts {
-        let q = sub(p, a);
-        let t = dot(q, u);
+        let p = V3::from_array(p);
+        let q = p - a;
+        let t = q.dot(u);
         if t < last_t - 1e-9 || t > len + tol {
             return None;
         }
         last_t = t.max(last_t);
         // distance to the segment (beyond its ends: to the end point)
         let off = if t < 0.0 {
-            norm(q)
+            q.norm()
         } else if t > len {
-            norm(sub(p, b))
+            (p - b).norm()
         } else {
-            norm(sub(q, scale(u, t)))
+            (q - u.scale(t)).norm()
         };
         dev = dev.max(off);
         if dev > tol {
@@ -194,18 +179,17 @@ fn line_fit(pts: &[V], tol: f64) -> Option<f64> {
 
 /// The circle through three points (relative to the first): centre offset, radius and
 /// unit normal (the points run counter-clockwise about it).
-fn circle(a: V, m: V, b: V) -> Option<(V, f64, V)> {
-    let (u, w) = (sub(m, a), sub(b, a));
-    let axb = cross(u, w);
-    let n2 = dot(axb, axb);
-    if !(n2 > (1e-12 * dot(u, u) * dot(w, w))) {
+fn circle(a: V3, m: V3, b: V3) -> Option<(V3, f64, V3)> {
+    let (u, w) = (m - a, b - a);
+    let axb = u.cross(w);
+    let n2 = axb.dot(axb);
+    if !(n2 > (1e-12 * u.dot(u) * w.dot(w))) {
         return None;
     }
-    let c = scale(
-        cross(sub(scale(w, dot(u, u)), scale(u, dot(w, w))), axb),
-        0.5 / n2,
-    );
-    Some((c, norm(c), scale(axb, 1.0 / n2.sqrt())))
+    let c = (w.scale(u.dot(u)) - u.scale(w.dot(w)))
+        .cross(axb)
+        .scale(0.5 / n2);
+    Some((c, c.norm(), axb.scale(1.0 / n2.sqrt())))
 }
 
 /// The arc from `pts[0]` through the vertex nearest half the run's length to
@@ -224,17 +208,15 @@ fn arc_fit(pts: &[V], cum: &[f64], tol: f64) -> Option<(V, f64)> {
         .min_by(|x, y| (x.1 - half).abs().total_cmp(&(y.1 - half).abs()))?
         .0;
     let (a, via, b) = (f32r(pts[0]), f32r(pts[m]), f32r(pts[n - 1]));
-    let (c, r, nrm) = circle(a, via, b)?;
+    let (c, r, nrm) = circle(V3::from_array(a), V3::from_array(via), V3::from_array(b))?;
     if !(r <= MAX_ARC_RADIUS_MM) {
         return None;
     }
-    let e1 = scale(c, -1.0 / r);
-    let e2 = cross(nrm, e1);
+    let e1 = c.scale(-1.0 / r);
+    let e2 = nrm.cross(e1);
     let angle = |p: V| {
-        let q = sub(sub(p, a), c);
-        dot(q, e2)
-            .atan2(dot(q, e1))
-            .rem_euclid(std::f64::consts::TAU)
+        let q = V3::from_array(p) - V3::from_array(a) - c;
+        q.dot(e2).atan2(q.dot(e1)).rem_euclid(std::f64::consts::TAU)
     };
     let sweep = angle(b);
     if !(sweep <= MAX_ARC_SWEEP_RAD) {
@@ -243,10 +225,10 @@ fn arc_fit(pts: &[V], cum: &[f64], tol: f64) -> Option<(V, f64)> {
     let mut dev = 0.0f64;
     let mut last = (0.0f64, 0.0f64, pts[0]);
     for (k, &p) in pts.iter().enumerate() {
-        let q = sub(sub(p, a), c);
-        let h = dot(q, nrm);
-        let inplane = sub(q, scale(nrm, h));
-        let rho = norm(inplane);
+        let q = V3::from_array(p) - V3::from_array(a) - c;
+        let h = q.dot(nrm);
+        let inplane = q - nrm.scale(h);
+        let rho = inplane.norm();
         let mut th = angle(p);
         // (the first and last vertex sit at 0 and `sweep` up to rounding; a rounding just
         // below 0 reads as almost 2π)
@@ -263,7 +245,7 @@ fn arc_fit(pts: &[V], cum: &[f64], tol: f64) -> Option<(V, f64)> {
         }
         let d = (h * h + (rho - r) * (rho - r)).sqrt();
         if k > 0 {
-            let chord = norm(sub(p, last.2)) + d + last.1;
+            let chord = (V3::from_array(p) - V3::from_array(last.2)).norm() + d + last.1;
             let half_c = 0.5 * chord;
             if half_c >= r {
                 return None;
@@ -295,7 +277,7 @@ pub fn compress_run(pts: &[V], tol: f64) -> Vec<(usize, Primitive, f64)> {
     let mut s = 0.0;
     for (k, p) in pts.iter().enumerate() {
         if k > 0 {
-            s += norm(sub(*p, pts[k - 1]));
+            s += (V3::from_array(*p) - V3::from_array(pts[k - 1])).norm();
         }
         cum.push(s);
     }

@@ -179,6 +179,104 @@ impl<'a> Interp<'a> {
     /// Interprets one block.
     pub(crate) fn block(&mut self, line: u32, words: &[Word]) -> Result<(), Error> {
         // 1. Classify every G/M code: anything unsupported rejects the line first.
+        let cmds = self.classify(line, words)?;
+        if self.end_line.is_some() {
+            return Ok(());
+        }
+
+        // 2. Value words: each at most once.
+        let mut values = self.value_words(line, words)?;
+
+        // 3. At most one command per modal group.
+        self.check_modal_groups(line, &cmds)?;
+        let has = |c: Cmd| cmds.iter().any(|(k, _, _)| *k == c);
+        let group = |g: Group| in_group(&cmds, g);
+
+        // 4. Ignored words, once each.
+        self.note_ignored_words(line, &cmds, &mut values)?;
+
+        // 5. Who uses the axis words: at most one of G43.1, G10/G28/G52/G92 and an
+        //    explicit motion command (a modal motion yields to the others).
+        let explicit_motion = group(Group::Motion);
+        let nonmodal = group(Group::NonModal);
+        self.check_axis_users(line, &cmds)?;
+
+        // 6. Execute in RS274NGC order. Units first: every length on the line is in them.
+        if let Some((Cmd::Units { inches }, _)) = group(Group::Units) {
+            self.inches = inches;
+        }
+        let k = self.unit_mm();
+        if let Some((Cmd::FeedMode { inverse_time }, _)) = group(Group::FeedMode) {
+            if self.inverse_time && !inverse_time {
+                // G93 → G94: the F in force was a time, not a speed (LinuxCNC)
+                self.feed_mm_min = None;
+                self.feed_cleared_by_g94 = true;
+            }
+            self.inverse_time = inverse_time;
+        }
+        // In G93 an F belongs to its line only: the moves on it take 1/F minutes.
+        let inverse_f = self.feed_word(line, &mut values, k)?;
+        let mut p = POwner { owner: None };
+        if has(Cmd::Dwell) {
+            self.dwell(line, &mut values, &mut p)?;
+        }
+        if let Some((Cmd::Plane(pl), _)) = group(Group::Plane) {
+            self.plane = pl;
+        }
+        if let Some((Cmd::ToolLength(t), name)) = group(Group::ToolLength) {
+            self.tool_length(line, t, &name, &mut values)?;
+        }
+        if let Some((Cmd::WorkSystem(i), _)) = group(Group::WorkOffset) {
+            self.frames.active = i;
+        }
+        match group(Group::PathControl) {
+            Some((Cmd::ExactPath, _)) => self.set_blend(line, Blend::ExactPath),
+            Some((Cmd::ExactStop, _)) => self.set_blend(line, Blend::ExactStop),
+            Some((Cmd::Blending, _)) => {
+                let blend = self.g64(line, &mut values, &mut p)?;
+                self.set_blend(line, blend);
+            }
+            _ => {}
+        }
+        if let Some((Cmd::Distance { incremental }, _)) = group(Group::Distance) {
+            self.incremental = incremental;
+        }
+        if let Some((Cmd::ArcCentre { absolute }, _)) = group(Group::ArcDistance) {
+            self.arc_absolute = absolute;
+        }
+
+        // Non-modal commands and motion share the axis words (a G43.1 took them above).
+        self.note_resolution(&values);
+        let axes = [values.get('X'), values.get('Y'), values.get('Z')];
+        let has_axes = axes.iter().any(Option::is_some);
+        if let Some((Cmd::Motion(m), _)) = explicit_motion {
+            self.motion = m;
+        }
+        let dynamic_tool = has(Cmd::ToolLength(ToolLength::Dynamic));
+        let nonmodal = nonmodal.map(|(c, _)| c);
+        let axes_used = NonModalAxes {
+            axes,
+            has_axes,
+            dynamic_tool,
+            inverse_f,
+            k,
+        };
+        self.nonmodal_or_motion(line, nonmodal, axes_used, &mut values, &mut p)?;
+
+        // 7. Stop commands last.
+        match group(Group::Stopping) {
+            Some((Cmd::Pause, _)) => self.push(line, MoveKind::Pause),
+            Some((Cmd::End, _)) => self.end_line = Some(line),
+            _ => {}
+        }
+
+        // 8. Every value word must have been used by something on the line.
+        self.check_all_used(line, &values)
+    }
+
+    /// Every G and M code of the line, classified with its modal group and name; an
+    /// unsupported one rejects the line.
+    fn classify(&self, line: u32, words: &[Word]) -> Result<Vec<(Cmd, Group, String)>, Error> {
         let mut cmds: Vec<(Cmd, Group, String)> = Vec::new();
         for w in words.iter().filter(|w| matches!(w.letter, 'G' | 'M')) {
             let c10 = code10(w.value);
@@ -202,11 +300,11 @@ impl<'a> Interp<'a> {
                 }
             }
         }
-        if self.end_line.is_some() {
-            return Ok(());
-        }
+        Ok(cmds)
+    }
 
-        // 2. Value words: each at most once.
+    /// The line's value words (all but G and M), each letter at most once.
+    fn value_words<'w>(&self, line: u32, words: &'w [Word]) -> Result<Values<'w>, Error> {
         let mut values = Values {
             words: [None; 26],
             used: [false; 26],
@@ -226,7 +324,11 @@ impl<'a> Interp<'a> {
             values.words[i] = Some(w);
         }
 
-        // 3. At most one command per modal group.
+        Ok(values)
+    }
+
+    /// At most one command per modal group.
+    fn check_modal_groups(&self, line: u32, cmds: &[(Cmd, Group, String)]) -> Result<(), Error> {
         for (i, (_, group, name)) in cmds.iter().enumerate() {
             if let Some((_, _, other)) = cmds.iter().skip(i + 1).find(|(_, g, _)| g == group) {
                 return Err(self.error(
@@ -239,15 +341,17 @@ impl<'a> Interp<'a> {
                 ));
             }
         }
-        let has = |c: Cmd| cmds.iter().any(|(k, _, _)| *k == c);
-        let in_group = |g: Group| {
-            cmds.iter()
-                .find(|(_, k, _)| *k == g)
-                .map(|(c, _, n)| (*c, n.clone()))
-        };
+        Ok(())
+    }
 
-        // 4. Ignored words, once each.
-        for (cmd, _, name) in &cmds {
+    /// Words accepted but ignored, noted once each; a line number must be whole.
+    fn note_ignored_words(
+        &mut self,
+        line: u32,
+        cmds: &[(Cmd, Group, String)],
+        values: &mut Values<'_>,
+    ) -> Result<(), Error> {
+        for (cmd, _, name) in cmds {
             if matches!(cmd, Cmd::NoEffect | Cmd::Auxiliary | Cmd::Motion(None)) {
                 self.note_ignored(name.clone(), line);
             }
@@ -267,13 +371,16 @@ impl<'a> Interp<'a> {
                 ));
             }
         }
+        Ok(())
+    }
 
-        // 5. Who uses the axis words: at most one of G43.1, G10/G28/G52/G92 and an
-        //    explicit motion command (a modal motion yields to the others).
-        let explicit_motion = in_group(Group::Motion);
-        let nonmodal = in_group(Group::NonModal);
+    /// At most one of G43.1, G10/G28/G52/G92 and an explicit motion command uses the axis
+    /// words.
+    fn check_axis_users(&self, line: u32, cmds: &[(Cmd, Group, String)]) -> Result<(), Error> {
+        let explicit_motion = in_group(cmds, Group::Motion);
+        let nonmodal = in_group(cmds, Group::NonModal);
         let axis_users: Vec<String> = [
-            in_group(Group::ToolLength)
+            in_group(cmds, Group::ToolLength)
                 .filter(|(c, _)| *c == Cmd::ToolLength(ToolLength::Dynamic))
                 .map(|(_, n)| n),
             nonmodal
@@ -301,20 +408,16 @@ impl<'a> Interp<'a> {
             ));
         }
 
-        // 6. Execute in RS274NGC order. Units first: every length on the line is in them.
-        if let Some((Cmd::Units { inches }, _)) = in_group(Group::Units) {
-            self.inches = inches;
-        }
-        let k = self.unit_mm();
-        if let Some((Cmd::FeedMode { inverse_time }, _)) = in_group(Group::FeedMode) {
-            if self.inverse_time && !inverse_time {
-                // G93 → G94: the F in force was a time, not a speed (LinuxCNC)
-                self.feed_mm_min = None;
-                self.feed_cleared_by_g94 = true;
-            }
-            self.inverse_time = inverse_time;
-        }
-        // In G93 an F belongs to its line only: the moves on it take 1/F minutes.
+        Ok(())
+    }
+
+    /// The F word: a feed in force (G94), or the line's inverse time (G93, returned).
+    fn feed_word(
+        &mut self,
+        line: u32,
+        values: &mut Values<'_>,
+        k: f64,
+    ) -> Result<Option<f64>, Error> {
         let mut inverse_f: Option<f64> = None;
         if let Some(f) = values.get('F') {
             if !(f > 0.0) {
@@ -341,63 +444,43 @@ impl<'a> Interp<'a> {
                 self.feed_cleared_by_g94 = false;
             }
         }
-        let mut p = POwner { owner: None };
-        if has(Cmd::Dwell) {
-            p.claim("G4", self, line)?;
-            let Some(s) = values.get('P') else {
-                return Err(self.error(
-                    line,
-                    ErrorKind::Invalid,
-                    "G4 without P (the dwell time in seconds)".into(),
-                ));
-            };
-            if !(s >= 0.0) {
-                return Err(self.error(
-                    line,
-                    ErrorKind::Invalid,
-                    format!("G4 P{s}: the dwell time must not be negative"),
-                ));
-            }
-            if s > super::MAX_DWELL_S {
-                return Err(self.error(
-                    line,
-                    ErrorKind::Invalid,
-                    format!(
-                        "G4 P{s}: the dwell is longer than {} s (use a feed hold to wait longer)",
-                        super::MAX_DWELL_S
-                    ),
-                ));
-            }
-            self.push(line, MoveKind::Dwell { s });
-        }
-        if let Some((Cmd::Plane(pl), _)) = in_group(Group::Plane) {
-            self.plane = pl;
-        }
-        if let Some((Cmd::ToolLength(t), name)) = in_group(Group::ToolLength) {
-            self.tool_length(line, t, &name, &mut values)?;
-        }
-        if let Some((Cmd::WorkSystem(i), _)) = in_group(Group::WorkOffset) {
-            self.frames.active = i;
-        }
-        match in_group(Group::PathControl) {
-            Some((Cmd::ExactPath, _)) => self.set_blend(line, Blend::ExactPath),
-            Some((Cmd::ExactStop, _)) => self.set_blend(line, Blend::ExactStop),
-            Some((Cmd::Blending, _)) => {
-                let blend = self.g64(line, &mut values, &mut p)?;
-                self.set_blend(line, blend);
-            }
-            _ => {}
-        }
-        if let Some((Cmd::Distance { incremental }, _)) = in_group(Group::Distance) {
-            self.incremental = incremental;
-        }
-        if let Some((Cmd::ArcCentre { absolute }, _)) = in_group(Group::ArcDistance) {
-            self.arc_absolute = absolute;
-        }
+        Ok(inverse_f)
+    }
 
-        // Non-modal commands and motion share the axis words (a G43.1 took them above).
-        // (the step they are written in: how far a CAM post's rounding moved the points;
-        // the most decimals seen, as posts drop trailing zeros)
+    /// G4: a dwell of P seconds.
+    fn dwell(&mut self, line: u32, values: &mut Values<'_>, p: &mut POwner) -> Result<(), Error> {
+        p.claim("G4", self, line)?;
+        let Some(s) = values.get('P') else {
+            return Err(self.error(
+                line,
+                ErrorKind::Invalid,
+                "G4 without P (the dwell time in seconds)".into(),
+            ));
+        };
+        if !(s >= 0.0) {
+            return Err(self.error(
+                line,
+                ErrorKind::Invalid,
+                format!("G4 P{s}: the dwell time must not be negative"),
+            ));
+        }
+        if s > super::MAX_DWELL_S {
+            return Err(self.error(
+                line,
+                ErrorKind::Invalid,
+                format!(
+                    "G4 P{s}: the dwell is longer than {} s (use a feed hold to wait longer)",
+                    super::MAX_DWELL_S
+                ),
+            ));
+        }
+        self.push(line, MoveKind::Dwell { s });
+        Ok(())
+    }
+
+    /// The step the line's axis words are written in: how far a CAM post's rounding moved
+    /// the points (the most decimals seen, as posts drop trailing zeros).
+    fn note_resolution(&mut self, values: &Values<'_>) {
         for w in ['X', 'Y', 'Z'].iter().filter_map(|&l| values.word(l)) {
             let decimals = w.text.split_once('.').map_or(0, |(_, f)| {
                 f.chars().take_while(char::is_ascii_digit).count()
@@ -405,15 +488,28 @@ impl<'a> Interp<'a> {
             let step = 10f64.powi(-(decimals.min(12) as i32)) * self.unit_mm();
             self.resolution_mm = self.resolution_mm.min(step);
         }
-        let axes = [values.get('X'), values.get('Y'), values.get('Z')];
-        let has_axes = axes.iter().any(Option::is_some);
-        if let Some((Cmd::Motion(m), _)) = explicit_motion {
-            self.motion = m;
-        }
-        let dynamic_tool = has(Cmd::ToolLength(ToolLength::Dynamic));
-        match nonmodal.map(|(c, _)| c) {
+    }
+
+    /// The non-modal command that takes the axis words (G28, G10, G52, G92, G92.1, G53),
+    /// or else the motion in force.
+    fn nonmodal_or_motion(
+        &mut self,
+        line: u32,
+        nonmodal: Option<Cmd>,
+        a: NonModalAxes,
+        values: &mut Values<'_>,
+        p: &mut POwner,
+    ) -> Result<(), Error> {
+        let NonModalAxes {
+            axes,
+            has_axes,
+            dynamic_tool,
+            inverse_f,
+            k,
+        } = a;
+        match nonmodal {
             Some(Cmd::Home) => self.home(line, axes),
-            Some(Cmd::SetTable) => self.g10(line, axes, &mut values, &mut p)?,
+            Some(Cmd::SetTable) => self.g10(line, axes, values, p)?,
             Some(Cmd::LocalOffset) => self.frames.set_g52(axes.map(|v| v.map(|v| v * k))),
             Some(Cmd::SetOffset) => {
                 if !has_axes {
@@ -429,7 +525,7 @@ impl<'a> Interp<'a> {
             Some(Cmd::ClearOffset) => {
                 self.frames.clear_g92();
                 if has_axes && !dynamic_tool {
-                    return Err(self.unused_axes(line, &values));
+                    return Err(self.unused_axes(line, values));
                 }
             }
             Some(Cmd::MachineCoords) => {
@@ -451,24 +547,21 @@ impl<'a> Interp<'a> {
                             ),
                         ));
                     }
-                    self.motion_block(line, axes, true, inverse_f, &mut values, &mut p)?;
+                    self.motion_block(line, axes, true, inverse_f, values, p)?;
                 }
             }
             _ => {
                 if has_axes && !dynamic_tool {
-                    self.motion_block(line, axes, false, inverse_f, &mut values, &mut p)?;
+                    self.motion_block(line, axes, false, inverse_f, values, p)?;
                 }
             }
         }
 
-        // 7. Stop commands last.
-        match in_group(Group::Stopping) {
-            Some((Cmd::Pause, _)) => self.push(line, MoveKind::Pause),
-            Some((Cmd::End, _)) => self.end_line = Some(line),
-            _ => {}
-        }
+        Ok(())
+    }
 
-        // 8. Every value word must have been used by something on the line.
+    /// Every value word was used by something on the line.
+    fn check_all_used(&self, line: u32, values: &Values<'_>) -> Result<(), Error> {
         for (i, w) in values.words.iter().enumerate() {
             if let (Some(w), false) = (w, values.used[i]) {
                 return Err(self.error(
@@ -804,4 +897,23 @@ impl<'a> Interp<'a> {
 /// The G-code of coordinate system `i` (`G59.1`), for messages.
 pub(super) fn system_code(i: usize) -> &'static str {
     WORK_SYSTEM_CODES.get(i).copied().unwrap_or("G54")
+}
+
+/// The command of `cmds` in group `g`, and its name.
+fn in_group(cmds: &[(Cmd, Group, String)], g: Group) -> Option<(Cmd, String)> {
+    cmds.iter()
+        .find(|(_, k, _)| *k == g)
+        .map(|(c, _, n)| (*c, n.clone()))
+}
+
+/// What the non-modal command or the motion of a line gets: its axis words (in the
+/// program's units), whether it has any, whether a G43.1 took them, the line's inverse
+/// time feed (G93) and the length unit, mm.
+#[derive(Clone, Copy)]
+struct NonModalAxes {
+    axes: [Option<f64>; 3],
+    has_axes: bool,
+    dynamic_tool: bool,
+    inverse_f: Option<f64>,
+    k: f64,
 }

@@ -3,6 +3,11 @@
 //! with `FILE:LINE: <message>` if anything in it is unsupported or invalid; a later step
 //! streams the [`Move`]s to the motion planner in controller-core.
 //!
+//! Beside the front end: [`program`] (a program in a machine's context, checked against
+//! its travel, as the planner's segments), [`runner`] (`host-sim gcode`: the program run on
+//! the simulated machine), [`measure`] (a run against the programmed path) and [`report`]
+//! (the report of a run, from `host-sim gcode` and `gantry run` alike).
+//!
 //! # Accepted subset (what a CAM post for a 3-axis router/mill emits, and what LinuxCNC
 //! users send; LinuxCNC's RS274NGC semantics)
 //! - Motion: G0, G1, G2, G3 (I/J/K centre offsets, incremental from the start by default
@@ -88,7 +93,11 @@ mod codes;
 pub mod compress;
 mod interp;
 mod lexer;
+pub mod measure;
 pub mod offsets;
+pub mod program;
+pub mod report;
+pub mod runner;
 pub mod samples;
 mod setup;
 mod travel;

@@ -2,8 +2,8 @@
 //! coloured by the contour error, the feed ratio along the path, and each axis' planned
 //! velocity and acceleration against the planner's limits.
 
+use crate::gcode::report::GcodeReport;
 use crate::output::plots::{both, register_font, Panel, Series};
-use crate::studies::gcode::GcodeReport;
 use anyhow::Result;
 use plotters::style::RGBColor;
 use std::path::Path;

@@ -1,5 +1,7 @@
-//! What host-sim writes: terminal tables, JSON and CSV ([`report`]), and figures
-//! ([`plots`], [`seed_plots`]) as PNG and SVG.
+//! What host-sim writes: terminal tables, JSON and CSV ([`report`]), and figures as PNG
+//! and SVG: the paper's ([`plots`], which also holds the drawing every figure uses), the
+//! seed methods' ([`seed_plots`]), a G-code run's ([`gcode_plots`]), the identification's
+//! ([`identify_plots`]) and a scope capture's ([`scope_plots`]).
 
 pub mod gcode_plots;
 pub mod identify_plots;

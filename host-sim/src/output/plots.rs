@@ -959,7 +959,6 @@ fn axis_series(
 /// All paper figures; returns the number of files written.
 pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<usize> {
     register_font()?;
-    let mut files = 0;
     let t3: Vec<(String, &RunResult)> = sc
         .law_order
         .iter()
@@ -969,25 +968,45 @@ pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<us
                 .map(|r| (n.clone(), r))
         })
         .collect();
+    if t3.is_empty() {
+        return Ok(0);
+    }
+    Ok(helix_path_figures(dir, sc, &t3)?
+        + helix_signal_figures(dir, sc, &t3)?
+        + table1_figures(dir, sc, rep)?)
+}
+
+/// The disturbance of the paper's runs, in words.
+fn disturbance_note(sc: &PaperInfo) -> String {
+    let (axis, accel, t_s) = sc.disturbance;
+    format!(
+        "+{accel} on axis {} at {t_s} s",
+        ["x", "y", "z"][axis.min(2)]
+    )
+}
+
+/// An axis label in the paper's length unit.
+fn paper_axis(a: &str) -> String {
+    format!("{a} ({PAPER_LEN})")
+}
+
+/// The helix's reference and actual paths: in 3-D, and its top and side views.
+fn helix_path_figures(dir: &Path, sc: &PaperInfo, t3: &[(String, &RunResult)]) -> Result<usize> {
     let Some((_, first)) = t3.first() else {
         return Ok(0);
     };
+    let mut files = 0;
     let reference: Vec<(f64, f64, f64)> = first
         .trace
         .reference
         .iter()
         .map(|p| (p[0], p[1], p[2]))
         .collect();
-    let (axis, accel, t_s) = sc.disturbance;
-    let note = format!(
-        "+{accel} on axis {} at {t_s} s",
-        ["x", "y", "z"][axis.min(2)]
-    );
-    let len = |a: &str| format!("{a} ({PAPER_LEN})");
+    let note = disturbance_note(sc);
 
     files += both(dir, "helix_3d", (1000, 800), &|add| {
         let mut paths = vec![("reference".to_string(), BLACK, reference.clone())];
-        for (n, r) in &t3 {
+        for (n, r) in t3 {
             paths.push((
                 n.clone(),
                 law_color(n),
@@ -1002,7 +1021,7 @@ pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<us
             title: format!(
                 "Helix x = sin t, y = cos t, z = 5t: reference and actual paths ({note})"
             ),
-            labels: [len("x"), len("y"), len("z")],
+            labels: [paper_axis("x"), paper_axis("y"), paper_axis("z")],
             paths,
         })
     })?;
@@ -1018,7 +1037,7 @@ pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<us
             BLACK,
             reference.iter().map(|p| (p.0, p.2)).collect(),
         )];
-        for (n, r) in &t3 {
+        for (n, r) in t3 {
             xy.push(Series::new(
                 n.clone(),
                 law_color(n),
@@ -1032,25 +1051,32 @@ pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<us
         }
         add(Panel::path(
             "Top view (XY), equal scales",
-            len("x"),
+            paper_axis("x"),
             ("y", PAPER_LEN),
             xy,
         ))?;
         add(Panel::lines(
             "Side view (XZ), axes not to scale",
-            len("x"),
+            paper_axis("x"),
             ("z", PAPER_LEN),
             xz,
         ))
     })?;
 
+    Ok(files)
+}
+
+/// The helix's tracking errors, contour error and control inputs over time.
+fn helix_signal_figures(dir: &Path, sc: &PaperInfo, t3: &[(String, &RunResult)]) -> Result<usize> {
+    let mut files = 0;
+    let note = disturbance_note(sc);
     files += both(dir, "helix_errors", (1000, 1200), &|add| {
         for (i, ax) in ["x", "y", "z"].iter().enumerate() {
             add(Panel::lines(
                 format!("Tracking error e_{ax} = {ax}_d - {ax} ({note})"),
                 "t (s)",
                 (&format!("e_{ax}"), PAPER_LEN),
-                axis_series(&t3, |r, k| r.trace.reference[k][i] - r.trace.position[k][i]),
+                axis_series(t3, |r, k| r.trace.reference[k][i] - r.trace.position[k][i]),
             )
             .log_auto())?;
         }
@@ -1062,7 +1088,7 @@ pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<us
             "Contour error |ε| of the controller's model (eq. 14)",
             "t (s)",
             ("|ε|", PAPER_LEN),
-            axis_series(&t3, |r, k| {
+            axis_series(t3, |r, k| {
                 let c = r.trace.contour_model[k];
                 (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
             }),
@@ -1076,12 +1102,19 @@ pub fn paper_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<us
                 format!("Control input u_{ax}"),
                 "t (s)",
                 (&format!("u_{ax}"), PAPER_U),
-                axis_series(&t3, |r, k| r.trace.u[k][i]),
+                axis_series(t3, |r, k| r.trace.u[k][i]),
             ))?;
         }
         Ok(())
     })?;
 
+    Ok(files)
+}
+
+/// Table 1's single-axis runs (step and sine references) and their control inputs.
+fn table1_figures(dir: &Path, sc: &PaperInfo, rep: &PaperReport) -> Result<usize> {
+    let mut files = 0;
+    let (_, accel, t_s) = sc.disturbance;
     for tname in ["step", "sine"] {
         let runs: Vec<(String, &RunResult)> = sc
             .t1_laws

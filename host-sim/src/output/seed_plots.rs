@@ -68,8 +68,12 @@ fn normal_error(r: &RunResult, k: usize) -> (f64, f64) {
 /// All seed figures; returns the number of files written.
 pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
     register_font()?;
-    let mut files = 0;
+    Ok(estimates_figure(dir, rep)? + reversals_figure(dir, rep)? + contour_figures(dir, rep)?)
+}
 
+/// The adaptive SMC's estimates against the truth (none without estimates).
+fn estimates_figure(dir: &Path, rep: &SeedsReport) -> Result<usize> {
+    let mut files = 0;
     if !rep.estimates.is_empty() {
         files += both(dir, "seeds_estimates", (1000, 1400), &|add| {
             let units = ["mN·m/(mm/s²)", "mN·m/(mm/s)", "mN·m", "mN·m"];
@@ -109,7 +113,12 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
             Ok(())
         })?;
     }
+    Ok(files)
+}
 
+/// The tracking error at the sine's reversals, fixed against adaptive SMC.
+fn reversals_figure(dir: &Path, rep: &SeedsReport) -> Result<usize> {
+    let mut files = 0;
     let runs: Vec<(&str, &RunResult)> = ["SMC", "ASMC"]
         .iter()
         .filter_map(|l| trace(rep, &format!("friction_sine_{l}")).map(|r| (*l, r)))
@@ -154,7 +163,12 @@ pub fn seed_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
             Ok(())
         })?;
     }
+    Ok(files)
+}
 
+/// The contours of the circle and the square, with and without cross-coupling.
+fn contour_figures(dir: &Path, rep: &SeedsReport) -> Result<usize> {
+    let mut files = 0;
     for sc in ["circle", "square"] {
         let laws: Vec<(String, &RunResult)> = ["PID", "DSMC", "DOB-SMC"]
             .iter()

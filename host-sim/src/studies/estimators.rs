@@ -6,8 +6,8 @@
 //! `backward_difference`, `pll`, `kalman`); every run is the servo step against the
 //! simulated world, so the estimators are fed exactly as on the board.
 
-use super::resolve_all;
 use crate::builtin;
+use crate::builtin::resolve_all;
 use crate::engine::{simulate, RunResult};
 use crate::jobs;
 use anyhow::{Context, Result};

@@ -7,8 +7,7 @@
 //! path start (a hold case that then moves) or a reset (which must be refused while the
 //! cause persists).
 
-use super::resolve_all;
-use crate::builtin;
+use crate::builtin::{self, resolve_all};
 use crate::jobs;
 use anyhow::{anyhow, bail, Context, Result};
 use controller_core::axes::Axis;
@@ -137,7 +136,52 @@ fn position(run: &SimRun<f32>) -> Vec3<f64> {
     Vec3::new(s[0].pos, s[1].pos, s[2].pos)
 }
 
+/// What one case's run showed.
+struct Observed {
+    /// The class detected first and the periods to its detection.
+    detect: Option<(String, u32)>,
+    /// Periods from the injection to the outputs off.
+    off: Option<u32>,
+    overrun_mm: f64,
+    blind_mm: f64,
+    /// The position when the reset was commanded, and the drift from it since, mm.
+    check: Option<(Vec3<f64>, f64)>,
+    /// A fault latched before the injection.
+    early: Option<String>,
+    /// The servo's state when the run ended.
+    end_state: ServoState,
+}
+
 fn run_case(r: &Resolved) -> Result<CaseResult> {
+    let (study, inject) = case_study(r)?;
+    let seen = observe(r, &study, &inject)?;
+    let bound_off = study.bound_off_periods.unwrap_or(study.bound_periods);
+    let (why, reset_refused, check_drift) = verdict(&study, &seen, bound_off);
+    Ok(CaseResult {
+        case: r.case.clone().unwrap_or_else(|| r.name.clone()),
+        fault: study.expect.first().cloned().unwrap_or_default(),
+        axis: study.axis,
+        state: study.state,
+        injected_s: inject.at_s,
+        detected: seen.detect.as_ref().map(|d| d.0.clone()),
+        detect_periods: seen.detect.map(|d| d.1),
+        outputs_off_periods: seen.off,
+        overrun_mm: seen.overrun_mm,
+        blind_mm: seen.blind_mm,
+        speed_mm_s: study.speed_mm_s,
+        bound_periods: study.bound_periods,
+        bound_off_periods: bound_off,
+        bound_blind_mm: study.bound_blind_mm,
+        bound_overrun_mm: study.bound_overrun_mm,
+        reset_refused,
+        check_drift_mm: check_drift,
+        passed: why.is_empty(),
+        why: why.join("; "),
+    })
+}
+
+/// The case's study table and its injection, the bounds checked to be finite distances.
+fn case_study(r: &Resolved) -> Result<(CaseStudy, TimedInjection)> {
     let study: CaseStudy = r
         .study
         .clone()
@@ -167,6 +211,12 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
             finite(v, what)?;
         }
     }
+    Ok((study, inject))
+}
+
+/// Run the case: arm (and start the path), inject, reset where the study says, and
+/// follow the detection, the outputs and the travel period by period.
+fn observe(r: &Resolved, study: &CaseStudy, inject: &TimedInjection) -> Result<Observed> {
     let mut run = SimRun::<f32>::new(&r.run)
         .map_err(|e| anyhow!("case {}: invalid configuration: {e}", r.name))?;
     let dt = run.servo().period_s();
@@ -243,11 +293,38 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
         run.finish_period();
         k += 1;
     }
+    Ok(Observed {
+        detect,
+        off,
+        overrun_mm: overrun,
+        blind_mm: blind,
+        check,
+        early,
+        end_state: run.servo().state(),
+    })
+}
+
+/// What failed in a case (empty: passed), whether its reset was refused and the drift
+/// during the encoder check (reset cases).
+fn verdict(
+    study: &CaseStudy,
+    seen: &Observed,
+    bound_off: u32,
+) -> (Vec<String>, Option<bool>, Option<f64>) {
+    let Observed {
+        detect,
+        off,
+        overrun_mm: overrun,
+        blind_mm: blind,
+        check,
+        early,
+        end_state,
+    } = seen;
+    let (off, overrun, blind) = (*off, *overrun, *blind);
     let mut why = Vec::new();
     if let Some(kind) = &early {
         why.push(format!("{kind} latched before the injection"));
     }
-    let bound_off = study.bound_off_periods.unwrap_or(study.bound_periods);
     match off {
         Some(o) if o > bound_off => {
             why.push(format!("outputs off after {o} periods > {bound_off}"))
@@ -287,7 +364,7 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
     let mut reset_refused = None;
     let mut check_drift = None;
     if study.reset_at_s.is_some() {
-        let refused = run.servo().state() == ServoState::Fault;
+        let refused = *end_state == ServoState::Fault;
         reset_refused = Some(refused);
         if refused != study.reset_refused {
             why.push(format!(
@@ -308,27 +385,7 @@ fn run_case(r: &Resolved) -> Result<CaseResult> {
             }
         }
     }
-    Ok(CaseResult {
-        case: r.case.clone().unwrap_or_else(|| r.name.clone()),
-        fault: study.expect.first().cloned().unwrap_or_default(),
-        axis: study.axis,
-        state: study.state,
-        injected_s: inject.at_s,
-        detected: detect.as_ref().map(|d| d.0.clone()),
-        detect_periods: detect.map(|d| d.1),
-        outputs_off_periods: off,
-        overrun_mm: overrun,
-        blind_mm: blind,
-        speed_mm_s: study.speed_mm_s,
-        bound_periods: study.bound_periods,
-        bound_off_periods: bound_off,
-        bound_blind_mm: study.bound_blind_mm,
-        bound_overrun_mm: study.bound_overrun_mm,
-        reset_refused,
-        check_drift_mm: check_drift,
-        passed: why.is_empty(),
-        why: why.join("; "),
-    })
+    (why, reset_refused, check_drift)
 }
 
 /// The fault of `inj` moved onto `axis` (the kinds without an axis stay as they are).

@@ -1,7 +1,7 @@
 //! `host-sim run FILE`: every run of any scenario file (a built-in study's included), with
 //! the common figures on the terminal, in JSON and as CSV traces.
 
-use super::resolve_all;
+use crate::builtin::resolve_all;
 use crate::engine::{simulate, RunResult};
 use crate::jobs;
 use anyhow::{Context, Result};

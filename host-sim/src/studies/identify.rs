@@ -13,9 +13,9 @@
 //! ([`random_axis`], docs/identification.md) instead of the machine file's.
 
 use crate::builtin;
+use crate::builtin::resolve_all;
 use crate::engine;
 use crate::jobs;
-use crate::studies::resolve_all;
 use anyhow::{anyhow, bail, Result};
 use controller_core::axes::Axis;
 use controller_core::law::LawConfig;

@@ -30,7 +30,7 @@ use controller_core::motion::planner::{PlannerChannels, SplitExecutor, SplitPlan
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::servo::ServoState;
 
-use crate::cli::sim::{designed_settings, gantry_world};
+use crate::sim_gantry::{designed_settings, gantry_world};
 
 /// The digest line at the end of a block of [`BLOCK_PERIODS`] periods.
 #[derive(Clone, Debug, PartialEq)]

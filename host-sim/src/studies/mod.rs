@@ -5,29 +5,15 @@
 //! - [`estimators`]: velocity sources × laws;
 //! - [`faults`]: the fault matrix (every fault class injected, detection and overrun);
 //! - [`identify`]: identification of every axis through the servo step, and the contour it buys;
-//! - [`gcode`]: a G-code program through the planner and the servo step, against its path;
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`machine_replay`]: the QEMU link rig's machine replayed in host-sim, bit for bit;
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
 
 pub mod estimators;
 pub mod faults;
-pub mod gcode;
 pub mod generic;
 pub mod identify;
 pub mod machine_replay;
 pub mod paper;
 pub mod qemu_verdict;
 pub mod seeds;
-
-use anyhow::Result;
-use gantry_scenario::file::ScenarioFile;
-use gantry_scenario::Resolved;
-
-/// Resolve every run of a file (each is validated; the first invalid one is the error).
-pub fn resolve_all(file: &ScenarioFile) -> Result<Vec<Resolved>> {
-    file.runs
-        .iter()
-        .map(|r| Resolved::new(&file.file, r).map_err(Into::into))
-        .collect()
-}

@@ -5,7 +5,7 @@
 //! `table3`, `table3_disturbed`, `table3_discrete_<numeric>`), its variants the laws, and
 //! its `[study.published]` table the published numbers.
 
-use super::resolve_all;
+use crate::builtin::resolve_all;
 use crate::engine::{simulate, RunResult};
 use crate::jobs;
 use anyhow::{bail, Context, Result};

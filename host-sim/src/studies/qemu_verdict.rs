@@ -25,7 +25,7 @@
 //! must end with one latched (a fault the firmware did not detect is a failure even if
 //! host-sim agrees).
 
-use super::resolve_all;
+use crate::builtin::resolve_all;
 use crate::engine::discrete::{self, Observer};
 use anyhow::{bail, Context, Result};
 use controller_core::servo::faults::FaultRecord;

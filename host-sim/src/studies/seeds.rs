@@ -6,8 +6,8 @@
 //! `host-sim/scenarios/seeds_{contouring,friction,helix}.toml` (cases: scenarios;
 //! variants: laws, `_` in a variant name reads `+` in the report).
 
-use super::resolve_all;
 use crate::builtin;
+use crate::builtin::resolve_all;
 use crate::engine::discrete::{self, Observer};
 use crate::engine::{simulate, RunResult};
 use crate::jobs;

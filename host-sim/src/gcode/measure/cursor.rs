@@ -9,6 +9,7 @@
 
 use super::distance::{self, Nearest};
 use crate::gcode::{Move, MoveKind};
+use controller_core::num::vec3::Vec3;
 use std::ops::Range;
 
 /// Program moves beyond the current segment's on each side that are always searched (a
@@ -48,7 +49,7 @@ impl<'a> ProgramPath<'a> {
         match self.boxes.get(k).copied().flatten() {
             Some(b) => {
                 let d = [0, 1, 2].map(|i| (b[i][0] - p[i]).max(p[i] - b[i][1]).max(0.0));
-                distance::norm(d)
+                Vec3::from_array(d).norm()
             }
             None => 0.0,
         }

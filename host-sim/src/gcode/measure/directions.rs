@@ -10,7 +10,7 @@
 //! Both also as maxima over the directions a path takes between two tangents (a blended
 //! corner: the great circle from one to the other) and along a helix.
 
-use super::distance::{dot, norm, unit};
+use controller_core::num::vec3::Vec3;
 
 /// Axis rates along `t` allow a path rate of at most this (∞ for a zero vector).
 pub fn projected(lim: [f64; 3], t: [f64; 3]) -> f64 {
@@ -32,17 +32,18 @@ pub fn support(lim: [f64; 3], t: [f64; 3]) -> f64 {
 /// `1 / max_i |t_i(φ)|/lim_i`; its maximum is where that envelope is least: at an end, where
 /// one component vanishes, or where two of them cross. All those candidates are evaluated.
 pub fn max_projected_between(lim: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
-    let c = dot(a, b).clamp(-1.0, 1.0);
+    let (va, vb) = (Vec3::from_array(a), Vec3::from_array(b));
+    let c = va.dot(vb).clamp(-1.0, 1.0);
     let ang = c.acos();
-    let w0 = [b[0] - c * a[0], b[1] - c * a[1], b[2] - c * a[2]];
-    if !(norm(w0) > 1e-12) {
+    let w0 = vb - va.scale(c);
+    if !(w0.norm() > 1e-12) {
         return if c > 0.0 {
             projected(lim, a)
         } else {
             lim.iter().map(|x| x * x).sum::<f64>().sqrt()
         };
     }
-    let w = unit(w0);
+    let w = w0.unit_or_zero();
     let at = |phi: f64| {
         let (s, co) = phi.sin_cos();
         projected(
@@ -85,7 +86,11 @@ pub fn max_projected_between(lim: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
 /// more than the box's largest, `√Σ lim_i²`.
 pub fn max_support_between(lim: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
     let all = lim.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let half = 0.5 * dot(a, b).clamp(-1.0, 1.0).acos();
+    let half = 0.5
+        * Vec3::from_array(a)
+            .dot(Vec3::from_array(b))
+            .clamp(-1.0, 1.0)
+            .acos();
     let ends = support(lim, a).max(support(lim, b));
     if half.cos() > 0.0 {
         (ends / half.cos()).min(all)
@@ -136,6 +141,10 @@ mod tests {
 
     const LIM: [f64; 3] = [250.0, 200.0, 100.0];
 
+    fn unit(a: [f64; 3]) -> [f64; 3] {
+        Vec3::from_array(a).unit_or_zero().to_array()
+    }
+
     fn dense_max(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
         (0..=200_000)
             .map(|k| f(a + (b - a) * k as f64 / 200_000.0))
@@ -160,9 +169,10 @@ mod tests {
             ([0.0, 0.0, 1.0], unit([1.0, 1.0, 0.0])),
         ];
         for (a, b) in cases {
-            let c = dot(a, b).clamp(-1.0, 1.0);
+            let (va, vb) = (Vec3::from_array(a), Vec3::from_array(b));
+            let c = va.dot(vb).clamp(-1.0, 1.0);
             let ang = c.acos();
-            let w = unit([b[0] - c * a[0], b[1] - c * a[1], b[2] - c * a[2]]);
+            let w = (vb - va.scale(c)).unit_or_zero();
             let t = |phi: f64| {
                 let (s, co) = phi.sin_cos();
                 [

@@ -26,6 +26,7 @@
 //! Tested against dense brute-force sampling to 1e-9 mm on random steep and flat helices.
 
 use crate::gcode::{Move, MoveKind};
+use controller_core::num::vec3::Vec3;
 
 /// Newton iterations at most in a bracketed root search (each bracket at least halves per
 /// bisection, so 200 iterations cover any f64 interval).
@@ -44,28 +45,6 @@ pub struct Nearest {
     pub at: f64,
     /// Unit tangent of the programmed path there, in the direction of travel.
     pub tangent: [f64; 3],
-}
-
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-pub(crate) fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-/// `a / |a|`, or 0 for a zero vector.
-pub(crate) fn unit(a: [f64; 3]) -> [f64; 3] {
-    let n = norm(a);
-    if n > 0.0 {
-        a.map(|x| x / n)
-    } else {
-        [0.0; 3]
-    }
 }
 
 /// A programmed arc or helix: in its plane `(i1, i2)` the point at swept angle `u`
@@ -150,7 +129,7 @@ impl Helix {
         t[i1] = self.dr_mm_rad * c - self.dir * r * s;
         t[i2] = self.dr_mm_rad * s + self.dir * r * c;
         t[n] = self.k_mm_rad;
-        unit(t)
+        Vec3::from_array(t).unit_or_zero().to_array()
     }
 
     /// Length of the path, mm (exact for a constant radius; with the radius changing by
@@ -220,8 +199,8 @@ impl Best {
     }
 
     fn consider(&mut self, q: &Query, u: f64) {
-        let d = sub(q.helix.point(u), q.p);
-        let d2 = dot(d, d);
+        let d = Vec3::from_array(q.helix.point(u)) - Vec3::from_array(q.p);
+        let d2 = d.dot(d);
         if d2 < self.d2 {
             self.d2 = d2;
             self.u = u;
@@ -408,18 +387,19 @@ fn root_increasing(f: impl Fn(f64) -> (f64, f64), lo: f64, hi: f64, x0: f64) -> 
 pub fn nearest(p: [f64; 3], m: &Move, warm_at: Option<f64>) -> Option<Nearest> {
     match m.kind {
         MoveKind::Rapid { to } | MoveKind::Line { to, .. } => {
-            let ab = sub(to, m.from);
-            let ap = sub(p, m.from);
-            let l2 = dot(ab, ab);
+            let from = Vec3::from_array(m.from);
+            let ab = Vec3::from_array(to) - from;
+            let ap = Vec3::from_array(p) - from;
+            let l2 = ab.dot(ab);
             let t = if l2 > 0.0 {
-                (dot(ap, ab) / l2).clamp(0.0, 1.0)
+                (ap.dot(ab) / l2).clamp(0.0, 1.0)
             } else {
                 0.0
             };
             Some(Nearest {
-                dist_mm: norm(sub(ap, ab.map(|x| x * t))),
+                dist_mm: (ap - ab.scale(t)).norm(),
                 at: t,
-                tangent: unit(ab),
+                tangent: ab.unit_or_zero().to_array(),
             })
         }
         MoveKind::Arc { .. } => {
@@ -438,7 +418,9 @@ pub fn nearest(p: [f64; 3], m: &Move, warm_at: Option<f64>) -> Option<Nearest> {
 /// Length of the path of move `m`, mm (0 for moves that do not move).
 pub fn length(m: &Move) -> f64 {
     match m.kind {
-        MoveKind::Rapid { to } | MoveKind::Line { to, .. } => norm(sub(to, m.from)),
+        MoveKind::Rapid { to } | MoveKind::Line { to, .. } => {
+            (Vec3::from_array(to) - Vec3::from_array(m.from)).norm()
+        }
         MoveKind::Arc { .. } => Helix::of(m).map_or(0.0, |h| h.length_mm()),
         _ => 0.0,
     }
@@ -454,7 +436,7 @@ mod tests {
     /// section around the best grid point.
     fn brute(h: &Helix, p: [f64; 3]) -> f64 {
         let n = 200_000;
-        let d = |u: f64| norm(sub(h.point(u), p));
+        let d = |u: f64| (Vec3::from_array(h.point(u)) - Vec3::from_array(p)).norm();
         let du = h.sweep_rad / n as f64;
         let mut best = (0usize, f64::INFINITY);
         for i in 0..=n {
@@ -549,11 +531,12 @@ mod tests {
                 let u = rng.uniform(0.0, h.sweep_rad);
                 let mut p = h.point(u);
                 let off: f64 = rng.uniform(0.01, 3.0);
-                let dir = unit([
+                let dir = Vec3::new(
                     rng.uniform(-1.0, 1.0),
                     rng.uniform(-1.0, 1.0),
                     rng.uniform(-1.0, 1.0),
-                ]);
+                )
+                .unit_or_zero();
                 for i in 0..3 {
                     p[i] += off * dir[i];
                 }
@@ -574,7 +557,9 @@ mod tests {
                 "case {case}: {got} vs brute force {want} ({h:?}, p {p:?}, u {u})"
             );
             // the reported angle is where that distance is
-            assert!((norm(sub(h.point(u), p)) - got).abs() < 1e-12);
+            assert!(
+                ((Vec3::from_array(h.point(u)) - Vec3::from_array(p)).norm() - got).abs() < 1e-12
+            );
         }
         assert!(worst < 1e-9, "{worst}");
     }
@@ -600,10 +585,9 @@ mod tests {
             let (_, d) = h.nearest(on, None);
             assert!(d < 1e-9, "{u}: {d}");
             // 0.05 mm off the path along its normal plane: exactly 0.05
-            let t = h.tangent(u);
-            let radial = unit([on[0], on[1], 0.0]);
-            let off = sub(radial, t.map(|x| x * dot(radial, t)));
-            let off = unit(off);
+            let t = Vec3::from_array(h.tangent(u));
+            let radial = Vec3::new(on[0], on[1], 0.0).unit_or_zero();
+            let off = (radial - t.scale(radial.dot(t))).unit_or_zero();
             let p = [
                 on[0] + 0.05 * off[0],
                 on[1] + 0.05 * off[1],

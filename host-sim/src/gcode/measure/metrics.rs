@@ -12,12 +12,14 @@
 use super::bound;
 use super::cursor::{PathCursor, ProgramPath, REACH_MARGIN_MM, REACH_TOLERANCES};
 use super::directions::projected;
-use super::distance::{self, norm};
+use super::distance;
 #[cfg(test)]
 use super::tolerance::TOLERANCE_SLACK_MM;
 use super::tolerance::{slack_mm, Tolerances};
-use super::{GcodeReport, LimitsJson, PlanSegment, Trace};
+use crate::gcode::program::PlanSegment;
+use crate::gcode::report::{GcodeReport, LimitsJson, Trace};
 use crate::gcode::{MoveKind, Program};
+use controller_core::num::vec3::Vec3;
 use std::ops::Range;
 
 /// The reference's nearest programmed point moves at most this much faster than the
@@ -98,7 +100,7 @@ impl<'a> PathMetrics<'a> {
             path: ProgramPath::new(&program.moves),
             segment_end,
             vel_limit: limits.vel,
-            reach_mm_s: REACH_SPEED_FACTOR * norm(limits.vel),
+            reach_mm_s: REACH_SPEED_FACTOR * Vec3::from_array(limits.vel).norm(),
             margin_mm: REACH_MARGIN_MM + REACH_TOLERANCES * tol_max,
             tol,
             max_gap_s,
@@ -177,7 +179,7 @@ impl<'a> PathMetrics<'a> {
                 if let Some(feed) = self.path.moves.get(f.k).and_then(|m| feed_of(&m.kind)) {
                     let achievable = feed.min(projected(self.vel_limit, f.near.tangent));
                     if achievable > 0.0 {
-                        feed_ratio = norm(s.vel_mm_s) / achievable;
+                        feed_ratio = Vec3::from_array(s.vel_mm_s).norm() / achievable;
                         self.feed_sum += feed_ratio;
                         self.feed_n += 1;
                     }
@@ -308,7 +310,7 @@ fn feed_of(kind: &MoveKind) -> Option<f64> {
 mod tests {
     use super::*;
     use crate::gcode::parse_str;
-    use crate::studies::gcode::segments;
+    use crate::gcode::program::segments;
 
     const LIMITS: LimitsJson = LimitsJson {
         vel: [250.0; 3],

@@ -52,10 +52,11 @@
 //! (`time_ratio_to_bound`, docs/planner.md §3); a bound above a real run would be a bug.
 
 use super::directions::{self, projected, support};
-use super::distance::{dot, norm, sub, unit, Helix};
+use super::distance::Helix;
 use super::tolerance::Tolerances;
-use super::LimitsJson;
+use crate::gcode::report::LimitsJson;
 use crate::gcode::{Move, MoveKind, Program};
+use controller_core::num::vec3::Vec3;
 
 /// Tangent jumps at or below this are smooth: the planner neither blends nor stops
 /// (controller-core `motion/planner/blend.rs`, `SMOOTH_TANGENT`).
@@ -212,13 +213,22 @@ enum Geo {
     Arc(Helix),
 }
 
+/// How far the direction turns from the end of `before` to the start of `after`: the
+/// length of the difference of the unit tangents.
+fn tangent_jump(before: &Geo, after: &Geo) -> f64 {
+    (Vec3::from_array(after.start_tangent()) - Vec3::from_array(before.end_tangent())).norm()
+}
+
 impl Geo {
     fn of(m: &Move) -> Option<Self> {
         match m.kind {
             MoveKind::Rapid { to } | MoveKind::Line { to, .. } => {
-                let d = sub(to, m.from);
-                let len = norm(d);
-                (len > 0.0).then(|| Geo::Line { u: unit(d), len })
+                let d = Vec3::from_array(to) - Vec3::from_array(m.from);
+                let len = d.norm();
+                (len > 0.0).then(|| Geo::Line {
+                    u: d.unit_or_zero().to_array(),
+                    len,
+                })
             }
             MoveKind::Arc { .. } => Helix::of(m).map(Geo::Arc),
             _ => None,
@@ -285,7 +295,7 @@ pub fn time_bound_s(program: &Program, tol: &Tolerances, limits: &LimitsJson) ->
             MoveKind::Rapid { .. } | MoveKind::Line { .. } | MoveKind::Arc { .. } => {
                 let Some(geo) = Geo::of(m) else { continue };
                 if let Some(prev) = stretch.last() {
-                    let jump = norm(sub(geo.start_tangent(), prev.geo.end_tangent()));
+                    let jump = tangent_jump(&prev.geo, &geo);
                     let eps = tol.after_mm.get(prev.k).copied().unwrap_or(0.0);
                     if jump > SMOOTH_TANGENT && !(eps > 0.0) {
                         total += stretch_time_s(&stretch, program, tol, limits);
@@ -313,7 +323,7 @@ fn stretch_time_s(parts: &[Part], program: &Program, tol: &Tolerances, lim: &Lim
     let straight = parts.iter().all(|p| matches!(p.geo, Geo::Line { .. }))
         && parts
             .windows(2)
-            .all(|w| norm(sub(w[1].geo.start_tangent(), w[0].geo.end_tangent())) <= SMOOTH_TANGENT);
+            .all(|w| tangent_jump(&w[0].geo, &w[1].geo) <= SMOOTH_TANGENT);
     let (v, a, j) = if straight {
         let u = parts[0].geo.start_tangent();
         (
@@ -358,14 +368,17 @@ fn max_support(parts: &[Part], acc: [f64; 3]) -> f64 {
 /// The corner between `a` and `b` (tolerance `eps` > 0).
 fn corner(a: &Part, b: &Part, eps: f64, lim: &LimitsJson) -> Corner {
     let (ta, tb) = (a.geo.end_tangent(), b.geo.start_tangent());
-    let jump = sub(tb, ta);
-    if !(norm(jump) > SMOOTH_TANGENT) || !(eps > 0.0) {
+    let jump = Vec3::from_array(tb) - Vec3::from_array(ta);
+    if !(jump.norm() > SMOOTH_TANGENT) || !(eps > 0.0) {
         return NO_CORNER;
     }
-    let theta = dot(ta, tb).clamp(-1.0, 1.0).acos();
+    let theta = Vec3::from_array(ta)
+        .dot(Vec3::from_array(tb))
+        .clamp(-1.0, 1.0)
+        .acos();
     let half = 0.5 * theta;
     let r = 2.0 * eps / (1.0 - half.cos());
-    let a_n = support(lim.acc, unit(jump));
+    let a_n = support(lim.acc, jump.unit_or_zero().to_array());
     let vel_between = directions::max_projected_between(lim.vel, ta, tb);
     let feed = a.feed.max(b.feed);
     let zone_mm = if half.cos() > 0.0 {
@@ -523,10 +536,11 @@ fn run_caps(run: &[Part], program: &Program, tol: &Tolerances, lim: &LimitsJson,
             if v == 0 || v + 1 >= pts.len() {
                 return 0.0;
             }
-            let (a, b) = (sub(pts[v], pts[v - 1]), sub(pts[v + 1], pts[v]));
-            let (na, nb) = (norm(a), norm(b));
+            let [before, here, after] = [pts[v - 1], pts[v], pts[v + 1]].map(Vec3::from_array);
+            let (a, b) = (here - before, after - here);
+            let (na, nb) = (a.norm(), b.norm());
             if na > 0.0 && nb > 0.0 {
-                (dot(a, b) / (na * nb)).clamp(-1.0, 1.0).acos()
+                (a.dot(b) / (na * nb)).clamp(-1.0, 1.0).acos()
             } else {
                 0.0
             }
@@ -559,29 +573,29 @@ fn run_caps(run: &[Part], program: &Program, tol: &Tolerances, lim: &LimitsJson,
     };
     for v in 1..pts.len() - 1 {
         let sv = cum[v];
-        let vx = pts[v];
+        let vx = Vec3::from_array(pts[v]);
         let mut cap = f64::INFINITY;
         for l in CHORD_WINDOWS_MM {
             if sv - l < 0.0 || sv + l > total || !even(sv - l, sv + l) {
                 continue;
             }
-            let (pm, pp) = (at(sv - l), at(sv + l));
-            let chord = sub(pp, pm);
-            let c = norm(chord);
+            let (pm, pp) = (Vec3::from_array(at(sv - l)), Vec3::from_array(at(sv + l)));
+            let chord = pp - pm;
+            let c = chord.norm();
             if !(c > 0.0) {
                 continue;
             }
             let e = chord.map(|x| x / c);
-            let w = sub(vx, pm);
-            let foot = [0, 1, 2].map(|i| pm[i] + e[i] * dot(w, e));
-            let toward = sub(foot, vx);
-            let h = norm(toward);
+            let w = vx - pm;
+            let foot = pm + e.scale(w.dot(e));
+            let toward = foot - vx;
+            let h = toward.norm();
             if !(h > CHORD_SAGITTA_TOLERANCES * eps) {
                 continue;
             }
             let (h2, c2) = (h - 2.0 * eps, c + 2.0 * eps);
             let radius = (0.25 * c2 * c2 + h2 * h2) / (2.0 * h2);
-            let a_n = support(lim.acc, toward.map(|x| x / h));
+            let a_n = support(lim.acc, toward.map(|x| x / h).to_array());
             cap = cap.min((a_n * radius).sqrt());
         }
         out[v - 1] = cap;

@@ -1,0 +1,299 @@
+//! `host-sim gcode FILE`: a G-code program run on a simulated machine through the planner
+//! and the servo step the board runs, measured against the programmed path.
+//!
+//! The program is parsed and checked against the machine's travel first; a rejected
+//! program runs nothing. Then, as on the board: arm, (home if the machine homes), `Run`;
+//! each period the planner plans ahead and its executor samples the reference
+//! ([`MotionPlanner::tick`]), the servo takes it ([`Servo::set_planner_reference`]) and
+//! runs its period against the simulated machine. Segments are streamed into the
+//! planner's fixed queue as slots free up, as the link does.
+//!
+//! Figures: the executed reference against the programmed path (corner deviation: the
+//! planner's blending) and against the tolerance in force at each move (violations), the
+//! true (simulated) tool position against the programmed path (contour error), the
+//! planned per-axis velocity, acceleration and jerk against the planner's limits, the feed
+//! reached on feed moves over the achievable one, and the machine time over a lower bound
+//! no planner within the limits can beat.
+//!
+//! [`Servo::set_planner_reference`]: controller_core::servo::Servo::set_planner_reference
+
+use crate::gcode::measure::{length, MetricSample, PathMetrics};
+use crate::gcode::program::{
+    decimal, load_program_with, parse_options, segments, travel_of, PlanSegment,
+};
+use crate::gcode::report::{limits_of, realtime_ratio, ComputeJson, GcodeReport};
+use crate::gcode::{MoveKind, Program};
+use crate::sim_gantry::machine_and_planner_with;
+use anyhow::{anyhow, bail, Result};
+use controller_core::motion::planner::PathSample;
+use controller_core::servo::{Command, ServoState};
+use controller_core::settings::{Settings, FACTORY};
+use controller_core::sim::run::SimRun;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::Path;
+use std::time::Instant;
+
+/// The planner used here: the machine's (the board's sizes: `MACHINE_SEGMENTS` segment
+/// slots, `MACHINE_SPANS` spans, the split channels' spans and steps between the halves).
+pub type Planner = controller_core::machine::MachinePlanner;
+
+/// Simulated time allowed for homing a machine that homes, s.
+const HOMING_TIMEOUT_S: f64 = 120.0;
+/// Periods at rest after the program ends before the run stops (settling of the servo).
+const SETTLE_PERIODS: u32 = 200;
+/// Programs whose simulation takes longer than this many periods get a progress bar
+/// (10 s of machine time at 10 kHz: about a second of compute).
+const PROGRESS_PERIODS: u64 = 100_000;
+/// One plot sample every this many periods at most (the plots keep ≤ ~20,000 points).
+const PLOT_POINTS: u64 = 20_000;
+
+/// Run until the servo leaves `state` (homing) or `max` periods pass.
+fn run_while(run: &mut SimRun<f32>, state: ServoState, max: u64) -> Result<()> {
+    let mut k = 0u64;
+    while run.servo().state() == state {
+        if k >= max {
+            bail!("the machine stayed in {state:?} for {max} periods");
+        }
+        run.control_with(&[]);
+        run.finish_period();
+        k += 1;
+    }
+    Ok(())
+}
+
+/// Arm; home when the machine homes (it refuses `Run` before); `Run`: the servo then runs
+/// the planner.
+fn arm_home_and_run(run: &mut SimRun<f32>) -> Result<()> {
+    let s = *run.control_with(&[Command::Arm]);
+    run.finish_period();
+    if let Some((_, why)) = s.refused {
+        bail!("arming refused: {}", why.message());
+    }
+    let s = *run.control_with(&[Command::Run]);
+    let dt = run.servo().period_s();
+    if s.refused.is_some() {
+        let s = *run.control_with(&[Command::Home]);
+        run.finish_period();
+        if let Some((_, why)) = s.refused {
+            bail!("homing refused: {}", why.message());
+        }
+        run_while(run, ServoState::Homing, (HOMING_TIMEOUT_S / dt) as u64)?;
+        if run.servo().state() != ServoState::Idle {
+            bail!(
+                "homing failed: state {:?}, fault {:?}",
+                run.servo().state(),
+                run.servo().faults().first()
+            );
+        }
+        let s = *run.control_with(&[Command::Run]);
+        if let Some((_, why)) = s.refused {
+            bail!("running the program refused: {}", why.message());
+        }
+    }
+    run.finish_period();
+    Ok(())
+}
+
+/// The progress bar of a long simulation, over its `segments`.
+fn progress_bar(segments: usize) -> ProgressBar {
+    let b = ProgressBar::new(segments as u64);
+    b.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} segments, {elapsed} ({eta} left)")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    b
+}
+
+/// Segments from `segs[next..]` into the planner's queue while it has free slots, as the
+/// link streams them; the index of the next one to send.
+fn stream(
+    mp: &mut Planner,
+    segs: &[PlanSegment],
+    mut next: usize,
+    program: &Program,
+    name: &str,
+) -> Result<usize> {
+    while next < segs.len() && mp.free_slots() > 0 {
+        mp.push(&segs[next].seg).map_err(|e| {
+            let line = program
+                .moves
+                .get(segs[next].moves.start)
+                .map_or(0, |m| m.line);
+            anyhow!("{name}:{line}: the planner rejected the move: {e:?}")
+        })?;
+        next += 1;
+    }
+    Ok(next)
+}
+
+/// The periods a program may take at most (a generous bound on its machine time: every
+/// move at 1 mm/s plus its dwells), and an estimate of those it takes (for the progress
+/// bar and the plots' decimation).
+fn period_bounds(program: &Program, dt: f64) -> (u64, u64) {
+    let path_length_mm: f64 = program.moves.iter().map(length).sum();
+    let dwell_s: f64 = program
+        .moves
+        .iter()
+        .map(|m| match m.kind {
+            MoveKind::Dwell { s } => s,
+            _ => 0.0,
+        })
+        .sum();
+    let max_periods = ((path_length_mm + dwell_s + 10.0) / dt) as u64 + 100_000;
+    let estimate = ((path_length_mm / 20.0 + dwell_s) / dt) as u64;
+    (max_periods, estimate)
+}
+
+/// One period's figures' sample: the planner's reference at program time `t_s`, the true
+/// tool position and the distance along the reference, mm.
+fn metric_sample(sample: &PathSample, t_s: f64, truth_mm: [f64; 3], along_mm: f64) -> MetricSample {
+    MetricSample {
+        t_s,
+        tag: sample.tag as usize,
+        planned_mm: sample.pos_mm.to_array().map(f64::from),
+        vel_mm_s: sample.vel_mm_s.to_array().map(f64::from),
+        acc_mm_s2: sample.acc_mm_s2.to_array().map(f64::from),
+        actual_mm: truth_mm,
+        along_mm,
+    }
+}
+
+/// The machine stopped on a fault: the planner aborted, the servo run until it has
+/// stopped; the fault, as the report names it.
+fn stop_on_fault(run: &mut SimRun<f32>, mp: &mut Planner) -> Result<String> {
+    let f = run.servo().faults().first();
+    let fault = format!("{f:?}");
+    mp.abort();
+    run_while(run, ServoState::Stopping, 1_000_000)?;
+    Ok(fault)
+}
+
+/// Run `program_path` on the built-in gantry or on `machine`; a rejected program is a
+/// report with status `rejected`, not an error (errors: the machine file, a refused
+/// command, a planner that never finishes).
+pub fn run(program_path: &Path, machine: Option<&Path>, progress: bool) -> Result<GcodeReport> {
+    run_with_settings(program_path, machine, &FACTORY, progress)
+}
+
+/// [`run`] with `settings` in place of the factory settings: the planner's limits and
+/// tolerances, the work offsets and the tool table (`cargo sim gcode --set`).
+pub fn run_with_settings(
+    program_path: &Path,
+    machine: Option<&Path>,
+    settings: &Settings,
+    progress: bool,
+) -> Result<GcodeReport> {
+    let (mut cfg, pcfg) = machine_and_planner_with(machine, settings)?;
+    let limits = limits_of(&pcfg);
+    let tol = decimal(pcfg.tolerance_mm);
+    let name = program_path.display().to_string();
+    let travel = travel_of(&cfg)?;
+    cfg.hold = true;
+    cfg.periods = u32::MAX;
+    cfg.inject = None;
+    let mut run = SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    let start = run.world().state().map(|s| s.pos);
+    // rejected before any motion
+    if let Err(e) = load_program_with(program_path, &parse_options(settings, start), &travel) {
+        return Ok(GcodeReport::rejected(&name, &e, limits, tol));
+    }
+
+    arm_home_and_run(&mut run)?;
+    let dt = run.servo().period_s();
+    let here = run
+        .servo()
+        .planner_start_mm()
+        .ok_or_else(|| anyhow!("the servo is not running the planner"))?;
+    // the program from where the machine stands now (after homing, if any)
+    let options = parse_options(settings, here.map(f64::from));
+    let parse_started = Instant::now();
+    let program = match load_program_with(program_path, &options, &travel) {
+        Ok(p) => p,
+        Err(e) => return Ok(GcodeReport::rejected(&name, &e, limits, tol)),
+    };
+    let parse_s = parse_started.elapsed().as_secs_f64();
+    let compress_started = Instant::now();
+    let (segs, compression) = segments(&program, tol);
+    let compress_s = compress_started.elapsed().as_secs_f64();
+    let mut mp = Box::new(Planner::new(&pcfg, here).map_err(|e| anyhow!("planner: {e:?}"))?);
+
+    let (max_periods, estimate) = period_bounds(&program, dt);
+    let bar = (progress && estimate > PROGRESS_PERIODS).then(|| progress_bar(segs.len()));
+    let every = (estimate / PLOT_POINTS).max(1);
+
+    let started = Instant::now();
+    let mut next = 0usize;
+    let mut k = 0u64;
+    let mut along = 0.0f64;
+    // (every period: a jerk between consecutive periods)
+    let mut metrics = PathMetrics::new(&program, &segs, limits, tol, 1.5 * dt);
+    let mut fault = None;
+    let mut finished_at = None;
+    let mut rest = 0u32;
+    // periods the servo held the program's start for the brakes to open: the program's
+    // time begins after them (its clock stood still)
+    let mut held_periods = 0u64;
+    loop {
+        next = stream(&mut mp, &segs, next, &program, &name)?;
+        if let Some(b) = &bar {
+            b.set_position(next as u64);
+        }
+        // the program's clock stands still while the servo holds its start for the brakes
+        // to open (`Servo::motion_held`), as the machine's supervisor does
+        let held = run.servo().motion_held();
+        let sample: PathSample = if held {
+            PathSample::default()
+        } else {
+            let s = mp.tick();
+            run.servo_mut().set_planner_reference(&s);
+            s
+        };
+        let snap = *run.control_with(&[]);
+        let truth = run.world().state().map(|s| s.pos);
+        run.finish_period();
+        k += 1;
+        if held {
+            held_periods += 1;
+        } else {
+            along += f64::from(sample.path_speed_mm_s.abs()) * dt;
+            let m = metric_sample(&sample, (k - held_periods) as f64 * dt, truth, along);
+            metrics.add(&m, finished_at.is_none(), k.is_multiple_of(every));
+        }
+
+        if snap.state == ServoState::Fault || snap.state == ServoState::Stopping {
+            fault = Some(stop_on_fault(&mut run, &mut mp)?);
+            break;
+        }
+        if !held && finished_at.is_none() && next == segs.len() && mp.is_idle() {
+            finished_at = Some(k - held_periods);
+        }
+        if finished_at.is_some() {
+            rest += 1;
+            if rest >= SETTLE_PERIODS {
+                break;
+            }
+        }
+        if k >= max_periods {
+            bail!("{name}: the program did not finish within {max_periods} periods");
+        }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let compute_s = started.elapsed().as_secs_f64();
+    let duration_s = finished_at.unwrap_or(k - held_periods) as f64 * dt;
+    if fault.is_none() {
+        // back to Idle, holding the end point
+        run.control_with(&[Command::Stop]);
+        run.finish_period();
+    }
+    let realtime = realtime_ratio(k as f64 * dt, compute_s);
+    let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
+    report.compression = compression;
+    report.compute = ComputeJson {
+        parse_s,
+        compress_s,
+        run_s: compute_s,
+    };
+    Ok(report)
+}

@@ -1,0 +1,97 @@
+//! The simulated gantry the host's machines are built on: the built-in `gcode.toml`
+//! scenario (or one on a `--machine`) resolved with the planner configured from the
+//! settings, the physical world of `gantry --sim` and of the board twin, and the factory
+//! settings with the designed gantry's axis models entered. `host-sim gcode`, `gantry --sim`,
+//! the twin plant and the machine replay all start from here.
+
+use crate::builtin::{self, resolve_all};
+use anyhow::{anyhow, bail, Result};
+use controller_core::motion::planner::PlannerConfig;
+use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
+use controller_core::sim::run::RunConfig;
+use controller_core::sim::world::{SwitchConfig, World};
+use std::path::Path;
+
+/// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
+/// configuration at the machine's rate.
+pub fn machine_and_planner(machine: Option<&Path>) -> Result<(RunConfig, PlannerConfig)> {
+    machine_and_planner_with(machine, &FACTORY)
+}
+
+/// [`machine_and_planner`] with the planner configured from `settings` instead of the
+/// factory settings (`cargo sim gcode --set`).
+pub fn machine_and_planner_with(
+    machine: Option<&Path>,
+    settings: &Settings,
+) -> Result<(RunConfig, PlannerConfig)> {
+    let file = match machine {
+        Some(m) => builtin::load_on_machine("gcode.toml", m)?,
+        None => builtin::load("gcode.toml")?,
+    };
+    let runs = resolve_all(&file)?;
+    let r = runs
+        .first()
+        .ok_or_else(|| anyhow!("gcode.toml has no run"))?;
+    // the settings' planner (controller-core settings, the factory's from GANTRY_PLANNER
+    // unless `--set`), its speeds capped at the machine's own limits (a `--machine` may
+    // be slower)
+    let mut cfg = settings.planner_config(r.run.servo.rate_hz);
+    for (v, safety) in cfg.vel_max_mm_s.iter_mut().zip(&r.run.servo.safety.axes) {
+        if safety.vel_max_mm_s.is_finite() && safety.vel_max_mm_s > 0.0 {
+            *v = v.min(safety.vel_max_mm_s);
+        }
+    }
+    if r.study.is_some() {
+        bail!("gcode.toml: no study table expected (the planner's limits are settings)");
+    }
+    Ok((r.run, cfg))
+}
+
+/// The simulated physical gantry of `gantry --sim` (host-sim/scenarios/gcode.toml: travel
+/// ±150/±150/±50 mm around where it starts) with limit switches where `settings`' homing
+/// expects them and the machine's encoder index pulses (one per revolution, 8000 counts:
+/// host-sim/machines/gantry.toml), at `rate_hz` (default: the scenario's), and its control
+/// rate. Also the
+/// board twin's plant (`twin-plant`), which passes `board_amplifier`: the amplifier
+/// applies the duty the board's timer drives, unquantised here (the timer's own
+/// resolution is the board's quantisation).
+pub fn gantry_world(
+    settings: &Settings,
+    rate_hz: Option<u32>,
+    board_amplifier: bool,
+) -> Result<(World, u32)> {
+    let (run, _) = machine_and_planner(None)?;
+    let mut wcfg = run.world;
+    // the switches where homing expects them; the index pulses the machine's encoders give
+    for (sw, homing) in wcfg
+        .switches
+        .iter_mut()
+        .zip(SwitchConfig::for_homing(settings))
+    {
+        *sw = SwitchConfig {
+            index_period_counts: sw.index_period_counts,
+            ..homing
+        };
+    }
+    let rate_hz = rate_hz.unwrap_or(run.servo.rate_hz);
+    let mut servo_cfg = settings
+        .servo_config(rate_hz)
+        .map_err(|e| anyhow!("settings: {e:?}"))?;
+    if board_amplifier {
+        for a in &mut servo_cfg.amplifiers {
+            a.resolution_bits = 0;
+        }
+    }
+    let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
+    Ok((world, rate_hz))
+}
+
+/// Factory settings with the designed gantry's axis models entered (`gantry --sim`'s
+/// machine, and the QEMU link rig's).
+pub fn designed_settings() -> Settings {
+    let mut settings: Settings = FACTORY;
+    for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
+        a.model = Some(m);
+    }
+    settings
+}
