@@ -6,20 +6,20 @@ use super::Plane;
 
 /// Modal motion mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Motion {
+pub(super) enum MotionMode {
     Rapid,
     Linear,
     Cw,
     Ccw,
 }
 
-impl Motion {
+impl MotionMode {
     pub(super) fn code(self) -> &'static str {
         match self {
-            Motion::Rapid => "G0",
-            Motion::Linear => "G1",
-            Motion::Cw => "G2",
-            Motion::Ccw => "G3",
+            MotionMode::Rapid => "G0",
+            MotionMode::Linear => "G1",
+            MotionMode::Cw => "G2",
+            MotionMode::Ccw => "G3",
         }
     }
 }
@@ -39,7 +39,7 @@ pub(super) enum ToolLength {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Cmd {
     /// G0–G3; `None` is G80 (motion cancel).
-    Motion(Option<Motion>),
+    Motion(Option<MotionMode>),
     Plane(Plane),
     Distance {
         incremental: bool,
@@ -141,10 +141,10 @@ pub(super) fn code_name(letter: char, c10: u32) -> String {
 pub(super) fn classify_g(c10: u32) -> Result<(Cmd, Group), Option<&'static str>> {
     use Group as Gr;
     Ok(match c10 {
-        0 => (Cmd::Motion(Some(Motion::Rapid)), Gr::Motion),
-        10 => (Cmd::Motion(Some(Motion::Linear)), Gr::Motion),
-        20 => (Cmd::Motion(Some(Motion::Cw)), Gr::Motion),
-        30 => (Cmd::Motion(Some(Motion::Ccw)), Gr::Motion),
+        0 => (Cmd::Motion(Some(MotionMode::Rapid)), Gr::Motion),
+        10 => (Cmd::Motion(Some(MotionMode::Linear)), Gr::Motion),
+        20 => (Cmd::Motion(Some(MotionMode::Cw)), Gr::Motion),
+        30 => (Cmd::Motion(Some(MotionMode::Ccw)), Gr::Motion),
         800 => (Cmd::Motion(None), Gr::Motion),
         40 => (Cmd::Dwell, Gr::NonModal),
         100 => (Cmd::SetTable, Gr::NonModal),

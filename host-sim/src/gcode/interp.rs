@@ -6,7 +6,7 @@
 //! read in [`super::setup`].
 
 use super::arc::{self, CentreForm};
-use super::codes::{classify_g, classify_m, code10, code_name, Cmd, Group, Motion, ToolLength};
+use super::codes::{classify_g, classify_m, code10, code_name, Cmd, Group, MotionMode, ToolLength};
 use super::lexer::Word;
 use super::offsets::{Frames, WORK_SYSTEM_CODES};
 use super::{
@@ -82,7 +82,7 @@ pub(crate) struct Interp<'a> {
     pub(super) opts: &'a ParseOptions,
     /// Current machine position (mm).
     pub(super) pos: [f64; 3],
-    pub(super) motion: Option<Motion>,
+    pub(super) motion: Option<MotionMode>,
     pub(super) plane: Plane,
     pub(super) inches: bool,
     pub(super) incremental: bool,
@@ -537,13 +537,13 @@ impl<'a> Interp<'a> {
                             "G53 in incremental distance mode (G91) is not supported".into(),
                         ));
                     }
-                    if !matches!(self.motion, Some(Motion::Rapid | Motion::Linear)) {
+                    if !matches!(self.motion, Some(MotionMode::Rapid | MotionMode::Linear)) {
                         return Err(self.error(
                             line,
                             ErrorKind::Invalid,
                             format!(
                                 "G53 needs G0 or G1 in effect (in effect: {})",
-                                self.motion.map_or("no motion mode", Motion::code)
+                                self.motion.map_or("no motion mode", MotionMode::code)
                             ),
                         ));
                     }
@@ -694,7 +694,7 @@ impl<'a> Interp<'a> {
     fn feed_mm_s(
         &self,
         line: u32,
-        motion: Motion,
+        motion: MotionMode,
         inverse_f: Option<f64>,
         length_mm: f64,
     ) -> Result<f64, Error> {
@@ -745,8 +745,8 @@ impl<'a> Interp<'a> {
         };
         let to = self.target(axes, machine);
         match motion {
-            Motion::Rapid => self.push(line, MoveKind::Rapid { to }),
-            Motion::Linear => {
+            MotionMode::Rapid => self.push(line, MoveKind::Rapid { to }),
+            MotionMode::Linear => {
                 let length: f64 = (0..3)
                     .map(|a| (to[a] - self.pos[a]).powi(2))
                     .sum::<f64>()
@@ -754,7 +754,7 @@ impl<'a> Interp<'a> {
                 let feed_mm_s = self.feed_mm_s(line, motion, inverse_f, length)?;
                 self.push(line, MoveKind::Line { to, feed_mm_s });
             }
-            Motion::Cw | Motion::Ccw => self.arc(line, motion, to, inverse_f, values, p)?,
+            MotionMode::Cw | MotionMode::Ccw => self.arc(line, motion, to, inverse_f, values, p)?,
         }
         Ok(())
     }
@@ -764,7 +764,7 @@ impl<'a> Interp<'a> {
     fn arc(
         &mut self,
         line: u32,
-        motion: Motion,
+        motion: MotionMode,
         to: [f64; 3],
         inverse_f: Option<f64>,
         values: &mut Values<'_>,
@@ -852,7 +852,7 @@ impl<'a> Interp<'a> {
         } else {
             1
         };
-        let clockwise = motion == Motion::Cw;
+        let clockwise = motion == MotionMode::Cw;
         let resolved = arc::resolve(
             self.pos,
             to,
