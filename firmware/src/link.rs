@@ -46,7 +46,7 @@ pub struct LinkTask {
 
 impl LinkTask {
     /// The link with the default device configuration (500 ms watchdog), for a machine
-    /// that runs `settings` at `rate_hz`.
+    /// that runs `settings` at `rate_hz` (the rate the host is told in the handshake).
     pub fn new(
         ends: LinkEnds<'static>,
         settings: &Settings,
@@ -55,7 +55,7 @@ impl LinkTask {
         tx: Producer<'static, u8>,
         saver: Saver,
     ) -> Option<Self> {
-        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).ok()?;
+        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG, rate_hz).ok()?;
         Some(Self {
             endpoint,
             ends: Some(ends),

@@ -8,8 +8,9 @@
 //! - [`envelope`]: [`ToDevice`] / [`ToHost`], one enum per direction, naming the channel
 //!   and its sequence numbers; generic over the application's command, telemetry and
 //!   status types.
-//! - [`handshake`]: [`Hello`] with protocol version, schema hash and session id;
-//!   [`ProtocolMismatch`] on both sides when they differ.
+//! - [`handshake`]: [`Hello`] with protocol version, schema hash, session id and the
+//!   device's control rate; [`ProtocolMismatch`] on both sides when they differ.
+//! - [`schema`]: [`schema_hash`], the hash of both envelopes with the application's types.
 //! - Channels: [`command`] (reliable, windowed, credit flow control), [`telemetry`]
 //!   (unreliable, gaps counted), [`realtime`] (hold/resume/stop/status, outside the
 //!   queue), [`watchdog`] (heartbeat, expiry → controlled stop + `LinkLost`).
@@ -29,6 +30,7 @@ pub mod handshake;
 pub mod host;
 pub mod kernels;
 pub mod realtime;
+pub mod schema;
 pub mod seq;
 pub mod telemetry;
 pub mod watchdog;
@@ -42,16 +44,17 @@ pub use frame::{
     encode, DecodeStats, EncodeError, Feed, FrameDecoder, FrameError, MAX_FRAME_LEN,
     MAX_PAYLOAD_LEN,
 };
-pub use handshake::{schema_hash, Hello, ProtocolMismatch, Role, Version};
+pub use handshake::{Hello, ProtocolMismatch, Role, Version};
 pub use host::{HostEvent, HostLink, HostLinkConfig, HostState, LinkError};
+pub use schema::schema_hash;
 pub use seq::Seq;
 pub use telemetry::{Arrival, TelemetryReceiver, TelemetrySender};
 pub use watchdog::{Watchdog, WatchdogConfig};
 
 /// Transport protocol version, sent in the handshake. Bump it whenever the framing, the
 /// envelopes or the channel rules change (the schema hash alone catches type changes, not
-/// rule changes).
-pub const PROTOCOL_VERSION: u16 = 2;
+/// rule changes). 3: the handshake's [`Hello`] carries the device's control rate.
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// A link setting out of its valid range; names the field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

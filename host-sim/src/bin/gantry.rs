@@ -14,7 +14,7 @@ use clap::{Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use controller_core::machine::scope::ScopeConfig;
 use host_sim::cli::client::{expect_done, Client};
-use host_sim::cli::machine::{MachineArgs, CONTROL_RATE_HZ};
+use host_sim::cli::machine::MachineArgs;
 use host_sim::cli::serve::{ServeOptions, Speed};
 use host_sim::cli::sim::SimModels;
 use host_sim::cli::{self, view, Hold, Transport, AXES};
@@ -340,8 +340,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
     }
     host_sim::cli::interrupt::install()?;
     cli.machine.check()?;
-    let decimation = cli.machine.decimation();
-    session(cli.machine.open()?, cli.command, decimation)
+    let c = cli.machine.open()?;
+    let decimation = cli.machine.decimation(c.control_rate_hz());
+    session(c, cli.command, decimation)
 }
 
 /// `gantry gui`: the `gantry-gui` program beside this one, with the machine options given
@@ -385,7 +386,7 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             if json {
                 println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
             } else {
-                print!("{}", view::status_text(&s, CONTROL_RATE_HZ));
+                print!("{}", view::status_text(&s, c.control_rate_hz()));
             }
         }
         Cmd::Watch { seconds, hz } => {
@@ -463,8 +464,9 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
                 pre_trigger: pre,
                 trigger: cli::scope::parse_trigger(&trigger)?,
             };
-            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
-            let cap = cli::scope::capture(c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
+            let rate_hz = c.control_rate_hz();
+            let period_s = f64::from(decimation) / f64::from(rate_hz);
+            let cap = cli::scope::capture(c, cfg, names, rate_hz, timeout_s, |c| {
                 if let Some(file) = &run {
                     let r = cli::run_program(c, file, period_s, false, None)?;
                     eprint!("{}", host_sim::studies::gcode::table(&r));
@@ -612,7 +614,7 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
                 for_s: hold_for_s,
             });
             let progress = std::io::stderr().is_terminal();
-            let period_s = f64::from(decimation) / 10_000.0;
+            let period_s = f64::from(decimation) / f64::from(c.control_rate_hz());
             let r = cli::run_program(c, &file, period_s, progress, hold)?;
             print!("{}", host_sim::studies::gcode::table(&r));
             if let Some(j) = json {
@@ -710,7 +712,8 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
                 let text = gantry_scenario::file::read_regular(&file, SETTINGS_FILE_MAX_BYTES)
                     .map_err(anyhow::Error::msg)?;
                 let changes = cli::parse_settings_toml(&name, &text)?;
-                let changed = cli::import_settings(c, &changes, CONTROL_RATE_HZ)?;
+                let rate_hz = c.control_rate_hz();
+                let changed = cli::import_settings(c, &changes, rate_hz)?;
                 println!("{} settings changed: {}", changed.len(), changed.join(", "));
             }
         },

@@ -157,8 +157,8 @@ impl SimMachine {
         if outcome.is_fault() {
             machine.latch_board_fault(FaultKind::SettingsCorrupt);
         }
-        let endpoint =
-            Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).map_err(|e| anyhow!("link: {e}"))?;
+        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG, rate_hz)
+            .map_err(|e| anyhow!("link: {e}"))?;
         let sim = Self {
             world,
             machine,
@@ -181,6 +181,12 @@ impl SimMachine {
     /// The control rate, Hz.
     pub fn rate_hz(&self) -> u32 {
         self.rate_hz
+    }
+
+    /// Telemetry every `periods` control periods from now on (as `new`'s
+    /// `telemetry_periods`; 0: none): the subscription an in-process machine starts with.
+    pub fn set_telemetry_every(&mut self, periods: u32) {
+        self.machine.set_telemetry_every(periods);
     }
 
     /// The link's millisecond clock: machine time since power-on.
