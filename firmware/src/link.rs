@@ -9,9 +9,10 @@
 //! stretched; in QEMU, which models no flash controller, a store in RAM).
 //!
 //! The link's clock is the control clock: [`LINK_CLOCK_MS`], the machine time the control
-//! interrupt publishes (periods run × period), so the watchdog and every timeout count
-//! control periods — on the board that is real time, in QEMU it is the emulated
-//! machine's time, whatever the emulator's speed.
+//! interrupt publishes (periods run × period, counted by controller-core's
+//! [`controller_core::link::LinkClock`] as the simulated machine counts it), so the
+//! watchdog and every timeout count control periods — on the board that is real time, in
+//! QEMU it is the emulated machine's time, whatever the emulator's speed.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 

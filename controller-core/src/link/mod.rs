@@ -1,6 +1,7 @@
 //! Host link protocol: the transport shared by the firmware (USART2 at 921,600 baud) and
 //! the host tools. `no_std`, no allocation, no clocks inside: every call that depends on
-//! time takes the caller's monotonic millisecond counter (`u32`, wrapping).
+//! time takes the caller's monotonic millisecond counter (`u32`, wrapping; a device
+//! counts it from its control periods with [`LinkClock`]).
 //!
 //! Layers, bottom up (full description in `docs/link-protocol.md`):
 //! - [`frame`]: `COBS(postcard(envelope) ++ CRC-32) ++ 0x00`; streaming [`FrameDecoder`]
@@ -16,12 +17,14 @@
 //!   queue), [`watchdog`] (heartbeat, expiry → controlled stop + `LinkLost`).
 //! - Ends: [`DeviceLink`] (firmware link task) and [`HostLink`] (host tool) tie the
 //!   channels together; each is driven by "frame received" and "poll" calls.
+//! - [`clock`]: [`LinkClock`], the device's link time in ms counted from control periods.
 //! - [`kernels`]: fixed-input decode/encode functions for instruction counting.
 //!
 //! The application's message types must implement `serde::Serialize`,
 //! `serde::de::DeserializeOwned` and `postcard_schema::Schema` (derive all three); the
 //! schema hash in the handshake is computed from them by [`schema_hash`].
 
+pub mod clock;
 pub mod command;
 pub mod device;
 pub mod envelope;
@@ -35,6 +38,7 @@ pub mod seq;
 pub mod telemetry;
 pub mod watchdog;
 
+pub use clock::LinkClock;
 pub use command::{Ack, CommandConfig, CommandReceiver, CommandSender, Receipt};
 pub use device::{
     DeviceEvent, DeviceLink, DeviceLinkConfig, DevicePoll, DeviceSession, DeviceStep, Reply,

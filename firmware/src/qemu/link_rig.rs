@@ -23,6 +23,7 @@
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
+use controller_core::link::LinkClock;
 use controller_core::machine::record::{Digest, RecordRef, Recorder, BLOCK_PERIODS};
 use controller_core::machine::{save_due_into, ControlSide, LinkSide};
 use controller_core::servo::snapshot::Snapshot;
@@ -96,6 +97,8 @@ pub struct LinkRig {
     control: ControlSide<'static>,
     rate_hz: u32,
     periods: u64,
+    /// The link's clock, counted from the periods run.
+    clock: LinkClock,
     /// This period's inputs, for the log.
     recorder: Recorder<RECORD_BYTES>,
     /// Runs of the planning half seen so far.
@@ -160,6 +163,7 @@ impl LinkRig {
             control,
             rate_hz,
             periods: 0,
+            clock: LinkClock::new(rate_hz),
             recorder: Recorder::new(),
             plan_seen: 0,
             digest: Digest::new(),
@@ -210,8 +214,7 @@ impl LinkRig {
         self.world.advance();
         self.periods += 1;
         self.record();
-        let ms = self.periods * 1000 / u64::from(self.rate_hz.max(1));
-        LINK_CLOCK_MS.store(ms as u32, Ordering::Release);
+        LINK_CLOCK_MS.store(self.clock.period(), Ordering::Release);
     }
 
     /// The period's records and its tag in the log; the digest every [`BLOCK_PERIODS`].
