@@ -42,6 +42,8 @@ mod machine_slot;
 mod period;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 mod qemu;
+#[cfg(all(target_os = "none", feature = "qemu"))]
+mod qemu_exit;
 #[cfg(target_os = "none")]
 mod stack;
 
@@ -71,6 +73,13 @@ mod app {
 
     use crate::board::serial::{HostUart, RxQueue, TxQueue};
     use crate::link::LinkTask;
+    /// Where the link task writes settings saves: the board's flash sectors, or in QEMU
+    /// (no flash controller model) a store in RAM. Chosen here, where the build's parts
+    /// are assembled, so the link task knows neither.
+    #[cfg(not(feature = "qemu"))]
+    type Saver = crate::board::flash::BoardSaver;
+    #[cfg(feature = "qemu")]
+    type Saver = crate::qemu::link_rig::RamSaver;
     use crate::machine_slot::{FwMachine, PlanTask};
     #[cfg(not(feature = "qemu"))]
     use crate::period::{BoardPeriod as Period, End};
@@ -120,7 +129,7 @@ mod app {
         #[cfg(not(feature = "qemu"))]
         commands: Producer<'static, Command>,
         host_uart: Option<HostUart>,
-        link_task: Option<LinkTask>,
+        link_task: Option<LinkTask<Saver>>,
         plan_task: Option<PlanTask>,
     }
 
@@ -220,7 +229,7 @@ mod app {
                     firmware::watchdog::iwdg_save_setting(),
                 )
             };
-            let saver = crate::board::flash::BoardSaver::new(store, stretch);
+            let saver = Saver::new(store, stretch);
             let link_task = LinkTask::new(port, &settings, CONTROL_RATE_HZ, rx_out, tx_in, saver);
             (period, board.arm, producer, host_uart, link_task)
         };
@@ -241,7 +250,7 @@ mod app {
                     : controller_core::settings::store::RamFlash<8192, 4096> =
                         controller_core::settings::store::RamFlash::new()
                 );
-                let saver = crate::qemu::link_rig::RamSaver::new(flash);
+                let saver = Saver::new(flash);
                 LinkTask::new(port, &settings, rate, rx_out, tx_in, saver)
             });
             (period, host_uart, link_task)
@@ -347,7 +356,7 @@ mod app {
     fn halt(why: &str) -> ! {
         defmt::error!("{=str}", why);
         #[cfg(feature = "qemu")]
-        crate::qemu::exit(crate::qemu::EXIT_CONFIG);
+        crate::qemu_exit::exit(crate::qemu_exit::EXIT_CONFIG);
         #[cfg(not(feature = "qemu"))]
         loop {
             cortex_m::asm::wfi();

@@ -83,9 +83,8 @@ use leds::Leds;
 use pwm::ServoOutputs;
 use tick::ControlTick;
 
-/// SYSCLK the firmware runs at (the QEMU build's core also runs at 168 MHz, whatever the
-/// clock tree registers say).
-pub const SYSCLK_HZ: u32 = 168_000_000;
+// (the clock tree's own figure, re-exported: the board's users name it here)
+pub use clock::SYSCLK_HZ;
 
 /// SysTick's hardware priority: RTIC logical priority 3 (the plan task's level) with the
 /// STM32F4's 4 priority bits, `(16 - 3) << 4`: below the control interrupt (4, 0xC0).

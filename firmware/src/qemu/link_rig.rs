@@ -33,9 +33,9 @@ use controller_core::sim::run::RunConfig;
 use controller_core::sim::world::{SwitchConfig, World};
 
 use super::panel::Panel;
-use super::{exit, EXIT_CONFIG};
-use crate::link::LINK_CLOCK_MS;
+use crate::link::{SettingsSaver, LINK_CLOCK_MS};
 use crate::machine_slot::{self, FwMachine};
+use crate::qemu_exit::{exit, EXIT_CONFIG};
 
 /// The link rig's settings flash: two 4 KiB pages in RAM (QEMU models no flash
 /// controller), empty at boot; saves go through the same store and lock as on the board.
@@ -51,9 +51,11 @@ impl RamSaver {
             .and_then(|f| SettingsStore::new(f, 0..8192).ok());
         Self { store }
     }
+}
 
+impl SettingsSaver for RamSaver {
     /// Write a save that is due on `port`.
-    pub fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
+    fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
         match self.store.as_mut() {
             Some(store) => {
                 save_due_into(port, store);
