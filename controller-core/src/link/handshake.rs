@@ -2,16 +2,18 @@
 //!
 //! The host opens a session by sending [`Hello`] (role host, a session id it chose); the
 //! device answers with its own [`Hello`] (role device, the same session id) whatever the
-//! outcome, so both sides see both versions. The device's answer also carries its control
-//! rate: the host counts telemetry decimations, capture lengths and timeouts in control
-//! periods, and learns their length here rather than assuming it. When the protocol version or the schema hash
+//! outcome, so both sides see both versions. When the protocol version or the schema hash
 //! differ, both sides report [`ProtocolMismatch`] naming ours and theirs, and the device
 //! refuses commands until a matching handshake.
 //!
+//! The device's answer also carries its control rate: the host counts telemetry
+//! decimations, capture lengths and timeouts in control periods, and learns their length
+//! here rather than assuming it.
+//!
 //! The schema hash covers both envelopes with the application's message types (field
-//! names, variant names and order, field types; see [`super::schema::schema_hash`]), so a host and a
-//! firmware built from different message definitions cannot talk past each other, as
-//! ODrive's interface CRC guarantees.
+//! names, variant names and order, field types; see [`super::schema::schema_hash`]), so a
+//! host and a firmware built from different message definitions cannot talk past each
+//! other, as ODrive's interface CRC guarantees.
 //!
 //! The session id makes a stale or duplicated Hello harmless: the device restarts its
 //! command numbering only for a Hello with a session id other than the current one.
