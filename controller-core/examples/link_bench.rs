@@ -33,9 +33,11 @@ fn main() {
     let rows: Vec<(&str, usize)> = vec![
         (
             "hello",
-            len(&ExampleToDevice::Hello(
-                Version::current(hash).hello(Role::Host, 1234),
-            )),
+            len(&ExampleToDevice::Hello(Version::current(hash).hello(
+                Role::Host,
+                1234,
+                0,
+            ))),
         ),
         ("heartbeat", len(&ExampleToDevice::Heartbeat)),
         (

@@ -69,6 +69,7 @@ fn random_down(r: &mut Rng) -> ExampleToDevice {
                 Role::Host
             },
             session: r.below(3) as u16,
+            control_rate_hz: 0,
         }),
         1 => ToDevice::Heartbeat,
         2 => ToDevice::Command {
@@ -258,7 +259,7 @@ fn main() {
     let mut r = Rng(seed);
     let mut dev_dec = FrameDecoder::new();
     let mut host_dec = FrameDecoder::new();
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).expect("valid config");
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).expect("valid config");
     let mut host = HostLink::<ExampleCommand, 8>::new(&DEFAULT_HOST_LINK_CONFIG, HASH, 1)
         .expect("valid config");
     let mut t = Tally::default();
@@ -274,7 +275,7 @@ fn main() {
         now_ms = now_ms.wrapping_add(1 + r.below(20) as u32);
         if i % 100_000 == 0 {
             // Fresh link state now and then, so handshakes happen again.
-            dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).expect("valid config");
+            dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).expect("valid config");
             host = HostLink::new(&DEFAULT_HOST_LINK_CONFIG, HASH, (i / 100_000) as u16 % 3)
                 .expect("valid config");
         }

@@ -118,7 +118,7 @@ fn run(n: u32, byte_error_ppm: u64, seed: u64) -> Outcome {
     let mut rng = Rng(seed);
     let mut host =
         HostLink::<ExampleCommand, 8>::new(&DEFAULT_HOST_LINK_CONFIG, HASH, 4242).unwrap();
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     let mut host_dec = FrameDecoder::new();
     let mut dev_dec = FrameDecoder::new();
     let mut down = Pipe::new(byte_error_ppm);

@@ -5,13 +5,15 @@
 //! and never touches the machine or the UART itself (see `board::serial`).
 //!
 //! A settings save is written here, never in the control interrupt: once the machine holds
-//! its outputs off, [`Saver`] writes the flash (the board's sectors with the watchdog
-//! stretched; in QEMU, which models no flash controller, a store in RAM).
+//! its outputs off, the task's [`SettingsSaver`] writes the flash (the board's sectors with
+//! the watchdog stretched; in QEMU, which models no flash controller, a store in RAM). The
+//! application (`main.rs`) picks the saver for the build; this module knows neither.
 //!
 //! The link's clock is the control clock: [`LINK_CLOCK_MS`], the machine time the control
-//! interrupt publishes (periods run × period), so the watchdog and every timeout count
-//! control periods — on the board that is real time, in QEMU it is the emulated
-//! machine's time, whatever the emulator's speed.
+//! interrupt publishes (periods run × period, counted by controller-core's
+//! [`controller_core::link::LinkClock`] as the simulated machine counts it), so the
+//! watchdog and every timeout count control periods — on the board that is real time, in
+//! QEMU it is the emulated machine's time, whatever the emulator's speed.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -27,13 +29,14 @@ pub static LINK_CLOCK_MS: AtomicU32 = AtomicU32::new(0);
 const CHUNK: usize = 64;
 
 /// Where the link task writes settings saves.
-#[cfg(not(feature = "qemu"))]
-pub type Saver = crate::board::flash::BoardSaver;
-#[cfg(feature = "qemu")]
-pub type Saver = crate::qemu::link_rig::RamSaver;
+pub trait SettingsSaver {
+    /// Write a save or repair that is due on `port` (the machine holds its outputs off);
+    /// nothing when none is due.
+    fn save_due(&mut self, port: &mut LinkSide<'_, '_>);
+}
 
-/// The link task's state.
-pub struct LinkTask {
+/// The link task's state; its settings saves go to `S`.
+pub struct LinkTask<S> {
     endpoint: Endpoint,
     ends: Option<LinkEnds<'static>>,
     state: LinkState,
@@ -41,21 +44,21 @@ pub struct LinkTask {
     tx: Producer<'static, u8>,
     /// Frames dropped whole because the transmit queue had no room for them.
     tx_dropped: u32,
-    saver: Saver,
+    saver: S,
 }
 
-impl LinkTask {
+impl<S: SettingsSaver> LinkTask<S> {
     /// The link with the default device configuration (500 ms watchdog), for a machine
-    /// that runs `settings` at `rate_hz`.
+    /// that runs `settings` at `rate_hz` (the rate the host is told in the handshake).
     pub fn new(
         ends: LinkEnds<'static>,
         settings: &Settings,
         rate_hz: u32,
         rx: Consumer<'static, u8>,
         tx: Producer<'static, u8>,
-        saver: Saver,
+        saver: S,
     ) -> Option<Self> {
-        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).ok()?;
+        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG, rate_hz).ok()?;
         Some(Self {
             endpoint,
             ends: Some(ends),

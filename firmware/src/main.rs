@@ -42,6 +42,8 @@ mod machine_slot;
 mod period;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 mod qemu;
+#[cfg(all(target_os = "none", feature = "qemu"))]
+mod qemu_exit;
 #[cfg(target_os = "none")]
 mod stack;
 
@@ -71,6 +73,13 @@ mod app {
 
     use crate::board::serial::{HostUart, RxQueue, TxQueue};
     use crate::link::LinkTask;
+    /// Where the link task writes settings saves: the board's flash sectors, or in QEMU
+    /// (no flash controller model) a store in RAM. Chosen here, where the build's parts
+    /// are assembled, so the link task knows neither.
+    #[cfg(not(feature = "qemu"))]
+    type Saver = crate::board::flash::BoardSaver;
+    #[cfg(feature = "qemu")]
+    type Saver = crate::qemu::link_rig::RamSaver;
     use crate::machine_slot::{FwMachine, PlanTask};
     #[cfg(not(feature = "qemu"))]
     use crate::period::{BoardPeriod as Period, End};
@@ -120,7 +129,7 @@ mod app {
         #[cfg(not(feature = "qemu"))]
         commands: Producer<'static, Command>,
         host_uart: Option<HostUart>,
-        link_task: Option<LinkTask>,
+        link_task: Option<LinkTask<Saver>>,
         plan_task: Option<PlanTask>,
     }
 
@@ -177,51 +186,11 @@ mod app {
                 crate::board::flash::load_settings(board.flash, CONTROL_RATE_HZ);
             let io =
                 board::io::BoardIo::new(board.encoders, board.index, board.servo, board.safety);
-            let machine = match machine_slot::build(
-                machine,
-                &settings,
-                CONTROL_RATE_HZ,
-                io.encoder_raw(),
-                [0; 3],
-            ) {
-                Ok(m) => m,
-                Err(e) => {
-                    defmt::error!("machine: {}", defmt::Debug2Format(&e));
-                    halt("the settings give no machine (outputs stay off)")
-                }
-            };
-            let mut period = BoardPeriod::new(
-                machine,
-                control,
-                io,
-                consumer,
-                board.watchdog,
-                CONTROL_RATE_HZ,
-            );
-            if load.is_fault() {
-                defmt::error!(
-                    "settings store: {}; factory settings, fault latched",
-                    defmt::Debug2Format(&load)
-                );
-                period.latch_board_fault(FaultKind::SettingsCorrupt);
-            }
-            if board.clock == ClockStart::HsiFallback {
-                defmt::error!(
-                    "crystal did not start within {=u32} ms: running on the HSI, clock fault latched",
-                    board::clock::HSE_STARTUP_TIMEOUT_MS
-                );
-                period.latch_board_fault(FaultKind::ClockFault);
-            }
+            let mut period =
+                board_period(machine, &settings, io, control, consumer, board.watchdog);
+            latch_boot_faults(&mut period, &load, board.clock);
             let host_uart = board.host_uart.map(|s| HostUart::new(s, rx_in, tx_out));
-            // SAFETY: the control task's `Watchdog` (feeds only) is the IWDG's other user
-            let stretch = unsafe {
-                board::watchdog::WatchdogStretch::new(
-                    iwdg_setting(CONTROL_RATE_HZ),
-                    firmware::watchdog::iwdg_save_setting(),
-                )
-            };
-            let saver = crate::board::flash::BoardSaver::new(store, stretch);
-            let link_task = LinkTask::new(port, &settings, CONTROL_RATE_HZ, rx_out, tx_in, saver);
+            let link_task = board_link(port, &settings, store, rx_out, tx_in);
             (period, board.arm, producer, host_uart, link_task)
         };
         #[cfg(feature = "qemu")]
@@ -241,7 +210,7 @@ mod app {
                     : controller_core::settings::store::RamFlash<8192, 4096> =
                         controller_core::settings::store::RamFlash::new()
                 );
-                let saver = crate::qemu::link_rig::RamSaver::new(flash);
+                let saver = Saver::new(flash);
                 LinkTask::new(port, &settings, rate, rx_out, tx_in, saver)
             });
             (period, host_uart, link_task)
@@ -254,72 +223,14 @@ mod app {
         tick.start(board::tick::CONTROL_TICK_PROGRAMMED_HZ);
         // Last: the watchdog (from here on the control task must run on time).
         #[cfg(not(feature = "qemu"))]
-        {
-            let setting = iwdg_setting(CONTROL_RATE_HZ);
-            period.start_watchdog(setting);
-            defmt::info!(
-                "watchdog: {=u32} us at the fastest LSI ({=u32} us typical)",
-                setting.timeout_us(firmware::watchdog::LSI_MAX_HZ),
-                setting.timeout_us(firmware::watchdog::LSI_TYP_HZ)
-            );
-            // every peripheral is configured (the NVIC priorities were set before init):
-            // read the configuration back against the register table
-            let settled = board::watchdog::updates_settled();
-            match board::self_check::first_mismatch() {
-                None if settled => defmt::info!(
-                    "board configuration: {=usize} register fields as expected",
-                    board::self_check::entries()
-                ),
-                None => {
-                    defmt::error!("board configuration: the IWDG's PR/RLR never settled; board_config fault latched");
-                    period.latch_board_fault(FaultKind::BoardConfig);
-                }
-                Some((e, v)) => {
-                    defmt::error!(
-                        "board configuration: 0x{=u32:08x} bits {=u8}+{=u8} = {=u32:#x}, expected {=u32:#x} ({=str}); board_config fault latched",
-                        e.addr,
-                        e.shift,
-                        e.width,
-                        v,
-                        e.value,
-                        e.what
-                    );
-                    period.latch_board_fault(FaultKind::BoardConfig);
-                }
-            }
-        }
+        start_watchdog(&mut period);
         defmt::info!(
             "gantry firmware up: control {=u32} Hz, outputs disabled until armed",
             CONTROL_RATE_HZ
         );
         #[cfg(not(feature = "qemu"))]
-        defmt::info!("reset cause: {=str}", reset_cause.name());
-        #[cfg(not(feature = "qemu"))]
-        match brownout {
-            board::brownout::BorSetting::Kept => defmt::info!("brown-out reset: 2.7 V"),
-            board::brownout::BorSetting::Programmed { was } => {
-                defmt::info!(
-                    "brown-out reset: programmed to 2.7 V (BOR_LEV was {=u8:02b})",
-                    was
-                )
-            }
-            board::brownout::BorSetting::Failed { now } => {
-                defmt::error!(
-                    "brown-out reset: programming failed, BOR_LEV {=u8:02b}",
-                    now
-                )
-            }
-        }
-        if telemetry::spawn().is_err() {
-            defmt::error!("telemetry task already running");
-        }
-        #[cfg(not(feature = "qemu"))]
-        if button::spawn().is_err() {
-            defmt::error!("button task already running");
-        }
-        if link_task.is_some() && link::spawn().is_err() {
-            defmt::error!("link task already running");
-        }
+        log_boot(reset_cause, brownout);
+        spawn_tasks(link_task.is_some());
         (
             Shared {
                 telemetry: Telemetry::boot(),
@@ -343,11 +254,159 @@ mod app {
     #[cfg(not(feature = "qemu"))]
     use crate::period::BoardPeriod;
 
+    /// The board's machine, built in `slot` from `settings` at the board's control rate
+    /// (halts, outputs off, when the settings give none), and the control interrupt's
+    /// state around it.
+    #[cfg(not(feature = "qemu"))]
+    fn board_period(
+        slot: &'static mut Option<FwMachine>,
+        settings: &controller_core::settings::Settings,
+        io: board::io::BoardIo,
+        control: controller_core::machine::ControlSide<'static>,
+        commands: heapless::spsc::Consumer<'static, Command>,
+        watchdog: board::watchdog::Watchdog,
+    ) -> BoardPeriod {
+        let machine =
+            match machine_slot::build(slot, settings, CONTROL_RATE_HZ, io.encoder_raw(), [0; 3]) {
+                Ok(m) => m,
+                Err(e) => {
+                    defmt::error!("machine: {}", defmt::Debug2Format(&e));
+                    halt("the settings give no machine (outputs stay off)")
+                }
+            };
+        BoardPeriod::new(machine, control, io, commands, watchdog, CONTROL_RATE_HZ)
+    }
+
+    /// The board's link task: the machine's link `port`, the UART's byte queues, and the
+    /// settings saves written to `store` with the watchdog stretched around them.
+    #[cfg(not(feature = "qemu"))]
+    fn board_link(
+        port: controller_core::machine::LinkEnds<'static>,
+        settings: &controller_core::settings::Settings,
+        store: Option<
+            controller_core::settings::store::SettingsStore<crate::board::flash::SettingsFlash>,
+        >,
+        rx: heapless::spsc::Consumer<'static, u8>,
+        tx: Producer<'static, u8>,
+    ) -> Option<LinkTask<Saver>> {
+        // SAFETY: the control task's `Watchdog` (feeds only) is the IWDG's other user
+        let stretch = unsafe {
+            board::watchdog::WatchdogStretch::new(
+                iwdg_setting(CONTROL_RATE_HZ),
+                firmware::watchdog::iwdg_save_setting(),
+            )
+        };
+        let saver = Saver::new(store, stretch);
+        LinkTask::new(port, settings, CONTROL_RATE_HZ, rx, tx, saver)
+    }
+
+    /// The board's faults found while booting, latched before anything can arm: a
+    /// corrupt settings store (factory settings run) and a crystal that did not start.
+    #[cfg(not(feature = "qemu"))]
+    fn latch_boot_faults(
+        period: &mut BoardPeriod,
+        load: &controller_core::settings::store::LoadOutcome,
+        clock: ClockStart,
+    ) {
+        if load.is_fault() {
+            defmt::error!(
+                "settings store: {}; factory settings, fault latched",
+                defmt::Debug2Format(load)
+            );
+            period.latch_board_fault(FaultKind::SettingsCorrupt);
+        }
+        if clock == ClockStart::HsiFallback {
+            defmt::error!(
+                "crystal did not start within {=u32} ms: running on the HSI, clock fault latched",
+                board::clock::HSE_STARTUP_TIMEOUT_MS
+            );
+            period.latch_board_fault(FaultKind::ClockFault);
+        }
+    }
+
+    /// `init`'s last step on the board: the independent watchdog starts, then the
+    /// configuration of every peripheral is read back against the register table (a
+    /// mismatch, or IWDG registers that never settled, latch a `board_config` fault).
+    #[cfg(not(feature = "qemu"))]
+    fn start_watchdog(period: &mut BoardPeriod) {
+        let setting = iwdg_setting(CONTROL_RATE_HZ);
+        period.start_watchdog(setting);
+        defmt::info!(
+            "watchdog: {=u32} us at the fastest LSI ({=u32} us typical)",
+            setting.timeout_us(firmware::watchdog::LSI_MAX_HZ),
+            setting.timeout_us(firmware::watchdog::LSI_TYP_HZ)
+        );
+        // every peripheral is configured (the NVIC priorities were set before init):
+        // read the configuration back against the register table
+        let settled = board::watchdog::updates_settled();
+        match board::self_check::first_mismatch() {
+            None if settled => defmt::info!(
+                "board configuration: {=usize} register fields as expected",
+                board::self_check::entries()
+            ),
+            None => {
+                defmt::error!("board configuration: the IWDG's PR/RLR never settled; board_config fault latched");
+                period.latch_board_fault(FaultKind::BoardConfig);
+            }
+            Some((e, v)) => {
+                defmt::error!(
+                    "board configuration: 0x{=u32:08x} bits {=u8}+{=u8} = {=u32:#x}, expected {=u32:#x} ({=str}); board_config fault latched",
+                    e.addr,
+                    e.shift,
+                    e.width,
+                    v,
+                    e.value,
+                    e.what
+                );
+                period.latch_board_fault(FaultKind::BoardConfig);
+            }
+        }
+    }
+
+    /// The board's boot report: why it reset, and the brown-out reset level.
+    #[cfg(not(feature = "qemu"))]
+    fn log_boot(
+        reset_cause: firmware::reset_cause::ResetCause,
+        brownout: board::brownout::BorSetting,
+    ) {
+        defmt::info!("reset cause: {=str}", reset_cause.name());
+        match brownout {
+            board::brownout::BorSetting::Kept => defmt::info!("brown-out reset: 2.7 V"),
+            board::brownout::BorSetting::Programmed { was } => {
+                defmt::info!(
+                    "brown-out reset: programmed to 2.7 V (BOR_LEV was {=u8:02b})",
+                    was
+                )
+            }
+            board::brownout::BorSetting::Failed { now } => {
+                defmt::error!(
+                    "brown-out reset: programming failed, BOR_LEV {=u8:02b}",
+                    now
+                )
+            }
+        }
+    }
+
+    /// The software tasks that run from the start: telemetry, the arm button (board) and
+    /// the host link when it has one.
+    fn spawn_tasks(link: bool) {
+        if telemetry::spawn().is_err() {
+            defmt::error!("telemetry task already running");
+        }
+        #[cfg(not(feature = "qemu"))]
+        if button::spawn().is_err() {
+            defmt::error!("button task already running");
+        }
+        if link && link::spawn().is_err() {
+            defmt::error!("link task already running");
+        }
+    }
+
     /// Nothing can run: outputs stay off (board: until reset; QEMU: exit 2).
     fn halt(why: &str) -> ! {
         defmt::error!("{=str}", why);
         #[cfg(feature = "qemu")]
-        crate::qemu::exit(crate::qemu::EXIT_CONFIG);
+        crate::qemu_exit::exit(crate::qemu_exit::EXIT_CONFIG);
         #[cfg(not(feature = "qemu"))]
         loop {
             cortex_m::asm::wfi();

@@ -6,6 +6,7 @@
 
 use core::sync::atomic::Ordering;
 
+use controller_core::link::LinkClock;
 use controller_core::machine::ControlSide;
 use controller_core::servo::faults::FaultKind;
 use controller_core::servo::io::ServoIo;
@@ -40,16 +41,14 @@ pub struct BoardPeriod {
     commands: Consumer<'static, Command>,
     /// Fed at the end of every period that ran on time, by nothing else.
     watchdog: Watchdog,
-    rate_hz: u32,
     /// Gaps between control interrupts: a stall too long for the 16-bit encoder counters
     /// (firmware::stall) makes their axes' homes forgotten.
     stall: StallWatch,
     /// Gaps up to this many cycles are never a stall ([`QUICK_GAP_PERIODS`]; computed
     /// once, no division in the interrupt).
     quick_gap_cycles: u32,
-    /// The link's clock: ms, and periods' worth of ms beyond it (× rate).
-    clock_ms: u32,
-    clock_sub: u32,
+    /// The link's clock, counted from the periods run.
+    clock: LinkClock,
 }
 
 impl BoardPeriod {
@@ -67,12 +66,10 @@ impl BoardPeriod {
             io,
             commands,
             watchdog,
-            rate_hz: rate_hz.max(1),
             stall: StallWatch::new(),
             quick_gap_cycles: QUICK_GAP_PERIODS
                 .saturating_mul(SYSCLK_HZ.checked_div(rate_hz).unwrap_or(SYSCLK_HZ)),
-            clock_ms: 0,
-            clock_sub: 0,
+            clock: LinkClock::new(rate_hz),
         }
     }
 
@@ -133,13 +130,7 @@ impl BoardPeriod {
         let full_scale = self.machine.settings().axis.map(|a| a.amplifier.full_scale);
         self.io.set_full_scale(full_scale);
         self.machine.linked_period(&mut self.io, &mut self.link);
-        // (no division in the interrupt: 1000 ms per `rate_hz` periods, carried)
-        self.clock_sub += 1000;
-        while self.clock_sub >= self.rate_hz {
-            self.clock_sub -= self.rate_hz;
-            self.clock_ms = self.clock_ms.wrapping_add(1);
-        }
-        LINK_CLOCK_MS.store(self.clock_ms, Ordering::Release);
+        LINK_CLOCK_MS.store(self.clock.period(), Ordering::Release);
         self.machine.servo().snapshot()
     }
 

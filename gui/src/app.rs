@@ -168,6 +168,7 @@ impl GantryApp {
             } => {
                 self.connected = true;
                 self.live.rate_hz = rate_hz;
+                self.settings.rate_hz = rate_hz;
                 self.live.decimation = decimation;
                 self.say(format!(
                     "connected: control at {rate_hz} Hz, telemetry at {} Hz",

@@ -24,7 +24,8 @@ pub struct TrailPoint {
 /// The machine as the window sees it.
 #[derive(Debug)]
 pub struct Live {
-    /// The machine's control rate, Hz (telemetry periods count it).
+    /// The machine's control rate, Hz, as it reported it on connecting (telemetry periods
+    /// count it); 0 before a machine is connected.
     pub rate_hz: u32,
     /// Control periods between telemetry samples.
     pub decimation: u32,
@@ -46,7 +47,8 @@ pub struct Live {
 impl Default for Live {
     fn default() -> Self {
         Self {
-            rate_hz: host_sim::cli::machine::CONTROL_RATE_HZ,
+            // (no machine yet: its rate comes with the connection)
+            rate_hz: 0,
             decimation: 10,
             status: None,
             latest: None,

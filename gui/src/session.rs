@@ -15,7 +15,7 @@ use anyhow::{anyhow, Result};
 use controller_core::machine::messages::{MachineState, Request, Status, Telemetry};
 use controller_core::machine::scope::{ScopeConfig, Signal};
 use host_sim::cli::client::{expect_done, Client, Tapped};
-use host_sim::cli::machine::{AnyTransport, MachineArgs, CONTROL_RATE_HZ};
+use host_sim::cli::machine::{AnyTransport, MachineArgs};
 use host_sim::cli::{self, interrupt, IdentifyJson, AXES};
 use host_sim::gcode::program::load_program_with;
 use host_sim::gcode::{Move, ParseOptions};
@@ -281,12 +281,13 @@ fn serve(
     events: &Sender<Event>,
     wake: &Waker,
 ) -> Result<()> {
-    let decimation = args.decimation();
+    let rate_hz = c.control_rate_hz();
+    let decimation = args.decimation(rate_hz);
     let mut signals: Vec<String> = DEFAULT_SIGNALS.iter().map(|s| s.to_string()).collect();
     subscribe(c, decimation, &signals)?;
     c.tap(tap);
     let _ = events.send(Event::Connected {
-        rate_hz: CONTROL_RATE_HZ,
+        rate_hz,
         decimation,
     });
     let _ = events.send(Event::Signals(signals.clone()));
@@ -429,7 +430,7 @@ fn execute(
             Ok(summary)
         }
         Command::Run(path) => {
-            let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+            let period_s = f64::from(decimation) / f64::from(c.control_rate_hz());
             let r = cli::run_program_with(c, &path, period_s, false, None, Some(keys))?;
             let text = format!(
                 "{}: {} ({}), contour max {:.4} mm",
@@ -511,10 +512,10 @@ fn execute(
             *scope = Some(PendingScope {
                 names,
                 armed_at,
-                timeout_periods: (f64::from(timeout_s) * f64::from(CONTROL_RATE_HZ)) as u32,
+                timeout_periods: (f64::from(timeout_s) * f64::from(c.control_rate_hz())) as u32,
             });
             if let Some(path) = &run {
-                let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
+                let period_s = f64::from(decimation) / f64::from(c.control_rate_hz());
                 let r = cli::run_program_with(c, path, period_s, false, None, Some(keys))?;
                 let text = format!("{}: {} ({})", path.display(), r.status, r.program_end);
                 let _ = events.send(Event::RunReport(Box::new(r)));
@@ -552,7 +553,8 @@ impl PendingScope {
         };
         match st.scope {
             ScopeState::Done => {
-                let cap = cli::scope::read(c, self.names, CONTROL_RATE_HZ)?;
+                let rate_hz = c.control_rate_hz();
+                let cap = cli::scope::read(c, self.names, rate_hz)?;
                 let n = cap.rows.len();
                 let _ = events.send(Event::Scope(Box::new(cap)));
                 let _ = events.send(Event::Finished {
@@ -573,7 +575,7 @@ impl PendingScope {
                 };
                 ended(format!(
                     "the scope did not {what} within {:.1} s of machine time",
-                    f64::from(self.timeout_periods) / f64::from(CONTROL_RATE_HZ)
+                    f64::from(self.timeout_periods) / f64::from(c.control_rate_hz())
                 ));
                 Ok(None)
             }

@@ -23,7 +23,7 @@ fuzz_target!(|data: &[u8]| {
     let split = usize::from(split).max(1);
     let mut dev_dec = FrameDecoder::new();
     let mut host_dec = FrameDecoder::new();
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     let mut host = HostLink::<ExampleCommand, 8>::new(&DEFAULT_HOST_LINK_CONFIG, HASH, 0).unwrap();
     let mut buf = [0u8; MAX_FRAME_LEN];
     for (k, chunk) in bytes.chunks(split).enumerate() {

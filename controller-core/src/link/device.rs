@@ -148,6 +148,8 @@ pub struct DevicePoll {
 #[derive(Clone, Copy, Debug)]
 pub struct DeviceLink {
     ours: Version,
+    /// The machine's control rate, Hz, announced in every Hello answer.
+    control_rate_hz: u32,
     credit_update_step: u16,
     session: DeviceSession,
     commands: CommandReceiver,
@@ -159,16 +161,26 @@ pub struct DeviceLink {
 }
 
 impl DeviceLink {
-    /// A device link for the message set with `schema_hash` (see [`handshake::schema_hash`]).
+    /// A device link for the message set with `schema_hash` (see
+    /// [`super::schema::schema_hash`]), for a machine whose control loop runs at
+    /// `control_rate_hz` (announced to the host in the handshake).
     ///
     /// # Errors
-    /// [`LinkConfigError`] naming the bad setting.
-    pub fn new(config: &DeviceLinkConfig, schema_hash: u32) -> Result<Self, LinkConfigError> {
+    /// [`LinkConfigError`] naming the bad setting (a control rate of 0 among them).
+    pub fn new(
+        config: &DeviceLinkConfig,
+        schema_hash: u32,
+        control_rate_hz: u32,
+    ) -> Result<Self, LinkConfigError> {
         if config.credit_update_step == 0 {
             return Err(LinkConfigError::OutOfRange("credit_update_step"));
         }
+        if control_rate_hz == 0 {
+            return Err(LinkConfigError::OutOfRange("control_rate_hz"));
+        }
         Ok(Self {
             ours: Version::current(schema_hash),
+            control_rate_hz,
             credit_update_step: config.credit_update_step,
             session: DeviceSession::None,
             commands: CommandReceiver::new(Seq::ZERO),
@@ -278,7 +290,11 @@ impl DeviceLink {
     }
 
     fn on_hello<C>(&mut self, hello: &Hello, now_ms: u32) -> DeviceStep<C> {
-        let reply = Some(Reply::Hello(self.ours.hello(Role::Device, hello.session)));
+        let reply = Some(Reply::Hello(self.ours.hello(
+            Role::Device,
+            hello.session,
+            self.control_rate_hz,
+        )));
         let checked = match hello.role {
             Role::Host => handshake::check(self.ours, hello),
             // Our own Hello came back: an echo or a loop, not a host.

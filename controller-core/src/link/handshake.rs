@@ -6,19 +6,21 @@
 //! differ, both sides report [`ProtocolMismatch`] naming ours and theirs, and the device
 //! refuses commands until a matching handshake.
 //!
+//! The device's answer also carries its control rate: the host counts telemetry
+//! decimations, capture lengths and timeouts in control periods, and learns their length
+//! here rather than assuming it.
+//!
 //! The schema hash covers both envelopes with the application's message types (field
-//! names, variant names and order, field types; see [`schema_hash`]), so a host and a
-//! firmware built from different message definitions cannot talk past each other, as
-//! ODrive's interface CRC guarantees.
+//! names, variant names and order, field types; see [`super::schema::schema_hash`]), so a
+//! host and a firmware built from different message definitions cannot talk past each
+//! other, as ODrive's interface CRC guarantees.
 //!
 //! The session id makes a stale or duplicated Hello harmless: the device restarts its
 //! command numbering only for a Hello with a session id other than the current one.
 
-use postcard_schema::key::Key;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-use super::envelope::{ToDevice, ToHost};
 use super::PROTOCOL_VERSION;
 
 /// Which end of the link sent a [`Hello`].
@@ -35,12 +37,16 @@ pub enum Role {
 pub struct Hello {
     /// [`PROTOCOL_VERSION`] of the sender.
     pub protocol_version: u16,
-    /// [`schema_hash`] of the sender's message set.
+    /// [`super::schema::schema_hash`] of the sender's message set.
     pub schema_hash: u32,
     /// Who sent it (a device that receives its own role is talking to an echo).
     pub role: Role,
     /// Session id chosen by the host, echoed by the device.
     pub session: u16,
+    /// The sender's control rate, Hz: the device's control interrupt (what its telemetry
+    /// decimation, periods and period-counted timeouts are counted in); 0 from a host,
+    /// which runs no control loop.
+    pub control_rate_hz: u32,
 }
 
 /// Protocol version and schema hash: what must match for two ends to talk.
@@ -71,14 +77,16 @@ impl Version {
         }
     }
 
-    /// A [`Hello`] announcing this version.
+    /// A [`Hello`] announcing this version, from an end whose control loop runs at
+    /// `control_rate_hz` (0 for a host).
     #[must_use]
-    pub const fn hello(self, role: Role, session: u16) -> Hello {
+    pub const fn hello(self, role: Role, session: u16, control_rate_hz: u32) -> Hello {
         Hello {
             protocol_version: self.protocol_version,
             schema_hash: self.schema_hash,
             role,
             session,
+            control_rate_hz,
         }
     }
 }
@@ -117,18 +125,4 @@ pub const fn check(ours: Version, theirs: &Hello) -> Result<(), ProtocolMismatch
     } else {
         Err(ProtocolMismatch { ours, theirs })
     }
-}
-
-/// Schema hash of the message set: command type `C`, telemetry sample `T`, status `S`.
-///
-/// The FNV-1a 64 hash that `postcard-schema` computes over each envelope's schema (field
-/// and variant names, order, and types, all the way down), the two combined and folded to
-/// 32 bits. A `const fn`: the firmware gets it at compile time.
-#[must_use]
-pub const fn schema_hash<C: Schema, T: Schema, S: Schema>() -> u32 {
-    let down = u64::from_le_bytes(Key::for_path::<ToDevice<C>>("gantry/link/to-device").to_bytes());
-    let up = u64::from_le_bytes(Key::for_path::<ToHost<T, S>>("gantry/link/to-host").to_bytes());
-    // Rotate one side so that two equal halves do not cancel.
-    let h = down ^ up.rotate_left(29);
-    (h ^ (h >> 32)) as u32
 }

@@ -167,6 +167,8 @@ pub struct HostStats {
 pub struct HostLink<C, const WINDOW: usize> {
     ours: Version,
     session: u16,
+    /// The control rate the device announced in its Hello answer, Hz (`None` before it).
+    device_rate_hz: Option<u32>,
     config: HostLinkConfig,
     state: HostState,
     hello_sent_at_ms: Option<u32>,
@@ -205,6 +207,7 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
         Ok(Self {
             ours: Version::current(schema_hash),
             session,
+            device_rate_hz: None,
             config: *config,
             state: HostState::Handshaking,
             hello_sent_at_ms: None,
@@ -247,6 +250,13 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
     #[must_use]
     pub const fn state(&self) -> HostState {
         self.state
+    }
+
+    /// The device's control rate, Hz, as its Hello answer announced it: `None` until the
+    /// handshake has completed.
+    #[must_use]
+    pub const fn device_control_rate_hz(&self) -> Option<u32> {
+        self.device_rate_hz
     }
 
     /// Counters.
@@ -326,7 +336,12 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
                         self.hello_sent_at_ms = Some(now_ms);
                         self.stats.hellos = self.stats.hellos.saturating_add(1);
                         sent = true;
-                        emit(ToDevice::Hello(self.ours.hello(Role::Host, self.session)));
+                        // (a host runs no control loop: it announces no rate)
+                        emit(ToDevice::Hello(self.ours.hello(
+                            Role::Host,
+                            self.session,
+                            0,
+                        )));
                     }
                 }
             }
@@ -397,6 +412,7 @@ impl<C, const WINDOW: usize> HostLink<C, WINDOW> {
                 }
                 if self.state == HostState::Handshaking {
                     self.state = HostState::Ready;
+                    self.device_rate_hz = Some(hello.control_rate_hz);
                     self.watchdog.arm(now_ms);
                     self.telemetry.resync();
                     // Heartbeat at the next poll: its ack brings the device's credits.

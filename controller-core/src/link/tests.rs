@@ -35,7 +35,7 @@ fn clone_frame(f: &ToDevice<&ExampleCommand>) -> ExampleToDevice {
 /// Host and device after a completed handshake at t = 0.
 fn connected() -> (Host, DeviceLink) {
     let mut host = Host::new(&DEFAULT_HOST_LINK_CONFIG, HASH, 77).unwrap();
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     let hello = host_frames(&mut host, 0);
     assert_eq!(hello.len(), 1);
     let step = dev.on_frame(hello[0].clone(), 0, 10);
@@ -63,8 +63,8 @@ fn connected() -> (Host, DeviceLink) {
 fn schema_hash_is_pinned() {
     // Changing an envelope, Hello or RealtimeRequest changes these values: bump
     // PROTOCOL_VERSION when that happens, then update them.
-    assert_eq!(schema_hash::<(), (), ()>(), 0x6a40_edb1);
-    assert_eq!(HASH, 0x2a22_9748);
+    assert_eq!(schema_hash::<(), (), ()>(), 0xf3c3_2782);
+    assert_eq!(HASH, 0xb303_9fc8);
 }
 
 #[test]
@@ -136,7 +136,7 @@ fn commands_flow_and_duplicates_are_not_executed_twice() {
 #[test]
 fn mismatch_is_reported_on_both_sides_and_commands_are_refused() {
     let mut host = Host::new(&DEFAULT_HOST_LINK_CONFIG, HASH ^ 1, 5).unwrap();
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     let hello = host_frames(&mut host, 0);
     let step = dev.on_frame(hello[0].clone(), 0, 10);
     let expected = ProtocolMismatch {
@@ -163,7 +163,7 @@ fn mismatch_is_reported_on_both_sides_and_commands_are_refused() {
     );
     let text = std::format!("{host_side}");
     let expected_text = std::format!(
-        "link protocol mismatch: ours is protocol 2 schema {:#010x}, theirs is protocol 2 schema {:#010x}",
+        "link protocol mismatch: ours is protocol {PROTOCOL_VERSION} schema {:#010x}, theirs is protocol {PROTOCOL_VERSION} schema {:#010x}",
         HASH ^ 1,
         HASH
     );
@@ -206,12 +206,13 @@ fn mismatch_is_reported_on_both_sides_and_commands_are_refused() {
         }
     );
     // Other protocol version, same schema: also a mismatch.
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     let old = Hello {
         protocol_version: PROTOCOL_VERSION + 1,
         schema_hash: HASH,
         role: Role::Host,
         session: 1,
+        control_rate_hz: 0,
     };
     assert!(matches!(
         dev.on_frame::<ExampleCommand>(ToDevice::Hello(old), 0, 10)
@@ -234,6 +235,7 @@ fn repeated_hello_keeps_the_session_and_a_new_one_restarts_numbering() {
         schema_hash: HASH,
         role: Role::Host,
         session: 77,
+        control_rate_hz: 0,
     };
     assert_eq!(
         dev.on_frame::<ExampleCommand>(ToDevice::Hello(same), 3, 10)
@@ -420,7 +422,7 @@ fn realtime_requests_bypass_the_queue_and_are_answered_by_status() {
 
 #[test]
 fn realtime_without_session_only_stops_and_holds() {
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     for (req, executes) in [
         (RealtimeRequest::Stop, true),
         (RealtimeRequest::Hold, true),
@@ -447,7 +449,7 @@ fn realtime_without_session_only_stops_and_holds() {
 
 #[test]
 fn telemetry_only_in_a_session_and_gaps_are_counted() {
-    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();
     assert_eq!(
         dev.telemetry::<ExampleTelemetry, ExampleStatus>(EXAMPLE_TELEMETRY),
         None
@@ -547,9 +549,31 @@ fn config_errors_name_the_field() {
     let mut d = DEFAULT_DEVICE_LINK_CONFIG;
     d.credit_update_step = 0;
     assert_eq!(
-        DeviceLink::new(&d, HASH).err(),
+        DeviceLink::new(&d, HASH, 10_000).err(),
         Some(LinkConfigError::OutOfRange("credit_update_step"))
     );
+    assert_eq!(
+        DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 0).err(),
+        Some(LinkConfigError::OutOfRange("control_rate_hz"))
+    );
+}
+
+#[test]
+fn the_host_learns_the_device_control_rate_in_the_handshake() {
+    let mut host = Host::new(&DEFAULT_HOST_LINK_CONFIG, HASH, 5).unwrap();
+    let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 20_000).unwrap();
+    assert_eq!(host.device_control_rate_hz(), None);
+    let hello = host_frames(&mut host, 0);
+    // (the host announces no rate: it runs no control loop)
+    assert!(matches!(&hello[0], ToDevice::Hello(h) if h.control_rate_hz == 0));
+    let step = dev.on_frame(hello[0].clone(), 0, 10);
+    let answer = step
+        .reply
+        .unwrap()
+        .into_frame::<ExampleTelemetry, ExampleStatus>();
+    assert!(matches!(&answer, ToHost::Hello(h) if h.control_rate_hz == 20_000));
+    assert_eq!(host.on_frame(answer, 1), Ok(HostEvent::Ready));
+    assert_eq!(host.device_control_rate_hz(), Some(20_000));
 }
 
 #[test]

@@ -31,10 +31,11 @@ fn send(frame: &Up_, out: &mut impl FnMut(&[u8])) {
 }
 
 impl Endpoint {
-    /// An endpoint with `config`.
-    pub fn new(config: &DeviceLinkConfig) -> Result<Self, LinkConfigError> {
+    /// An endpoint with `config` for a machine whose control loop runs at
+    /// `control_rate_hz` (the host learns it in the handshake).
+    pub fn new(config: &DeviceLinkConfig, control_rate_hz: u32) -> Result<Self, LinkConfigError> {
         Ok(Self {
-            link: DeviceLink::new(config, SCHEMA_HASH)?,
+            link: DeviceLink::new(config, SCHEMA_HASH, control_rate_hz)?,
             decoder: FrameDecoder::new(),
         })
     }

@@ -26,7 +26,9 @@ use stm32f4xx_hal::{
     rcc::{Config, Rcc},
 };
 
-use super::SYSCLK_HZ;
+/// SYSCLK the firmware runs at (the QEMU build's core also runs at 168 MHz, whatever the
+/// clock tree registers say).
+pub const SYSCLK_HZ: u32 = 168_000_000;
 
 /// How long the crystal may take to start, ms: ST's own HAL uses 100 ms
 /// (`HSE_STARTUP_TIMEOUT`); an 8 MHz crystal typically starts in 2 ms (DS8626, tSU(HSE)).

@@ -34,6 +34,8 @@
 
 use controller_core::machine::messages::Outcome;
 use controller_core::machine::{write_blocking, LinkSide};
+
+use crate::link::SettingsSaver;
 use controller_core::settings::store::{block_on, BlockingFlash, SettingsStore, StoreError};
 use embedded_storage::nor_flash::{ErrorType, MultiwriteNorFlash, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::flash::{self, FlashExt, LockedFlash};
@@ -265,9 +267,11 @@ impl BoardSaver {
     ) -> Self {
         Self { store, watchdog }
     }
+}
 
+impl SettingsSaver for BoardSaver {
     /// Write a save or repair that is due on `port` (the machine holds its outputs off).
-    pub fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
+    fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
         let Some(job) = port.save_due() else {
             return;
         };

@@ -74,7 +74,12 @@ pub mod tick;
 #[cfg(not(feature = "qemu"))]
 pub mod watchdog;
 
-use stm32f4xx_hal::{gpio::PinState, pac, prelude::*};
+use controller_core::axes::AXES;
+use stm32f4xx_hal::gpio::{
+    AnyPin, Output, PinState, PB12, PC0, PC1, PC2, PC3, PC4, PC5, PD0, PD1, PD10, PD2, PD4, PD5,
+    PD6, PD8, PD9, PE10, PE11, PE12, PE13, PE14, PE9,
+};
+use stm32f4xx_hal::{pac, prelude::*};
 
 use clock::ClockStart;
 use encoders::Encoders;
@@ -83,9 +88,8 @@ use leds::Leds;
 use pwm::ServoOutputs;
 use tick::ControlTick;
 
-/// SYSCLK the firmware runs at (the QEMU build's core also runs at 168 MHz, whatever the
-/// clock tree registers say).
-pub const SYSCLK_HZ: u32 = 168_000_000;
+// (the clock tree's own figure, re-exported: the board's users name it here)
+pub use clock::SYSCLK_HZ;
 
 /// SysTick's hardware priority: RTIC logical priority 3 (the plan task's level) with the
 /// STM32F4's 4 priority bits, `(16 - 3) << 4`: below the control interrupt (4, 0xC0).
@@ -144,64 +148,16 @@ pub fn init(dp: pac::Peripherals) -> Board {
     let gpiod = dp.GPIOD.split(&mut rcc);
     let gpioe = dp.GPIOE.split(&mut rcc);
 
-    let enable = [
-        gpiod
-            .pd0
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-        gpiod
-            .pd1
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-        gpiod
-            .pd2
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-    ];
-    // brake coils de-energised (gripping) from the first instructions on
-    let brake = [
-        gpiod
-            .pd4
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-        gpiod
-            .pd5
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-        gpiod
-            .pd6
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-    ];
-    let direction = [
-        gpioe
-            .pe10
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-        gpioe
-            .pe12
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-        gpioe
-            .pe14
-            .into_push_pull_output_in_state(PinState::Low)
-            .erase(),
-    ];
-    // PWM pins: GPIO low now, with the pull-down kept for the moment they become TIM1
-    // outputs (before the channel is enabled TIM1 does not drive them).
-    let pwm_pins = (
-        gpioe
-            .pe9
-            .into_push_pull_output_in_state(PinState::Low)
-            .internal_pull_down(true),
-        gpioe
-            .pe11
-            .into_push_pull_output_in_state(PinState::Low)
-            .internal_pull_down(true),
-        gpioe
-            .pe13
-            .into_push_pull_output_in_state(PinState::Low)
-            .internal_pull_down(true),
+    let SafeOutputPins {
+        enable,
+        brake,
+        direction,
+        pwm: pwm_pins,
+    } = safe_output_pins(
+        (gpiod.pd0, gpiod.pd1, gpiod.pd2),
+        (gpiod.pd4, gpiod.pd5, gpiod.pd6),
+        (gpioe.pe10, gpioe.pe12, gpioe.pe14),
+        (gpioe.pe9, gpioe.pe11, gpioe.pe13),
     );
 
     if !shutdown::addresses_match() {
@@ -243,29 +199,13 @@ pub fn init(dp: pac::Peripherals) -> Board {
         index::IndexInputs::new(gpiob.pb10, gpiob.pb1, gpiob.pb0, &mut syscfg, &mut exti)
     };
 
-    let safety = SafetyPins {
-        // TIM1_BKIN: the e-stop line is TIM1's break input (active high)
-        estop: gpiob.pb12.into_alternate::<1>().internal_pull_up(true),
-        limits: [
-            [
-                gpioc.pc0.into_pull_up_input().erase(),
-                gpioc.pc1.into_pull_up_input().erase(),
-            ],
-            [
-                gpioc.pc2.into_pull_up_input().erase(),
-                gpioc.pc3.into_pull_up_input().erase(),
-            ],
-            [
-                gpioc.pc4.into_pull_up_input().erase(),
-                gpioc.pc5.into_pull_up_input().erase(),
-            ],
-        ],
-        amp_fault: [
-            gpiod.pd8.into_pull_up_input().erase(),
-            gpiod.pd9.into_pull_up_input().erase(),
-            gpiod.pd10.into_pull_up_input().erase(),
-        ],
-    };
+    let safety = safety_pins(
+        gpiob.pb12,
+        (
+            gpioc.pc0, gpioc.pc1, gpioc.pc2, gpioc.pc3, gpioc.pc4, gpioc.pc5,
+        ),
+        (gpiod.pd8, gpiod.pd9, gpiod.pd10),
+    );
     let arm = ArmButton {
         pin: gpiod.pd3.into_pull_up_input().erase(),
     };
@@ -278,13 +218,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
 
     let tick = ControlTick::new(dp.TIM4.counter_hz(&mut rcc));
 
-    let host_uart = match serial::init(dp.USART2, gpioa.pa2, gpioa.pa3, &mut rcc) {
-        Ok(s) => Some(s),
-        Err(_) => {
-            defmt::error!("USART2: {=u32} baud cannot be set", serial::HOST_BAUD);
-            None
-        }
-    };
+    let host_uart = serial::init_or_log(dp.USART2, gpioa.pa2, gpioa.pa3, &mut rcc);
 
     // QEMU: the link rig's operator panel (no pins: QEMU models no GPIO; the clock is
     // enabled as a real F405 would need, QEMU itself has no RCC model).
@@ -318,5 +252,118 @@ pub fn init(dp: pac::Peripherals) -> Board {
         flash: dp.FLASH,
         #[cfg(not(feature = "qemu"))]
         brownout,
+    }
+}
+
+/// The servo outputs' pins as [`init`] leaves its first step: push-pull outputs driven low.
+struct SafeOutputPins {
+    enable: [AnyPin<Output>; AXES],
+    brake: [AnyPin<Output>; AXES],
+    direction: [AnyPin<Output>; AXES],
+    /// The PWM pins, GPIO for now (TIM1 takes them after its break setup).
+    pwm: (PE9<Output>, PE11<Output>, PE13<Output>),
+}
+
+/// `init`'s first step, before the clock setup: drive enables (X, Y, Z), brake outputs,
+/// direction and PWM pins become push-pull outputs driven low, in that order.
+fn safe_output_pins(
+    enable: (PD0, PD1, PD2),
+    brake: (PD4, PD5, PD6),
+    direction: (PE10, PE12, PE14),
+    pwm: (PE9, PE11, PE13),
+) -> SafeOutputPins {
+    let enable_pins = [
+        enable
+            .0
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        enable
+            .1
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        enable
+            .2
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+    ];
+    // brake coils de-energised (gripping) from the first instructions on
+    let brake_pins = [
+        brake
+            .0
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        brake
+            .1
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        brake
+            .2
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+    ];
+    let direction_pins = [
+        direction
+            .0
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        direction
+            .1
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+        direction
+            .2
+            .into_push_pull_output_in_state(PinState::Low)
+            .erase(),
+    ];
+    // PWM pins: GPIO low now, with the pull-down kept for the moment they become TIM1
+    // outputs (before the channel is enabled TIM1 does not drive them).
+    let pwm_pins = (
+        pwm.0
+            .into_push_pull_output_in_state(PinState::Low)
+            .internal_pull_down(true),
+        pwm.1
+            .into_push_pull_output_in_state(PinState::Low)
+            .internal_pull_down(true),
+        pwm.2
+            .into_push_pull_output_in_state(PinState::Low)
+            .internal_pull_down(true),
+    );
+    SafeOutputPins {
+        enable: enable_pins,
+        brake: brake_pins,
+        direction: direction_pins,
+        pwm: pwm_pins,
+    }
+}
+
+/// The safety inputs: the e-stop as TIM1's break input (pull-up), then the limit switches
+/// X-/X+/Y-/Y+/Z-/Z+ and the amplifier faults X/Y/Z as pulled-up inputs, in that order.
+fn safety_pins(
+    estop: PB12,
+    limits: (PC0, PC1, PC2, PC3, PC4, PC5),
+    amp_fault: (PD8, PD9, PD10),
+) -> SafetyPins {
+    SafetyPins {
+        // TIM1_BKIN: the e-stop line is TIM1's break input (active high)
+        estop: estop.into_alternate::<1>().internal_pull_up(true),
+        limits: [
+            [
+                limits.0.into_pull_up_input().erase(),
+                limits.1.into_pull_up_input().erase(),
+            ],
+            [
+                limits.2.into_pull_up_input().erase(),
+                limits.3.into_pull_up_input().erase(),
+            ],
+            [
+                limits.4.into_pull_up_input().erase(),
+                limits.5.into_pull_up_input().erase(),
+            ],
+        ],
+        amp_fault: [
+            amp_fault.0.into_pull_up_input().erase(),
+            amp_fault.1.into_pull_up_input().erase(),
+            amp_fault.2.into_pull_up_input().erase(),
+        ],
     }
 }

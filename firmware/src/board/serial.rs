@@ -44,6 +44,23 @@ pub struct HostUart {
     lost: u32,
 }
 
+/// [`init`], or none when the baud rate cannot be set (logged: the board runs without its
+/// host link).
+pub fn init_or_log(
+    usart: USART2,
+    tx_pin: PA2,
+    rx_pin: PA3,
+    rcc: &mut Rcc,
+) -> Option<Serial<USART2>> {
+    match init(usart, tx_pin, rx_pin, rcc) {
+        Ok(s) => Some(s),
+        Err(_) => {
+            defmt::error!("USART2: {=u32} baud cannot be set", HOST_BAUD);
+            None
+        }
+    }
+}
+
 /// Configure USART2 (the pins' alternate function, 921,600 baud 8N1, receive interrupt).
 pub fn init(
     usart: USART2,

@@ -299,7 +299,7 @@ fn halt(_why: Halt) -> ! {
 /// QEMU: leave with the exit code of the reason.
 #[cfg(feature = "qemu")]
 fn halt(why: Halt) -> ! {
-    use crate::qemu::{exit, EXIT_EXCEPTION, EXIT_HARD_FAULT, EXIT_PANIC};
+    use crate::qemu_exit::{exit, EXIT_EXCEPTION, EXIT_HARD_FAULT, EXIT_PANIC};
     exit(match why {
         Halt::Panic => EXIT_PANIC,
         Halt::HardFault => EXIT_HARD_FAULT,

@@ -23,6 +23,7 @@
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
+use controller_core::link::LinkClock;
 use controller_core::machine::record::{Digest, RecordRef, Recorder, BLOCK_PERIODS};
 use controller_core::machine::{save_due_into, ControlSide, LinkSide};
 use controller_core::servo::snapshot::Snapshot;
@@ -32,9 +33,9 @@ use controller_core::sim::run::RunConfig;
 use controller_core::sim::world::{SwitchConfig, World};
 
 use super::panel::Panel;
-use super::{exit, EXIT_CONFIG};
-use crate::link::LINK_CLOCK_MS;
+use crate::link::{SettingsSaver, LINK_CLOCK_MS};
 use crate::machine_slot::{self, FwMachine};
+use crate::qemu_exit::{exit, EXIT_CONFIG};
 
 /// The link rig's settings flash: two 4 KiB pages in RAM (QEMU models no flash
 /// controller), empty at boot; saves go through the same store and lock as on the board.
@@ -50,9 +51,11 @@ impl RamSaver {
             .and_then(|f| SettingsStore::new(f, 0..8192).ok());
         Self { store }
     }
+}
 
+impl SettingsSaver for RamSaver {
     /// Write a save that is due on `port`.
-    pub fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
+    fn save_due(&mut self, port: &mut LinkSide<'_, '_>) {
         match self.store.as_mut() {
             Some(store) => {
                 save_due_into(port, store);
@@ -96,6 +99,8 @@ pub struct LinkRig {
     control: ControlSide<'static>,
     rate_hz: u32,
     periods: u64,
+    /// The link's clock, counted from the periods run.
+    clock: LinkClock,
     /// This period's inputs, for the log.
     recorder: Recorder<RECORD_BYTES>,
     /// Runs of the planning half seen so far.
@@ -160,6 +165,7 @@ impl LinkRig {
             control,
             rate_hz,
             periods: 0,
+            clock: LinkClock::new(rate_hz),
             recorder: Recorder::new(),
             plan_seen: 0,
             digest: Digest::new(),
@@ -210,8 +216,7 @@ impl LinkRig {
         self.world.advance();
         self.periods += 1;
         self.record();
-        let ms = self.periods * 1000 / u64::from(self.rate_hz.max(1));
-        LINK_CLOCK_MS.store(ms as u32, Ordering::Release);
+        LINK_CLOCK_MS.store(self.clock.period(), Ordering::Release);
     }
 
     /// The period's records and its tag in the log; the digest every [`BLOCK_PERIODS`].

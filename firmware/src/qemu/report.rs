@@ -21,7 +21,7 @@ use controller_core::servo::faults::FaultRecord;
 use firmware::telemetry::Telemetry;
 
 use super::rig::End;
-use super::{exit, EXIT_COMPLETED, EXIT_FAULT, EXIT_UNDETECTED};
+use crate::qemu_exit::{exit, EXIT_COMPLETED, EXIT_FAULT, EXIT_UNDETECTED};
 
 /// `<kind>:<axis or ->:<period>` or `none`.
 fn fault_field(f: Option<FaultRecord>) -> heapless::String<48> {

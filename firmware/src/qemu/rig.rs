@@ -20,8 +20,8 @@ use controller_core::sim::run::SimRun;
 use controller_core::sim::truth::TruthFigures;
 use firmware::scenarios::{self, ScenarioError};
 
-use super::{exit, EXIT_CONFIG};
 use crate::board::inputs::SafetyPins;
+use crate::qemu_exit::{exit, EXIT_CONFIG};
 
 /// A finished run.
 #[derive(Clone, Copy, Debug)]

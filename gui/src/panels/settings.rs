@@ -34,6 +34,9 @@ pub struct SettingsPanel {
     pub only_changed: bool,
     /// The edits' check, redone whenever they or the values change.
     pub check: Check,
+    /// The machine's control rate, Hz, as it reported it on connecting: the edits are
+    /// checked at it (the servo's cross-field limits depend on the period).
+    pub rate_hz: u32,
 }
 
 /// What the local check found.
@@ -87,8 +90,7 @@ impl SettingsPanel {
     }
 
     fn recheck(&mut self) {
-        let rate_hz = host_sim::cli::machine::CONTROL_RATE_HZ;
-        self.check = check_edits(&self.values, &self.edits, rate_hz);
+        self.check = check_edits(&self.values, &self.edits, self.rate_hz);
     }
 
     /// The edits as one transaction, in the registry's key order (so that
@@ -519,7 +521,8 @@ mod tests {
     use super::*;
     use std::collections::BTreeSet;
 
-    const RATE_HZ: u32 = host_sim::cli::machine::CONTROL_RATE_HZ;
+    /// The rate the project's machines run at (what they report on connecting).
+    pub(super) const RATE_HZ: u32 = 10_000;
 
     /// The factory tree's values, as the machine would report them.
     fn factory_values() -> Vec<(String, String)> {
@@ -623,7 +626,10 @@ mod tests {
 
     #[test]
     fn an_edit_back_to_the_machines_value_is_no_edit_and_new_values_drop_met_edits() {
-        let mut p = SettingsPanel::default();
+        let mut p = SettingsPanel {
+            rate_hz: RATE_HZ,
+            ..SettingsPanel::default()
+        };
         p.set_values(factory_values());
         let k = "axis.z.jog.speed_max_mm_s";
         let now = p.current(k).unwrap().to_string();
@@ -673,7 +679,10 @@ mod ui_tests {
     use egui_kittest::Harness;
 
     fn panel() -> SettingsPanel {
-        let mut p = SettingsPanel::default();
+        let mut p = SettingsPanel {
+            rate_hz: super::tests::RATE_HZ,
+            ..SettingsPanel::default()
+        };
         p.set_values(
             FACTORY
                 .list()

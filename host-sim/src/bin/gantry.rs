@@ -14,7 +14,7 @@ use clap::{Parser, Subcommand};
 use controller_core::machine::messages::{MachineState, Request, Status};
 use controller_core::machine::scope::ScopeConfig;
 use host_sim::cli::client::{expect_done, Client};
-use host_sim::cli::machine::{MachineArgs, CONTROL_RATE_HZ};
+use host_sim::cli::machine::MachineArgs;
 use host_sim::cli::scope::Capture;
 use host_sim::cli::serve::{ServeOptions, Speed};
 use host_sim::cli::sim::SimModels;
@@ -341,8 +341,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
     }
     host_sim::cli::interrupt::install()?;
     cli.machine.check()?;
-    let decimation = cli.machine.decimation();
-    session(cli.machine.open()?, cli.command, decimation)
+    let c = cli.machine.open()?;
+    let decimation = cli.machine.decimation(c.control_rate_hz());
+    session(c, cli.command, decimation)
 }
 
 /// `gantry gui`: the `gantry-gui` program beside this one, with the machine options given
@@ -439,7 +440,7 @@ fn status<T: Transport>(c: &mut Client<T>, json: bool) -> Result<()> {
     if json {
         println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
     } else {
-        print!("{}", view::status_text(&s, CONTROL_RATE_HZ));
+        print!("{}", view::status_text(&s, c.control_rate_hz()));
     }
     Ok(())
 }
@@ -538,8 +539,9 @@ fn scope_capture<T: Transport>(
         .map(|n| n.trim().to_string())
         .filter(|n| !n.is_empty())
         .collect();
-    let period_s = f64::from(decimation) / f64::from(CONTROL_RATE_HZ);
-    cli::scope::capture(c, cfg, names, CONTROL_RATE_HZ, timeout_s, |c| {
+    let rate_hz = c.control_rate_hz();
+    let period_s = f64::from(decimation) / f64::from(rate_hz);
+    cli::scope::capture(c, cfg, names, rate_hz, timeout_s, |c| {
         if let Some(file) = run {
             let r = cli::run_program(c, file, period_s, false, None)?;
             eprint!("{}", host_sim::gcode::report::table(&r));
@@ -712,7 +714,7 @@ fn run_file<T: Transport>(
         for_s: hold_for_s,
     });
     let progress = std::io::stderr().is_terminal();
-    let period_s = f64::from(decimation) / 10_000.0;
+    let period_s = f64::from(decimation) / f64::from(c.control_rate_hz());
     let r = cli::run_program(c, file, period_s, progress, hold)?;
     print!("{}", host_sim::gcode::report::table(&r));
     if let Some(j) = json {
@@ -816,7 +818,8 @@ fn settings<T: Transport>(c: &mut Client<T>, op: SettingsOp) -> Result<()> {
             let text = gantry_scenario::file::read_regular(&file, SETTINGS_FILE_MAX_BYTES)
                 .map_err(anyhow::Error::msg)?;
             let changes = cli::parse_settings_toml(&name, &text)?;
-            let changed = cli::import_settings(c, &changes, CONTROL_RATE_HZ)?;
+            let rate_hz = c.control_rate_hz();
+            let changed = cli::import_settings(c, &changes, rate_hz)?;
             println!("{} settings changed: {}", changed.len(), changed.join(", "));
         }
     }

@@ -5,6 +5,10 @@
 //! A request's outcome: the device counts the requests it executed in the session
 //! ([`Status::executed`]) and keeps the last one's [`Outcome`]; the client sends one
 //! request, then asks for the status until the count reaches it.
+//!
+//! The machine's control rate comes with the handshake ([`Client::control_rate_hz`]):
+//! telemetry decimations, scope captures and period-counted timeouts are converted with
+//! it, never with an assumed rate.
 
 use super::transport::Transport;
 use anyhow::{anyhow, bail, Result};
@@ -48,6 +52,8 @@ pub struct Client<T: Transport> {
     reply_grace_ms: u32,
     /// A copy of every status and telemetry sample as it arrives ([`Client::tap`]).
     tap: Option<std::sync::mpsc::Sender<Tapped>>,
+    /// The machine's control rate, Hz, from its handshake answer.
+    control_rate_hz: u32,
 }
 
 /// What [`Client::tap`] copies out of a session.
@@ -82,6 +88,7 @@ impl<T: Transport> Client<T> {
             last_period: 0,
             reply_grace_ms: 0,
             tap: None,
+            control_rate_hz: 0,
         };
         while c.link.state() == HostState::Handshaking {
             c.pump()?;
@@ -90,7 +97,17 @@ impl<T: Transport> Client<T> {
         if let HostState::Failed(e) = c.link.state() {
             bail!("no session with the machine: {e:?}");
         }
+        c.control_rate_hz = match c.link.device_control_rate_hz() {
+            Some(hz) if hz > 0 => hz,
+            // (a device link refuses to start without a rate: this is not our firmware)
+            _ => bail!("no session with the machine: its handshake names no control rate"),
+        };
         Ok(c)
+    }
+
+    /// The machine's control rate, Hz, as it announced it in the handshake (never 0).
+    pub fn control_rate_hz(&self) -> u32 {
+        self.control_rate_hz
     }
 
     /// Handle what arrived, send what is due, then handle what arrived meanwhile.
@@ -404,7 +421,7 @@ mod tests {
                 ..
             } = d.feed::<controller_core::link::ToDevice<Request>>(bytes)
             {
-                let ours = Version::current(SCHEMA_HASH).hello(Role::Device, h.session);
+                let ours = Version::current(SCHEMA_HASH).hello(Role::Device, h.session, 10_000);
                 self.inbox.extend(frame(&ToHost::Hello(ours)));
             }
             Ok(())

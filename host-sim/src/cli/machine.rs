@@ -12,9 +12,12 @@ use anyhow::{bail, Result};
 use clap::{ArgGroup, Args};
 use std::path::PathBuf;
 
-/// The control rate every machine of the project runs at (host-sim/scenarios/gcode.toml,
-/// the firmware's default `GANTRY_CONTROL_HZ`), Hz: telemetry periods count it.
-pub const CONTROL_RATE_HZ: u32 = 10_000;
+/// The fastest telemetry a session may ask for, Hz: one sample per period at the
+/// project's usual control rate (host-sim/scenarios/gcode.toml, the firmware's default
+/// `GANTRY_CONTROL_HZ`). Checked before connecting, so it cannot be the machine's own
+/// rate; the decimation is computed from the rate the machine reports in the handshake
+/// ([`MachineArgs::decimation`]), at least one period.
+pub const MAX_TELEMETRY_HZ: u32 = 10_000;
 
 /// A session's transport, whatever the machine.
 pub type AnyTransport = Box<dyn Transport + Send>;
@@ -71,9 +74,9 @@ impl MachineArgs {
         if self.factory && !self.sim {
             bail!("--factory starts the simulated machine; it goes with --sim only");
         }
-        if self.telemetry_hz == 0 || self.telemetry_hz > CONTROL_RATE_HZ {
+        if self.telemetry_hz == 0 || self.telemetry_hz > MAX_TELEMETRY_HZ {
             bail!(
-                "--telemetry-hz must be within 1-10000, got {}",
+                "--telemetry-hz must be within 1-{MAX_TELEMETRY_HZ}, got {}",
                 self.telemetry_hz
             );
         }
@@ -107,9 +110,11 @@ impl MachineArgs {
         out
     }
 
-    /// Control periods between telemetry samples.
-    pub fn decimation(&self) -> u32 {
-        CONTROL_RATE_HZ / self.telemetry_hz.clamp(1, CONTROL_RATE_HZ)
+    /// Control periods between telemetry samples on a machine whose control loop runs at
+    /// `control_rate_hz` (what it reported: [`Client::control_rate_hz`]); at least 1.
+    pub fn decimation(&self, control_rate_hz: u32) -> u32 {
+        let rate_hz = control_rate_hz.max(1);
+        rate_hz / self.telemetry_hz.clamp(1, rate_hz)
     }
 
     /// How the simulated machine starts.
@@ -121,12 +126,13 @@ impl MachineArgs {
         }
     }
 
-    /// A session with the machine, telemetry subscribed at `--telemetry-hz`.
+    /// A session with the machine, telemetry subscribed at `--telemetry-hz` (decimated
+    /// from the control rate the machine reports: [`Client::control_rate_hz`]).
     pub fn open(&self) -> Result<Client<AnyTransport>> {
         self.check()?;
-        let decimation = self.decimation();
         let subscribed = |t: AnyTransport| -> Result<Client<AnyTransport>> {
             let mut c = Client::connect(t)?;
+            let decimation = self.decimation(c.control_rate_hz());
             super::subscribe(&mut c, decimation)?;
             Ok(c)
         };
@@ -141,8 +147,11 @@ impl MachineArgs {
                 .unwrap_or_else(|| PathBuf::from(DEFAULT_ELF));
             subscribed(Box::new(QemuMachine::boot(&elf)?))
         } else {
-            // (the simulated machine starts with the subscription)
-            Client::connect(Box::new(SimMachine::new(self.models(), decimation)?))
+            // (the simulated machine starts with the subscription, decimated from the rate
+            // it runs at: the rate its handshake reports)
+            let mut sim = SimMachine::new(self.models(), 0)?;
+            sim.set_telemetry_every(self.decimation(sim.rate_hz()));
+            Client::connect(Box::new(sim))
         }
     }
 }

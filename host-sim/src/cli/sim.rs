@@ -11,6 +11,7 @@ use super::Transport;
 use crate::sim_gantry::{designed_settings, gantry_world, machine_and_planner};
 use anyhow::{anyhow, bail, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
+use controller_core::link::LinkClock;
 use controller_core::machine::{
     save_due_into, Channels, Endpoint, LinkSide, LinkState, Machine, MachineMemory,
 };
@@ -39,6 +40,8 @@ pub struct SimMachine {
     endpoint: Endpoint,
     rate_hz: u32,
     periods: u64,
+    /// The link's clock, counted from the periods run (as the firmware's).
+    clock: LinkClock,
     to_host: Vec<u8>,
     store: Box<SimStore>,
 }
@@ -108,8 +111,8 @@ impl SimMachine {
         if outcome.is_fault() {
             machine.latch_board_fault(FaultKind::SettingsCorrupt);
         }
-        let endpoint =
-            Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG).map_err(|e| anyhow!("link: {e}"))?;
+        let endpoint = Endpoint::new(&DEFAULT_DEVICE_LINK_CONFIG, rate_hz)
+            .map_err(|e| anyhow!("link: {e}"))?;
         let sim = Self {
             world,
             machine,
@@ -118,6 +121,7 @@ impl SimMachine {
             endpoint,
             rate_hz,
             periods: 0,
+            clock: LinkClock::new(rate_hz),
             to_host: Vec::new(),
             store: Box::new(store),
         };
@@ -134,9 +138,15 @@ impl SimMachine {
         self.rate_hz
     }
 
+    /// Telemetry every `periods` control periods from now on (as `new`'s
+    /// `telemetry_periods`; 0: none): the subscription an in-process machine starts with.
+    pub fn set_telemetry_every(&mut self, periods: u32) {
+        self.machine.set_telemetry_every(periods);
+    }
+
     /// The link's millisecond clock: machine time since power-on.
     pub fn clock_ms(&self) -> u32 {
-        self.ms()
+        self.clock.ms()
     }
 
     /// The true state of the simulated axes (what no host sees over the link).
@@ -171,10 +181,6 @@ impl SimMachine {
         &mut self.store
     }
 
-    fn ms(&self) -> u32 {
-        (self.periods * 1000 / u64::from(self.rate_hz)) as u32
-    }
-
     /// Run `n` control periods.
     pub fn advance(&mut self, n: u32) {
         let mut out = std::mem::take(&mut self.to_host);
@@ -184,7 +190,7 @@ impl SimMachine {
             self.machine.linked_period(&mut self.world, &mut control);
             self.world.advance();
             self.periods += 1;
-            let now = (self.periods * 1000 / u64::from(self.rate_hz)) as u32;
+            let now = self.clock.period();
             self.endpoint
                 .poll(&mut link, now, &mut |b: &[u8]| out.extend_from_slice(b));
             save_due_into(&mut link, &mut self.store);
@@ -195,7 +201,7 @@ impl SimMachine {
 
 impl Transport for SimMachine {
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
-        let now = self.ms();
+        let now = self.clock.ms();
         let mut out = std::mem::take(&mut self.to_host);
         let (ends, _) = self.channels.split();
         let mut link = LinkSide::new(ends, &mut self.link);
@@ -213,7 +219,7 @@ impl Transport for SimMachine {
     }
 
     fn now_ms(&self) -> u32 {
-        self.ms()
+        self.clock.ms()
     }
 
     /// Its clock moves only in `wait`.
