@@ -12,8 +12,8 @@
 
 use super::{finish, AxisSignals, LawOutput, LawState};
 use crate::config::{limit, non_negative, positive, ConfigError};
-use crate::model::PlantParams;
 use crate::num::shared_root::{root_powers, PowerSet};
+use crate::plant::PlantParams;
 use crate::{Exponent, Real};
 
 /// Sliding surface (spec 2.2/2.3).

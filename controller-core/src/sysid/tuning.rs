@@ -9,13 +9,13 @@
 //! validate: build laws from a model that passed [`AxisModel::validate`] and a tuning
 //! that passed [`TuningConfig::validate`] (the laws' own `new` then checks the gains).
 
-use super::model::AxisModel;
 use crate::config::{positive, ConfigError};
 use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
 use crate::law::smc::{ReachingConfig, SmcConfig, SurfaceConfig};
-use crate::model::PlantParams;
+use crate::plant::AxisModel;
+use crate::plant::PlantParams;
 use crate::Exponent;
 
 /// What the rules need besides the model.
