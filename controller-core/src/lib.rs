@@ -51,5 +51,6 @@ pub mod settings;
 pub mod sim;
 pub mod sysid;
 
-pub use num::real::{Exponent, LibmF32, Real};
+pub use num::exponent::Exponent;
+pub use num::real::{LibmF32, Real};
 pub use num::vec3::Vec3;

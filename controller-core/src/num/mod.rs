@@ -2,6 +2,7 @@
 //! `f64`, the host reference; saturating fixed point), with guarded division and
 //! fractional powers; fast roots and trig; shared roots; three-axis vectors; RK4.
 
+pub mod exponent;
 pub mod fixed;
 pub mod ode;
 pub mod powers;
