@@ -15,7 +15,6 @@
 //! equal to the arc length up to the relative radius mismatch.
 
 use super::fmath::{self, F32Ext};
-use super::segment::Plane;
 
 /// Three f32 components (x, y, z).
 pub(crate) type V3 = [f32; 3];
@@ -221,17 +220,6 @@ impl Piece {
 
 /// Longest span on a straight line (mm).
 pub(crate) const MAX_LINE_SPAN_MM: f32 = 64.0;
-
-/// Axes (in-plane first, in-plane second, normal) of a plane. The order makes a positive
-/// rotation (i1 toward i2) counter-clockwise seen from the positive normal, as G2/G3
-/// define it: XY about +Z, ZX about +Y, YZ about +X.
-pub(crate) fn plane_axes(p: Plane) -> (usize, usize, usize) {
-    match p {
-        Plane::XY => (0, 1, 2),
-        Plane::ZX => (2, 0, 1),
-        Plane::YZ => (1, 2, 0),
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -4,9 +4,7 @@
 
 use super::config::Settings;
 use super::fmath::{self, F32Ext};
-use super::geometry::{
-    cross, dot, norm, plane_axes, scale, sub, unit_axis, Helix, Piece, Shape, V3,
-};
+use super::geometry::{cross, dot, norm, scale, sub, unit_axis, Helix, Piece, Shape, V3};
 use core::f32::consts::TAU;
 
 /// Arc plane: G17 (XY, normal +Z), G18 (ZX, normal +Y), G19 (YZ, normal +X).
@@ -17,6 +15,17 @@ pub enum Plane {
     XY,
     ZX,
     YZ,
+}
+
+/// Axes (in-plane first, in-plane second, normal) of a plane. The order makes a positive
+/// rotation (i1 toward i2) counter-clockwise seen from the positive normal, as G2/G3
+/// define it: XY about +Z, ZX about +Y, YZ about +X.
+pub(crate) fn plane_axes(p: Plane) -> (usize, usize, usize) {
+    match p {
+        Plane::XY => (0, 1, 2),
+        Plane::ZX => (2, 0, 1),
+        Plane::YZ => (1, 2, 0),
+    }
 }
 
 /// Feed of a line.
