@@ -205,7 +205,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         run: RunState::Run,
         hold_point: None,
         exec_mode: ExecMode::Idle,
-        end_pos: [0.0; 3],
+        end_pos: V3::new(0.0, 0.0, 0.0),
         slips: 0,
         scan: ScanCache::new(),
         ahead: Ahead::new(0.0, 0.0, 0.0),
@@ -239,7 +239,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.blank();
         self.set = set;
         self.run_id = run;
-        self.end_pos = start_mm;
+        self.end_pos = V3::from_array(start_mm);
         Ok(())
     }
 
@@ -262,7 +262,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.run = RunState::Run;
         self.hold_point = None;
         self.exec_mode = ExecMode::Idle;
-        self.end_pos = [0.0; 3];
+        self.end_pos = V3::new(0.0, 0.0, 0.0);
         self.slips = 0;
         self.scan = ScanCache::new();
         self.ahead = Ahead::new(0.0, 0.0, 0.0);
@@ -284,7 +284,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
 
     /// Where the queued path ends (the start of the next segment), mm.
     pub fn end_position_mm(&self) -> [f32; 3] {
-        self.end_pos
+        self.end_pos.to_array()
     }
 
     pub fn status(&self) -> PlannerStatus {
