@@ -1,4 +1,4 @@
-//! Identification of an axis (issue 13): friction, inertia and a validation figure from
+//! Identification of an axis: friction, inertia and a validation figure from
 //! motion the axis makes under its own velocity loop, and the law gains that follow from
 //! the model ([`crate::plant::AxisModel`]).
 //!
