@@ -21,7 +21,7 @@ pub struct AxisSignals<R> {
 pub struct LawOutput<R> {
     /// Saturated control output.
     pub u: R,
-    /// `d/dt` of [`LawState::integral`] (0 while anti-windup holds the integrator).
+    /// `d/dt` of [`LawState::integral`](super::state::LawState::integral) (0 while anti-windup holds the integrator).
     pub integral_rate: R,
     /// Sliding variable (0 for PID), for telemetry and plots.
     pub s: R,

@@ -222,7 +222,7 @@ const INF_BITS: u32 = 0x7f80_0000;
 /// denominator through [`pow_abs_f32`]. Same accuracy as [`pow_abs_f32`]. Always inlined:
 /// the laws call it with a constant `den` (the dispatch then folds away); a normal, finite
 /// `x` (the control period's case) is recognised by one unsigned comparison of its bits,
-/// everything else (0, subnormals, inf, NaN) takes [`root_abs_rare_f32`].
+/// everything else (0, subnormals, inf, NaN) takes `root_abs_rare_f32`.
 #[inline(always)]
 pub fn root_abs_f32(x: f32, den: i16) -> f32 {
     let a = x.abs();

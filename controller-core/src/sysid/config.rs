@@ -1,5 +1,5 @@
 //! Configuration of one axis' identification ([`IdentifyConfig`]), validated once into
-//! [`Settings`] by [`super::Identifier::new`].
+//! [`crate::settings::Settings`] by [`super::identifier::Identifier::new`].
 
 use crate::config::{non_negative, positive, ConfigError};
 use crate::Real;

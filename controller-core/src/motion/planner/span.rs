@@ -63,7 +63,7 @@ pub struct Span {
     pub inv_len: f32,
     /// `1 / programmed feed` (s/mm; 0 for rapids and dwells), for the feed ratio.
     pub inv_feed: f32,
-    /// `coef[axis][k]`: position = Σ coef[axis][k] u^k (mm), `coef[axis][0]` absolute.
+    /// `coef[axis][k]`: position = Σ `coef[axis][k]` u^k (mm), `coef[axis][0]` absolute.
     pub coef: [[f32; 8]; 3],
 }
 
