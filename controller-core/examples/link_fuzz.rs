@@ -20,6 +20,8 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::Instant;
 
+use controller_core::sim::rng::SplitMix64;
+
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
 use controller_core::link::host::DEFAULT_HOST_LINK_CONFIG;
 use controller_core::link::kernels::{
@@ -32,14 +34,10 @@ use controller_core::link::{
 
 const HASH: u32 = schema_hash::<ExampleCommand, ExampleTelemetry, ExampleStatus>();
 
-struct Rng(u64);
+struct Rng(SplitMix64);
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     fn below(&mut self, n: usize) -> usize {
         (self.next() % n.max(1) as u64) as usize
@@ -256,7 +254,7 @@ fn main() {
     let seed: u64 = args
         .next()
         .map_or(1, |a| a.parse().expect("SEED is a number"));
-    let mut r = Rng(seed);
+    let mut r = Rng(SplitMix64::new(seed));
     let mut dev_dec = FrameDecoder::new();
     let mut host_dec = FrameDecoder::new();
     let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).expect("valid config");

@@ -15,8 +15,9 @@ use crate::coupling::contour::{cross_couple, Coupled, DirectionSource};
 use crate::coupling::variable_gain::VariableGainState;
 use crate::coupling::{Coupling, CouplingConfig};
 use crate::law::adaptive_smc::AdaptiveRegressors;
+use crate::law::signals::integrate;
 use crate::law::smc::{OwnPowers, PaperDsmcPowers, Smc, SmcPowers};
-use crate::law::{integrate, AxisSignals, Law, LawConfig, LawEval, LawState};
+use crate::law::{AxisSignals, Law, LawConfig, LawEval, LawState};
 use crate::motion::trajectory::RefSample;
 use crate::{Real, Vec3};
 

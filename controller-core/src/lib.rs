@@ -10,14 +10,15 @@
 //!
 //! - [`num`]: the number trait, fast powers and trig, fixed point, vectors, RK4;
 //! - [`config`]: configuration errors and validators; [`axes`]: axis names, per-axis serde;
-//! - [`model`]: the axis model the laws and estimators use;
+//! - [`plant`]: axis models: the normalised axis the laws and estimators use, the
+//!   identified rigid-body model, and the physical axis a simulation follows;
 //! - [`law`]: PID, SMC/DSMC, DOB-SMC, adaptive friction SMC behind one interface;
 //! - [`coupling`]: the paper's 3-D contour coupling and the variable-gain contour PID;
 //! - [`controller`]: the 3-axis controller (a law per axis, coupling);
 //! - [`estimator`]: wide counts, PLL and Kalman velocity estimators, the per-axis bank;
 //! - [`motion`]: reference trajectories and their configuration;
 //! - [`servo`]: the per-period servo step over an IO trait, and its safety state machine;
-//! - [`sim`]: plant models and the simulated world the servo step runs against;
+//! - [`sim`]: the simulated world the servo step runs against;
 //! - [`link`]: the host-link protocol (framing, handshake, command / telemetry /
 //!   real-time channels, watchdog), shared by the firmware and the host tools;
 //! - [`sysid`]: identification of an axis' model on the machine, and the tuning rules
@@ -41,14 +42,15 @@ pub mod law;
 pub mod link;
 pub mod machine;
 pub mod metrics;
-pub mod model;
 pub mod motion;
 pub mod num;
+pub mod plant;
 pub mod presets;
 pub mod servo;
 pub mod settings;
 pub mod sim;
 pub mod sysid;
 
-pub use num::real::{Exponent, LibmF32, Real};
+pub use num::exponent::Exponent;
+pub use num::real::{LibmF32, Real};
 pub use num::vec3::Vec3;

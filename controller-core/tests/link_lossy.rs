@@ -6,6 +6,8 @@
 
 use std::collections::VecDeque;
 
+use controller_core::sim::rng::SplitMix64;
+
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
 use controller_core::link::host::DEFAULT_HOST_LINK_CONFIG;
 use controller_core::link::kernels::{
@@ -22,14 +24,10 @@ const HASH: u32 = schema_hash::<ExampleCommand, ExampleTelemetry, ExampleStatus>
 const BYTES_PER_MS: usize = 92;
 const QUEUE_SLOTS: usize = 16;
 
-struct Rng(u64);
+struct Rng(SplitMix64);
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// True with probability `ppm` / 1e6.
     fn chance(&mut self, ppm: u64) -> bool {
@@ -115,7 +113,7 @@ struct Outcome {
 }
 
 fn run(n: u32, byte_error_ppm: u64, seed: u64) -> Outcome {
-    let mut rng = Rng(seed);
+    let mut rng = Rng(SplitMix64::new(seed));
     let mut host =
         HostLink::<ExampleCommand, 8>::new(&DEFAULT_HOST_LINK_CONFIG, HASH, 4242).unwrap();
     let mut dev = DeviceLink::new(&DEFAULT_DEVICE_LINK_CONFIG, HASH, 10_000).unwrap();

@@ -3,6 +3,7 @@
 //! and the refusals of commands that are not valid in the current state.
 
 use controller_core::axes::Axis;
+use controller_core::plant::AxisModel;
 use controller_core::presets::board::{factory_config, servo_config};
 use controller_core::presets::gantry::{GANTRY_AXES, GANTRY_HOMING};
 use controller_core::servo::faults::FaultKind;
@@ -12,7 +13,7 @@ use controller_core::sim::truth::TruthSpec;
 use controller_core::sim::world::{
     ImperfectionConfig, InitialState, PlantConfig, SwitchConfig, WorldConfig,
 };
-use controller_core::sysid::{AxisModel, IdentifyStatus};
+use controller_core::sysid::IdentifyStatus;
 
 const RATE_HZ: u32 = 10_000;
 const COUNT_MM: f64 = 1.0 / 1600.0;

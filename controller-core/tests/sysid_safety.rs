@@ -3,8 +3,8 @@
 
 mod sysid_common;
 
+use controller_core::plant::physical::PhysicalAxisConfig;
 use controller_core::presets::gantry::GANTRY_X;
-use controller_core::sim::physical::PhysicalAxisConfig;
 use controller_core::sysid::identifier::SATURATION_LIMIT_S;
 use controller_core::sysid::{
     AbortReason, AxisSample, Identifier, IdentifyConfig, IdentifyConfigError, IdentifyPhase,

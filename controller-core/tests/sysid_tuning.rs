@@ -7,8 +7,9 @@ use controller_core::law::adaptive_smc::AdaptiveSmc;
 use controller_core::law::dob_smc::DobSmc;
 use controller_core::law::Law as AxisLaw;
 use controller_core::law::LawConfig;
+use controller_core::plant::AxisModel;
 use controller_core::presets::gantry::{tuning_for, GANTRY_AXES};
-use controller_core::sysid::{tuning, AxisModel};
+use controller_core::sysid::tuning;
 use sysid_common::*;
 
 /// From identified models (the presets identified on the simulated axis): every law

@@ -24,6 +24,7 @@
 //! | [`huge`] | a 170,000-line raster (42.9 m of path): the benchmark's "170,000-line program" |
 //! | [`rest_to_rest`] | one `G61` line from rest to rest: the planner's time against the time-optimal move (`host-sim/bench/ruckig_lines.py`) |
 
+use controller_core::sim::rng::SplitMix64;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::fmt::Write;
 
@@ -590,27 +591,6 @@ pub fn spiral_arcs() -> String {
     s
 }
 
-/// SplitMix64 (Steele, Lea, Flood 2014): a tiny generator with a fixed seed, so that
-/// [`zigzag`] is the same program every time.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    /// The next draw, uniform in [0, 1).
-    fn next_unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// A draw uniform in `[lo, hi)`.
-    fn in_range(&mut self, [lo, hi]: [f64; 2]) -> f64 {
-        lo + (hi - lo) * self.next_unit()
-    }
-}
-
 /// A zigzag pocket (`G64 P0.02`, F4000) at Z−1 over X ±20 from Y+15 down: rows in
 /// alternating X direction, each in a band 0.5-1.5 mm high, every move from the band's
 /// top to its bottom or back at 30-75° to the row (moves of 0.5-3 mm, corners of 60-150°
@@ -625,7 +605,7 @@ pub fn zigzag() -> String {
         "G21",
         "G64 P0.02",
     );
-    let mut rng = SplitMix64(ZIGZAG_SEED);
+    let mut rng = SplitMix64::new(ZIGZAG_SEED);
     let [x_lo, x_hi] = ZIGZAG_X_MM;
     let (mut x, mut y) = (x_lo, ZIGZAG_TOP_MM);
     let _ = writeln!(s, "G0 Z{}", coord(CLEARANCE_Z_MM, MM_DECIMALS));
@@ -651,7 +631,7 @@ pub fn zigzag() -> String {
         let _ = writeln!(s, "X{} Y{}", coord(x, MM_DECIMALS), coord(y, MM_DECIMALS));
     };
     'rows: while moves < ZIGZAG_MOVES {
-        let h = rng.in_range(ZIGZAG_BAND_MM);
+        let h = rng.uniform(ZIGZAG_BAND_MM[0], ZIGZAG_BAND_MM[1]);
         let bottom = top - h;
         let wall = if dir > 0.0 { x_hi } else { x_lo };
         loop {
@@ -659,7 +639,7 @@ pub fn zigzag() -> String {
             if room < min_advance(h) {
                 break;
             }
-            let angle = rng.in_range(ZIGZAG_ANGLE_RAD);
+            let angle = rng.uniform(ZIGZAG_ANGLE_RAD[0], ZIGZAG_ANGLE_RAD[1]);
             let advance = (h / angle.tan()).min(room);
             x += dir * advance;
             y = if y > bottom + h / 2.0 { bottom } else { top };

@@ -19,7 +19,9 @@ use anyhow::{bail, Context, Result};
 use controller_core::controller::{Controller3, Measured};
 use controller_core::motion::trajectory::Trajectory;
 use controller_core::num::fixed::{FxQ16, FxQ32};
-use controller_core::sim::plant::{rk4_step, AxisState, DisturbedPaperAxis, PaperAxis};
+use controller_core::plant::paper::{DisturbedPaperAxis, PaperAxis};
+use controller_core::plant::state::{rk4_step, AxisState};
+use controller_core::presets::paper::PAPER_PLANT;
 use controller_core::{LibmF32, Vec3};
 use insns_kernels::{paper_dsmc_config, replay, RawBits, KERNEL_PERIOD_S, REPLAY_IN, REPLAY_OUT};
 use std::path::{Path, PathBuf};
@@ -205,7 +207,7 @@ fn record_inputs() -> Result<Vec<f32>> {
     let traj = Trajectory::<f64>::paper_helix();
     let traj32 = traj.cast::<f32>();
     let axis = DisturbedPaperAxis {
-        axis: PaperAxis::<f64>::paper(),
+        axis: PaperAxis::<f64>::from_params(PAPER_PLANT),
         d_step: 0.0,
         t_dist: f64::INFINITY,
     };

@@ -10,6 +10,7 @@ use controller_core::estimator::{
     CounterWidth, EstimatorConfig, EstimatorTiming, KalmanConfig, PllConfig, VelocityEstimator,
     WideCounter, PAPER_SIM_KALMAN, PAPER_SIM_PLL, PAPER_SIM_TIMING,
 };
+use controller_core::sim::rng::SplitMix64;
 
 const TS: f64 = 1e-4;
 const COUNT: f64 = 1e-4;
@@ -109,13 +110,10 @@ fn commanded_acceleration_removes_kalman_lag() {
     );
 }
 
-/// Deterministic ±1 count dither around 0: splitmix64 of the sample index, mapped to
-/// {-1, 0, 1} with equal probability (independent samples).
+/// Deterministic ±1 count dither around 0: the first SplitMix64 draw seeded with the
+/// sample index, mapped to {-1, 0, 1} with equal probability (independent samples).
 fn dither(k: usize) -> i64 {
-    let mut z = (k as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^= z >> 31;
+    let z = SplitMix64::new(k as u64).next_u64();
     (z % 3) as i64 - 1
 }
 

@@ -8,7 +8,7 @@
 //! quantum. What the backward difference costs is chattering: TV(u) ~110× that with the
 //! exact velocity on every axis, against 1.3-1.5× (PLL) and 1.9-2.6× (Kalman).
 
-use controller_core::model::PlantParams;
+use controller_core::plant::PlantParams;
 use controller_core::presets::gantry::GANTRY_X;
 use gantry_tests::run_builtin;
 

@@ -11,7 +11,7 @@ use super::{Estimate, EstimatorConfig, EstimatorTiming, Scales, VelocityEstimato
 use crate::axes::AXES;
 use crate::config::{finite, ConfigError};
 use crate::controller::Measured;
-use crate::model::PlantParams;
+use crate::plant::PlantParams;
 use crate::{Real, Vec3};
 
 /// Where the estimators' commanded acceleration comes from.

@@ -43,7 +43,7 @@ pub struct EstimatorTiming {
     pub count_size: f32,
 }
 
-/// The paper simulation of issue 6: 10 kHz control, position quantised to 1e-4 units.
+/// The reference paper simulation: 10 kHz control, position quantised to 1e-4 units.
 pub const PAPER_SIM_TIMING: EstimatorTiming = EstimatorTiming {
     period_s: 1e-4,
     count_size: 1e-4,

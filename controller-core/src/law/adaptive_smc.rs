@@ -26,7 +26,7 @@
 //! on `s` needs no dead zone (the integrators average it), only bounded *biased*
 //! disturbances do, and those are what δ (k_d + k/Φ) is sized against.
 
-use super::{AxisSignals, LawOutput};
+use super::signals::{AxisSignals, LawOutput};
 use crate::config::{finite, limit, non_negative, positive, ConfigError};
 use crate::Real;
 

@@ -25,7 +25,7 @@
 //! disturbance and cancel it: [`DobSmc::evaluate`] computes the law's output and
 //! [`DobSmc::observe`] advances the observer with the applied input afterwards.
 
-use super::{AxisSignals, LawOutput};
+use super::signals::{AxisSignals, LawOutput};
 use crate::config::{limit, non_negative, positive, ConfigError};
 use crate::Real;
 

@@ -1,7 +1,8 @@
 //! PID with anti-windup (integrator clamp + conditional integration) and optional
 //! velocity/acceleration feed-forward (spec 2.1).
 
-use super::{finish, AxisSignals, LawOutput, LawState};
+use super::signals::{finish, AxisSignals, LawOutput};
+use super::state::LawState;
 use crate::config::{finite, limit, non_negative, ConfigError};
 use crate::Real;
 

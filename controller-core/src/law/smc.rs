@@ -10,10 +10,11 @@
 //! nonsingular:  u = (1/k) [q_d'' + a q' + b q + (β/γ) sig(e')^(2-γ)           + reach + k4 ∫e]
 //! ```
 
-use super::{finish, AxisSignals, LawOutput, LawState};
+use super::signals::{finish, AxisSignals, LawOutput};
+use super::state::LawState;
 use crate::config::{limit, non_negative, positive, ConfigError};
-use crate::model::PlantParams;
 use crate::num::shared_root::{root_powers, PowerSet};
+use crate::plant::PlantParams;
 use crate::{Exponent, Real};
 
 /// Sliding surface (spec 2.2/2.3).

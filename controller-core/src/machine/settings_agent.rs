@@ -21,8 +21,8 @@ use core::fmt::Write;
 use heapless::String;
 
 use super::messages::{IdentifyMsg, Outcome, Request, TEXT_MAX, VALUE_MAX};
+use crate::plant::AxisModel;
 use crate::settings::{Apply, Settings, FACTORY};
-use crate::sysid::AxisModel;
 
 /// What a settings request turned into.
 #[derive(Clone, Debug, PartialEq)]

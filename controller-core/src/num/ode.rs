@@ -1,6 +1,6 @@
 //! Classic fixed-step RK4 over any state that can be scaled and added.
 //!
-//! Shared by the plant models ([`crate::plant::rk4_step`]) and the host simulator's
+//! Shared by the plant models ([`crate::plant::state::rk4_step`]) and the host simulator's
 //! continuous mode, which integrates the laws' internal states together with the plant.
 
 use crate::Real;

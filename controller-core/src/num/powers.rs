@@ -17,7 +17,7 @@
 //! 3.4 % for p = 3, 3.0 % for p = 9, so `|r|` up to 0.105 and 0.27), the fixed-point path
 //! a 28-entry table over the normalised mantissa (2.6 %).
 //!
-//! Error budget of the `f32` roots (issue 14): the laws form powers `r^k` (k <= 5) of a
+//! Error budget of the `f32` roots: the laws form powers `r^k` (k <= 5) of a
 //! shared root, and a power term must stay within 1e-5 relative, so that a term as large as
 //! the amplifier's full scale errs by less than 1/24 of its 12-bit command quantum
 //! (2.4e-4 of full scale); that allows 2e-6 per root. Within it, the iteration is as short
@@ -222,7 +222,7 @@ const INF_BITS: u32 = 0x7f80_0000;
 /// denominator through [`pow_abs_f32`]. Same accuracy as [`pow_abs_f32`]. Always inlined:
 /// the laws call it with a constant `den` (the dispatch then folds away); a normal, finite
 /// `x` (the control period's case) is recognised by one unsigned comparison of its bits,
-/// everything else (0, subnormals, inf, NaN) takes [`root_abs_rare_f32`].
+/// everything else (0, subnormals, inf, NaN) takes `root_abs_rare_f32`.
 #[inline(always)]
 pub fn root_abs_f32(x: f32, den: i16) -> f32 {
     let a = x.abs();

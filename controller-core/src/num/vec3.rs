@@ -35,6 +35,25 @@ impl<R: Real> Vec3<R> {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
+    /// `self × o`.
+    pub fn cross(self, o: Self) -> Self {
+        Self::new(
+            self.y * o.z - self.z * o.y,
+            self.z * o.x - self.x * o.z,
+            self.x * o.y - self.y * o.x,
+        )
+    }
+
+    /// Unit vector along axis `i` (0-2; any other index gives zero).
+    pub fn unit_axis(i: usize) -> Self {
+        match i {
+            0 => Self::new(R::ONE, R::ZERO, R::ZERO),
+            1 => Self::new(R::ZERO, R::ONE, R::ZERO),
+            2 => Self::new(R::ZERO, R::ZERO, R::ONE),
+            _ => Self::zero(),
+        }
+    }
+
     pub fn norm_sq(self) -> R {
         self.dot(self)
     }

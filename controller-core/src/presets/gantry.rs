@@ -3,7 +3,7 @@
 //! XY-table paper, seed 004, do not publish theirs). docs/seed-methods.md repeats the
 //! derivations in a table.
 //!
-//! Units: mm, s, mN·m (see [`crate::physical_plant`]). The reflected inertia of an axis is
+//! Units: mm, s, mN·m (see [`crate::plant::physical`]). The reflected inertia of an axis is
 //! `J = J_motor_side · 2π/lead` with `J_motor_side` in kg·m² times 1000 (N·m → mN·m):
 //! lead 5 mm gives 2π/lead = 1.2566 rad/mm, so 1e-4 kg·m² at the motor is
 //! 0.1257 mN·m/(mm/s²) at the table.
@@ -14,13 +14,13 @@ use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
 use crate::law::smc::SmcConfig;
+use crate::plant::physical::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
+use crate::plant::AxisModel;
 use crate::servo::brake::BrakeConfig;
 use crate::servo::homing::{AxisHomingConfig, HomeDirection, HomingConfig};
 use crate::servo::io::{AmplifierConfig, EncoderConfig};
 use crate::servo::monitor::AxisSafetyConfig;
 use crate::servo::travel::{AxisTravel, TravelConfig};
-use crate::sim::physical::{PhysicalAxisConfig, DEFAULT_V_REG_MM_S, DEFAULT_V_STRIBECK_MM_S};
-use crate::sysid::model::AxisModel;
 use crate::sysid::tuning::{self, TuningConfig};
 
 // The rules' constants moved to the tuning module with the rules; kept here under their

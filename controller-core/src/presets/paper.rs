@@ -3,7 +3,7 @@
 
 use crate::law::pid::PidConfig;
 use crate::law::smc::{ReachingConfig, SmcConfig, SurfaceConfig, DEFAULT_SINGULAR_FLOOR};
-use crate::model::PlantParams;
+use crate::plant::PlantParams;
 use crate::Exponent;
 
 /// Paper section 3: a = 10, b = 1, k = 1 for each of the three axes.

@@ -1,4 +1,4 @@
-//! The user's settings of the machine (issue 12 item 4): one typed tree ([`Settings`]),
+//! The user's settings of the machine: one typed tree ([`Settings`]),
 //! the servo configuration it describes ([`Settings::servo_config`]), dotted keys to read
 //! and change single values ([`keys`]), and its record in flash ([`store`], feature
 //! `store`).

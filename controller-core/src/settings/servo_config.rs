@@ -8,12 +8,12 @@ use crate::coupling::{ContourCouplingConfig, CouplingConfig};
 use crate::estimator::{EstimatorBankConfig, EstimatorConfig};
 use crate::law::LawConfig;
 use crate::link::LinkConfigError;
+use crate::plant::AxisModel;
 use crate::presets::board::factory_config;
 use crate::presets::gantry::{GANTRY_X, GANTRY_Y, GANTRY_Z};
 use crate::servo::monitor::AxisSafetyConfig;
 use crate::servo::{Servo, ServoConfig};
 use crate::sysid::tuning::{self, TuningConfig};
-use crate::sysid::AxisModel;
 
 use super::tree::{AxisSettings, CouplingKind, LawKind, Settings};
 

@@ -16,6 +16,7 @@ use crate::axes::AXES;
 use crate::estimator::PllConfig;
 use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
 use crate::motion::planner::{PlannerConfig, GANTRY_PLANNER};
+use crate::plant::AxisModel;
 use crate::presets::board::{BOARD_LAMBDA, BOARD_PLL};
 use crate::presets::gantry::{
     GANTRY_AMPLIFIERS, GANTRY_BRAKES, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY, GANTRY_TRAVEL,
@@ -25,7 +26,7 @@ use crate::servo::brake::BrakeConfig;
 use crate::servo::homing::AxisHomingConfig;
 use crate::servo::jog::{AxisJogConfig, JogConfig};
 use crate::servo::travel::AxisTravel;
-use crate::sysid::{AxisModel, IDENTIFY_DEFAULTS};
+use crate::sysid::IDENTIFY_DEFAULTS;
 
 use super::offsets::{ToolTable, WorkOffsets};
 

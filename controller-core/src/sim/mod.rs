@@ -1,17 +1,16 @@
-//! The simulated machine: axis plant models, the simulated world that stands in for the
-//! board's encoders, amplifiers and input pins, and the figures taken on its true state.
-//! Used by host-sim and by the firmware's QEMU rig (one implementation: the same world
-//! drives the same servo step in both).
+//! The simulated machine: the world that stands in for the board's encoders, amplifiers
+//! and input pins around the plant models of [`crate::plant`], and the figures taken on
+//! its true state. Used by host-sim and by the firmware's QEMU rig (one implementation:
+//! the same world drives the same servo step in both).
 //!
-//! - [`plant`]: the paper's normalised axis, the [`plant::AxisDynamics`] trait and RK4;
-//! - [`physical`]: the ball-screw axis with inertia, friction, load and torque limit;
 //! - [`world`]: three plants behind encoders and amplifiers, implementing
 //!   [`crate::servo::io::ServoIo`];
 //! - [`run`]: a simulated run (servo step + world + figures, scripted commands);
-//! - [`truth`]: tracking and contour figures of the true plant state.
+//! - [`truth`]: tracking and contour figures of the true plant state;
+//! - [`rng`]: the SplitMix64 generator every simulation and study draws from;
+//! - [`random`]: random physical axes from the documented range.
 
-pub mod physical;
-pub mod plant;
+pub mod random;
 pub mod rng;
 pub mod run;
 pub mod truth;

@@ -10,11 +10,12 @@
 use crate::axes::AXES;
 use crate::config::{finite, ConfigError};
 use crate::estimator::CounterWidth;
+use crate::plant::paper::{DisturbedPaperAxis, PaperAxis};
+use crate::plant::physical::{PhysicalAxis, PhysicalAxisConfig};
+use crate::plant::state::{rk4_step, AxisDynamics, AxisState};
 use crate::servo::brake::{BrakeConfig, DEFAULT_ENGAGE_S, DEFAULT_RELEASE_S};
 use crate::servo::io::{Inputs, ServoIo};
 use crate::servo::ServoConfig;
-use crate::sim::physical::{PhysicalAxis, PhysicalAxisConfig};
-use crate::sim::plant::{rk4_step, AxisDynamics, AxisState, DisturbedPaperAxis, PaperAxis};
 use crate::sim::rng::SplitMix64;
 use crate::Real;
 

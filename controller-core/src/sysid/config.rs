@@ -1,5 +1,5 @@
 //! Configuration of one axis' identification ([`IdentifyConfig`]), validated once into
-//! [`Settings`] by [`super::Identifier::new`].
+//! [`crate::settings::Settings`] by [`super::identifier::Identifier::new`].
 
 use crate::config::{non_negative, positive, ConfigError};
 use crate::Real;
@@ -71,7 +71,7 @@ pub const IDENTIFY_DEFAULTS: IdentifyConfig = IdentifyConfig {
     edge_margin_mm: 5.0,
     torque_cap_mnm: 500.0,
     // geometric middle of 0.02..0.4 mN·m/(mm/s²), the range of ball-screw axes the
-    // gantry's motors drive (seed_params: X 0.064, Y 0.18, Z 0.041)
+    // gantry's motors drive (presets::gantry: X 0.064, Y 0.18, Z 0.041)
     inertia_guess: 0.09,
     velocity_bandwidth_rad_s: 150.0,
     velocity_limit_mm_s: 250.0,

@@ -36,8 +36,8 @@
 
 use super::config::{IdentifyConfig, IdentifyConfigError, Settings};
 use super::lsq::{LsError, LsSolution, NormalEquations};
-use super::model::AxisModel;
 use super::velocity_loop::{Ramp, VelocityLoop};
+use crate::plant::AxisModel;
 use crate::Real;
 
 /// What the board measures of one axis in one period.

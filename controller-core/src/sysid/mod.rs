@@ -1,12 +1,11 @@
-//! Identification of an axis (issue 13): friction, inertia and a validation figure from
+//! Identification of an axis: friction, inertia and a validation figure from
 //! motion the axis makes under its own velocity loop, and the law gains that follow from
-//! the model.
+//! the model ([`crate::plant::AxisModel`]).
 //!
 //! Runs per axis, once per control period, identically on the board (control
 //! interrupt), in host-sim and in QEMU. It sees only what the board sees: the position
 //! from encoder counts, the estimator's velocity, and the effort it commanded itself.
 //!
-//! - [`model`]: [`AxisModel`], the identified (or entered) rigid-body model.
 //! - [`config`]: [`IdentifyConfig`], validated once.
 //! - [`identifier`]: [`Identifier`], the per-period state machine (friction passes,
 //!   inertia excitation, validation), with its safety checks.
@@ -18,7 +17,6 @@
 pub mod config;
 pub mod identifier;
 pub mod lsq;
-pub mod model;
 pub mod tuning;
 mod velocity_loop;
 
@@ -27,5 +25,4 @@ pub use identifier::{
     AbortReason, AxisSample, FitDiagnostics, FitStage, Identifier, IdentifyOutput, IdentifyPhase,
     IdentifyResult, IdentifyStatus, ParamDiagnostic,
 };
-pub use model::AxisModel;
 pub use tuning::TuningConfig;

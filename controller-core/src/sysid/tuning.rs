@@ -1,21 +1,21 @@
 //! From an axis model to the gains of every law: the tuning rules of the seed methods,
 //! written once over an [`AxisModel`] (identified, entered by the user, or the preset of
 //! a simulated axis) and a [`TuningConfig`] (target bandwidth, torque limit, encoder
-//! resolution). [`crate::seed_params`]'s `pid_for`, `dsmc_for`, `dob_smc_for` and
-//! `adaptive_for` delegate here, so the presets' gains are bit-identical to what they
-//! were before the rules moved.
+//! resolution). The gantry presets ([`crate::presets::gantry`]'s `pid_for`, `dsmc_for`,
+//! `dob_smc_for`, `adaptive_for`) take their gains from here. Why each value is what it
+//! is (what was tried and measured): docs/identification.md, section 8.
 //!
 //! All functions are `const` so presets can stay compile-time constants. They do not
 //! validate: build laws from a model that passed [`AxisModel::validate`] and a tuning
 //! that passed [`TuningConfig::validate`] (the laws' own `new` then checks the gains).
 
-use super::model::AxisModel;
 use crate::config::{positive, ConfigError};
 use crate::law::adaptive_smc::{AdaptiveSmcConfig, EstimateConfig};
 use crate::law::dob_smc::DobSmcConfig;
 use crate::law::pid::PidConfig;
 use crate::law::smc::{ReachingConfig, SmcConfig, SurfaceConfig};
-use crate::model::PlantParams;
+use crate::plant::AxisModel;
+use crate::plant::PlantParams;
 use crate::Exponent;
 
 /// What the rules need besides the model.
@@ -67,11 +67,8 @@ pub const DSMC_BETA: f32 = 10.0;
 /// cancels the known `B/J` (plant a = B/J, b = 0, k = 1/J); friction and load are left to
 /// the reaching law and the integral. Surface α = ω (same bandwidth as the PID),
 /// β = [`DSMC_BETA`], singular floor one encoder count. Reaching: the paper's
-/// k1 = k2 = 20, k3 = 200 (Table 2) are kept. Tried on the gantry's X axis at 10 kHz with
-/// the 100 Hz velocity observer: k1 = 200 or k3 = 2000 drive the control into full-scale
-/// chattering (the effective gain k3 |e|^(1/3) on `s` exceeds the observer's bandwidth),
-/// and k2 = 300 lowers the loaded contour error by only ~15 % for 3× the chattering.
-/// Friction and load are therefore rejected by the integral, k4 = ω³ (the PID's `ki/J`).
+/// k1 = k2 = 20, k3 = 200 (Table 2); larger gains chatter with the velocity observer, so
+/// friction and load are rejected by the integral, k4 = ω³ (the PID's `ki/J`).
 pub const fn dsmc(m: &AxisModel, t: &TuningConfig) -> SmcConfig {
     let j = m.inertia;
     let w = t.bandwidth_rad_s;
@@ -106,13 +103,10 @@ pub const DOB_OBSERVER_RAD_S: f32 = 250.0;
 
 /// DOB-SMC (spec 2.4): model a = B/J, b = 1/J (nominal = identified values). Surface
 /// c = ω. Reaching k = 100 1/s, η = 200 mm/s² with boundary layer φ = 5 mm/s (η/φ = 40
-/// 1/s more inside the layer); η covers the observer's residual on a friction reversal,
-/// about 20 % of the 1100 mm/s² jump on the gantry's X. Tried at 10 kHz with the 100 Hz
-/// velocity observer: k = 2ω, φ = 2 mm/s chatter at full scale once cross-coupling is
-/// added; k = 0 (the patent's pure η term) doubles the loaded contour error. Observer
-/// ω_o = [`DOB_OBSERVER_RAD_S`], critically damped (k1 = 2ω_o, k2 = ω_o²): below the
-/// velocity observer's 100 Hz so its noise is filtered, above the loop's 25 Hz so the
-/// estimate leads the loop. `|d̂|` limited to the peak acceleration.
+/// 1/s more inside the layer); η covers the observer's residual on a friction reversal.
+/// Observer ω_o = [`DOB_OBSERVER_RAD_S`], critically damped (k1 = 2ω_o, k2 = ω_o²),
+/// between the loop's 25 Hz and the velocity observer's 100 Hz. `|d̂|` limited to the
+/// peak acceleration.
 pub const fn dob_smc(m: &AxisModel, t: &TuningConfig) -> DobSmcConfig {
     let j = m.inertia;
     let wo = DOB_OBSERVER_RAD_S;
@@ -130,16 +124,10 @@ pub const fn dob_smc(m: &AxisModel, t: &TuningConfig) -> DobSmcConfig {
     }
 }
 
-/// Adaptation dead zone δ = 0.05 mm/s. The estimates stop once the feedback absorbs the
-/// remaining parameter error inside `|s| < δ`, i.e. a torque error of about
-/// `δ (k_d + k/Φ)` = 0.05 · (20 + 33) ≈ 2.7 mN·m on X (5 mN·m on Y): below 10 % of each
-/// term on the friction scenario (viscous 16 mN·m at 63 mm/s, Coulomb 32..60 mN·m,
-/// inertial 50 mN·m). The former δ = Φ = 0.3 mm/s left ~16 mN·m unidentified (B̂ ended
-/// 20 % off even with the exact velocity). δ is not meant to be above the velocity
-/// noise: zero-mean estimator noise is averaged by the adaptation integrators; δ only
-/// stops biased unmodelled torques below that 2.7 mN·m from drifting the estimates.
-/// Measured with the exact velocity on the 5 mm / 2 Hz sine: δ = 0.3 / 0.1 / 0.03 mm/s
-/// gives B̂ −20 / +3 / +1 % on X.
+/// Adaptation dead zone δ = 0.05 mm/s: the estimates stop once the remaining torque
+/// error is about `δ (k_d + k/Φ)` ≈ 2.7 mN·m on X, below 10 % of each term on the
+/// friction scenario; it keeps biased unmodelled torques below that from drifting the
+/// estimates (zero-mean velocity noise is averaged by the adaptation integrators).
 pub const ADAPTIVE_DEAD_ZONE_MM_S: f32 = 0.05;
 
 /// Per-unit adaptation gain of Ĵ (γ_J = J · g): 6e-4 on the X axis (J = 0.064).
@@ -167,12 +155,9 @@ pub const fn around(x: f32, gamma: f32) -> EstimateConfig {
 /// covers the unmodelled Stribeck excess (0.3 · 40 mN·m at the lowest speeds on the
 /// gantry's X). Switching boundary layer Φ = 0.3 mm/s, adaptation dead zone δ =
 /// [`ADAPTIVE_DEAD_ZONE_MM_S`]. Adaptation gains are per unit of the axis' inertia,
-/// `γ = J g`: the parameter errors decay at a rate ∝ γ φ²/J (the s-loop's inertia divides
-/// the torque error), so scaling γ with J gives every axis the same convergence time on
-/// the same motion. The per-unit gains g were raised until each estimate settles within
-/// ~2 s on the 5 mm / 2 Hz sine of the friction scenario (regressor sizes there:
-/// x_d'' ~ 800 mm/s², x' ~ 60 mm/s, μ ~ 1; g scales as 1/regressor²), and kept below the
-/// point where the adaptation couples with the 2 ms s-loop.
+/// `γ = J g`, so that every axis converges in the same time on the same motion (the
+/// parameter errors decay at a rate ∝ γ φ²/J); each estimate settles within ~2 s on the
+/// friction scenario.
 ///
 /// The law's reverse Coulomb estimate must stay `<= 0`: a model whose `f-` came out
 /// positive (a constant load larger than the reverse friction, see [`AxisModel`]) starts

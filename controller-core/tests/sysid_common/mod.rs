@@ -11,12 +11,13 @@
 #![allow(dead_code)]
 
 use controller_core::estimator::{EstimatorConfig, EstimatorTiming, PllConfig, VelocityEstimator};
+use controller_core::plant::physical::{PhysicalAxis, PhysicalAxisConfig};
+use controller_core::plant::state::{rk4_step, AxisState};
+use controller_core::plant::AxisModel;
 use controller_core::presets::gantry::{COUNT_MM, FIRMWARE_PERIOD_S, GANTRY_X};
-use controller_core::sim::physical::{PhysicalAxis, PhysicalAxisConfig};
-use controller_core::sim::plant::{rk4_step, AxisState};
 use controller_core::sysid::{
-    AxisModel, AxisSample, Identifier, IdentifyConfig, IdentifyOutput, IdentifyResult,
-    IdentifyStatus, IDENTIFY_DEFAULTS,
+    AxisSample, Identifier, IdentifyConfig, IdentifyOutput, IdentifyResult, IdentifyStatus,
+    IDENTIFY_DEFAULTS,
 };
 
 pub use controller_core::sim::rng::SplitMix64 as Rng;
@@ -27,7 +28,7 @@ pub use controller_core::sim::rng::SplitMix64 as Rng;
 /// 1–3 mm/s, peak torque 1–3 N·m, and on every third machine a constant load of
 /// ±(5–30) mN·m (gravity).
 pub fn random_machine(rng: &mut Rng, index: usize) -> PhysicalAxisConfig {
-    controller_core::sim::physical::random_axis(rng, index % 3 == 2, &GANTRY_X)
+    controller_core::sim::random::random_axis(rng, index % 3 == 2, &GANTRY_X)
 }
 
 /// Identification cap used on the random machines: half the motor's peak torque.

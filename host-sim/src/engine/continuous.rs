@@ -10,7 +10,7 @@ use controller_core::coupling::variable_gain::VariableGainState;
 use controller_core::law::LawState;
 use controller_core::motion::trajectory::Trajectory;
 use controller_core::num::ode::{rk4, OdeState};
-use controller_core::sim::plant::{axis_derivative, AxisDynamics, AxisState};
+use controller_core::plant::state::{axis_derivative, AxisDynamics, AxisState};
 use controller_core::sim::truth::Truth;
 use controller_core::sim::world::Plant;
 use controller_core::{Real, Vec3};

@@ -19,12 +19,13 @@ use crate::jobs;
 use anyhow::{anyhow, bail, Result};
 use controller_core::axes::Axis;
 use controller_core::law::LawConfig;
+use controller_core::plant::physical::PhysicalAxisConfig;
+use controller_core::plant::AxisModel;
 use controller_core::presets::gantry::{gantry_safety, tuning_for};
 use controller_core::servo::{Command, ServoState};
-use controller_core::sim::physical::PhysicalAxisConfig;
 use controller_core::sim::run::{RunConfig, SimRun};
 use controller_core::sim::world::{InitialState, PlantConfig};
-use controller_core::sysid::{tuning, AxisModel, IdentifyStatus};
+use controller_core::sysid::{tuning, IdentifyStatus};
 use gantry_scenario::Resolved;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -129,7 +130,7 @@ impl IdentifyReport {
 /// The study's generator (one implementation for every simulation).
 pub use controller_core::sim::rng::SplitMix64 as Rng;
 
-pub use controller_core::sim::physical::random_axis;
+pub use controller_core::sim::random::random_axis;
 
 /// Put `axes` into every run: plants, amplifier full scales, fault thresholds and the
 /// true-model DSMC laws.

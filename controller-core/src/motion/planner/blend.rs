@@ -36,7 +36,7 @@
 //! before the corner, with speed going smoothly through zero.
 
 use super::fmath::F32Ext;
-use super::geometry::{norm, sub, Piece, V3};
+use super::geometry::{norm, Piece, V3};
 
 /// Tangent and curvature jumps below these are treated as smooth (no blend, no stop):
 /// a 1e-6 direction change is a 1e-4 mm/s velocity step at 100 mm/s, a 1e-6 /mm curvature
@@ -88,7 +88,7 @@ impl Junction {
     /// No junction yet (path start or end): nothing to blend, nothing to stop for here.
     pub const NONE: Junction = Junction {
         d: 0.0,
-        du: [0.0; 3],
+        du: V3::new(0.0, 0.0, 0.0),
         mixed: false,
         stop: false,
         dev: 0.0,
@@ -223,8 +223,8 @@ pub(crate) fn plan_junction(
     }
     let da = a.derivs(a.len);
     let db = b.derivs(0.0);
-    let du = sub(db.d1, da.d1);
-    let dc = sub(db.d2, da.d2);
+    let du = db.d1 - da.d1;
+    let dc = db.d2 - da.d2;
     let (ndu, ndc) = (norm(du), norm(dc));
     if ndu <= SMOOTH_TANGENT && ndc <= SMOOTH_CURVATURE_PER_MM {
         return Junction::NONE;
@@ -276,19 +276,20 @@ fn stop() -> Junction {
 
 #[cfg(test)]
 pub(crate) mod tests {
-    use super::super::geometry::{add, scale, Shape};
+    use super::super::geometry::Shape;
     use super::*;
 
     /// The line piece from `start` to `end` (also for `corner`'s tests).
-    pub(crate) fn line(start: V3, end: V3) -> Piece {
-        let d = sub(end, start);
+    pub(crate) fn line(start: [f32; 3], end: [f32; 3]) -> Piece {
+        let (start, end) = (V3::from_array(start), V3::from_array(end));
+        let d = end - start;
         let len = norm(d);
         Piece {
             start,
             end,
             len,
             shape: Shape::Line {
-                u: scale(d, 1.0 / len),
+                u: d.scale(1.0 / len),
             },
         }
     }
@@ -296,12 +297,12 @@ pub(crate) mod tests {
     /// Commanded point near a line-line corner: programmed point + correction.
     fn commanded(j: &Junction, a: &Piece, b: &Piece, x: f32) -> V3 {
         let prog = if x < 0.0 {
-            add(a.end, a.delta(a.len, a.len + x))
+            a.end + a.delta(a.len, a.len + x)
         } else {
-            add(b.start, b.delta(0.0, x))
+            b.start + b.delta(0.0, x)
         };
         if x.abs() < j.d {
-            add(prog, j.correction(a, b, x, true).p)
+            prog + j.correction(a, b, x, true).p
         } else {
             prog
         }
@@ -328,12 +329,12 @@ pub(crate) mod tests {
                 let p = commanded(&j, &a, &b, x);
                 // Distance to the programmed point at the same σ (the proved quantity).
                 let prog = if x < 0.0 {
-                    add(a.end, a.delta(a.len, a.len + x))
+                    a.end + a.delta(a.len, a.len + x)
                 } else {
-                    add(b.start, b.delta(0.0, x))
+                    b.start + b.delta(0.0, x)
                 };
-                assert!(norm(sub(p, prog)) <= j.dev * (1.0 + 1e-3) + 1e-6);
-                assert!(norm(sub(p, last)) < 2.02 * j.d / n as f32 * 1.5 + 1e-6);
+                assert!(norm(p - prog) <= j.dev * (1.0 + 1e-3) + 1e-6);
+                assert!(norm(p - last) < 2.02 * j.d / n as f32 * 1.5 + 1e-6);
                 last = p;
             }
         }

@@ -38,7 +38,7 @@ pub struct PlannerConfig {
 }
 
 /// Limits for the gantry: 10 kHz loop; 250 mm/s (3000 rpm on a 5 mm lead); 2000 mm/s²
-/// (a fifth of what the 1 N·m peak torque gives the X inertia, seed_params); 1e5 mm/s³
+/// (a fifth of what the 1 N·m peak torque gives the X inertia, presets::gantry); 1e5 mm/s³
 /// (acceleration reached in 20 ms, a usual ball-screw value); ε = 0.01 mm (grbl's junction
 /// deviation default); half the limits for the path on curves (LinuxCNC's arc rule); three
 /// quarters of the jerk kept for the servo along the path (the simulated gantry's contour

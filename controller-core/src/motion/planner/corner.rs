@@ -53,7 +53,7 @@ pub(crate) fn stop_is_faster(
     // The lines' own limits: projected on each direction, the weaker line's.
     let (mut vel, mut acc, mut jerk) = (feed_mm_s, f32::INFINITY, f32::INFINITY);
     for u in [ua, ub] {
-        for (i, c) in u.iter().map(|x| x.abs()).enumerate() {
+        for (i, c) in u.to_array().iter().map(|x| x.abs()).enumerate() {
             if c > 0.0 {
                 vel = vel.mn(s.vel_max[i] / c);
                 acc = acc.mn(s.acc_max[i] / c);

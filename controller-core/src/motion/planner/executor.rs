@@ -158,8 +158,8 @@ impl Executor {
             acc: 0.0,
             stop_acc: 1.0,
             stop_jerk: 1.0,
-            pos: start_mm,
-            tangent: [1.0, 0.0, 0.0],
+            pos: V3::new(start_mm[0], start_mm[1], start_mm[2]),
+            tangent: V3::new(1.0, 0.0, 0.0),
             pending: None,
         }
     }
@@ -177,7 +177,7 @@ impl Executor {
             sigma_mm: self.sigma,
             mode: self.mode,
             underruns: self.underruns,
-            pos_mm: self.pos,
+            pos_mm: self.pos.to_array(),
             tag: self.tag,
         }
     }
@@ -348,10 +348,10 @@ impl Executor {
         let span = if self.on_span { spans.peek() } else { None };
         let Some(span) = span else {
             return PathSample {
-                pos_mm: Vec3::from_array(self.pos),
+                pos_mm: self.pos,
                 vel_mm_s: Vec3::from_array([0.0; 3]),
                 acc_mm_s2: Vec3::from_array([0.0; 3]),
-                tangent: Vec3::from_array(self.tangent),
+                tangent: self.tangent,
                 path_speed_mm_s: self.vel,
                 path_acc_mm_s2: self.acc,
                 feed_ratio: 0.0,
@@ -366,24 +366,24 @@ impl Executor {
         let n1 = p.d1[0] * p.d1[0] + p.d1[1] * p.d1[1] + p.d1[2] * p.d1[2];
         if n1 > 1.0e-8 {
             let k = fmath::rsqrt_near_one(n1);
-            self.tangent = [p.d1[0] * k, p.d1[1] * k, p.d1[2] * k];
+            self.tangent = V3::new(p.d1[0] * k, p.d1[1] * k, p.d1[2] * k);
         } else {
             let n2 = p.d2[0] * p.d2[0] + p.d2[1] * p.d2[1] + p.d2[2] * p.d2[2];
             if n2 > 1.0e-8 {
                 let k = fmath::rsqrt(n2);
-                self.tangent = [p.d2[0] * k, p.d2[1] * k, p.d2[2] * k];
+                self.tangent = V3::new(p.d2[0] * k, p.d2[1] * k, p.d2[2] * k);
             }
         }
         self.pos = p.pos;
         PathSample {
-            pos_mm: Vec3::from_array(p.pos),
+            pos_mm: p.pos,
             vel_mm_s: Vec3::from_array([p.d1[0] * v, p.d1[1] * v, p.d1[2] * v]),
             acc_mm_s2: Vec3::from_array([
                 p.d2[0] * v2 + p.d1[0] * a,
                 p.d2[1] * v2 + p.d1[1] * a,
                 p.d2[2] * v2 + p.d1[2] * a,
             ]),
-            tangent: Vec3::from_array(self.tangent),
+            tangent: self.tangent,
             path_speed_mm_s: v,
             path_acc_mm_s2: a,
             feed_ratio: v * span.inv_feed,

@@ -15,48 +15,19 @@
 //! equal to the arc length up to the relative radius mismatch.
 
 use super::fmath::{self, F32Ext};
-use super::segment::Plane;
+use crate::num::vec3::Vec3;
 
-/// Three f32 components (x, y, z).
-pub(crate) type V3 = [f32; 3];
+/// A point or direction of the planner (x, y, z in mm or per mm): the crate's vector in
+/// the planner's `f32`.
+pub(crate) type V3 = Vec3<f32>;
 
-#[inline]
-pub(crate) fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-pub(crate) fn add(a: V3, b: V3) -> V3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-#[inline]
-pub(crate) fn scale(a: V3, k: f32) -> V3 {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
-#[inline]
-pub(crate) fn dot(a: V3, b: V3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
+/// Length of `a` with the planner's own square root ([`fmath::sqrt`], not the
+/// [`crate::Real`] one), so that every figure stays as the planner has always computed it.
 #[inline]
 pub(crate) fn norm(a: V3) -> f32 {
-    fmath::sqrt(dot(a, a))
+    fmath::sqrt(a.dot(a))
 }
-#[inline]
-pub(crate) fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-/// Unit vector along axis `i` (0-2; any other index gives zero).
-#[inline]
-pub(crate) fn unit_axis(i: usize) -> V3 {
-    let mut v = [0.0; 3];
-    if let Some(x) = v.get_mut(i) {
-        *x = 1.0;
-    }
-    v
-}
+
 /// First, second and third derivative of a piece with respect to σ.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Derivs {
@@ -116,11 +87,11 @@ impl Helix {
     }
     fn axes(&self, a: f32, b: f32, nrm: f32) -> V3 {
         let (e1, e2, n) = (self.e1, self.e2, self.n);
-        [
+        V3::new(
             a * e1[0] + b * e2[0] + nrm * n[0],
             a * e1[1] + b * e2[1] + nrm * n[1],
             a * e1[2] + b * e2[2] + nrm * n[2],
-        ]
+        )
     }
 }
 
@@ -128,8 +99,8 @@ impl Piece {
     /// Position at `s1` minus position at `s0` (both may lie outside `[0, len]`).
     pub fn delta(&self, s0: f32, s1: f32) -> V3 {
         match self.shape {
-            Shape::Line { u } => scale(u, s1 - s0),
-            Shape::Dwell => [0.0; 3],
+            Shape::Line { u } => u.scale(s1 - s0),
+            Shape::Dwell => V3::zero(),
             Shape::Helix(h) => {
                 let ds = s1 - s0;
                 let dpsi = h.omega * ds;
@@ -152,9 +123,9 @@ impl Piece {
     /// Position at `s`, anchored at whichever programmed end point is nearer.
     pub fn position(&self, s: f32) -> V3 {
         if s <= 0.5 * self.len {
-            add(self.start, self.delta(0.0, s))
+            self.start + self.delta(0.0, s)
         } else {
-            add(self.end, self.delta(self.len, s))
+            self.end + self.delta(self.len, s)
         }
     }
 
@@ -222,17 +193,6 @@ impl Piece {
 /// Longest span on a straight line (mm).
 pub(crate) const MAX_LINE_SPAN_MM: f32 = 64.0;
 
-/// Axes (in-plane first, in-plane second, normal) of a plane. The order makes a positive
-/// rotation (i1 toward i2) counter-clockwise seen from the positive normal, as G2/G3
-/// define it: XY about +Z, ZX about +Y, YZ about +X.
-pub(crate) fn plane_axes(p: Plane) -> (usize, usize, usize) {
-    match p {
-        Plane::XY => (0, 1, 2),
-        Plane::ZX => (2, 0, 1),
-        Plane::YZ => (1, 2, 0),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -242,9 +202,9 @@ mod tests {
         let (r, sweep, h) = (10.0f32, core::f32::consts::FRAC_PI_2, 3.0f32);
         let len = fmath::sqrt((r * sweep) * (r * sweep) + h * h);
         let hx = Helix {
-            e1: unit_axis(0),
-            e2: unit_axis(1),
-            n: unit_axis(2),
+            e1: V3::unit_axis(0),
+            e2: V3::unit_axis(1),
+            n: V3::unit_axis(2),
             psi0: 0.3,
             omega: sweep / len,
             r0: r,
@@ -258,8 +218,8 @@ mod tests {
             8.0,
         ];
         Piece {
-            start,
-            end,
+            start: V3::from_array(start),
+            end: V3::from_array(end),
             len,
             shape: Shape::Helix(hx),
         }
@@ -268,21 +228,21 @@ mod tests {
     #[test]
     fn helix_delta_reaches_end_and_derivatives_match_differences() {
         let p = helix();
-        let e = add(p.start, p.delta(0.0, p.len));
-        assert!(norm(sub(e, p.end)) < 2e-5, "{e:?} vs {:?}", p.end);
+        let e = p.start + p.delta(0.0, p.len);
+        assert!(norm(e - p.end) < 2e-5, "{e:?} vs {:?}", p.end);
         // Unit speed and derivative consistency by central differences.
         for &s in &[-3.0f32, 0.0, 4.0, 9.5, p.len + 2.0] {
             let d = p.derivs(s);
             assert!((norm(d.d1) - 1.0).abs() < 1e-5);
             let h = 1e-2f32;
-            let fd1 = scale(p.delta(s - h, s + h), 0.5 / h);
-            assert!(norm(sub(fd1, d.d1)) < 1e-4, "d1 at {s}");
+            let fd1 = p.delta(s - h, s + h).scale(0.5 / h);
+            assert!(norm(fd1 - d.d1) < 1e-4, "d1 at {s}");
             let dm = p.derivs(s - h);
             let dp = p.derivs(s + h);
-            let fd2 = scale(sub(dp.d1, dm.d1), 0.5 / h);
-            assert!(norm(sub(fd2, d.d2)) < 1e-4, "d2 at {s}");
-            let fd3 = scale(sub(dp.d2, dm.d2), 0.5 / h);
-            assert!(norm(sub(fd3, d.d3)) < 1e-4, "d3 at {s}");
+            let fd2 = (dp.d1 - dm.d1).scale(0.5 / h);
+            assert!(norm(fd2 - d.d2) < 1e-4, "d2 at {s}");
+            let fd3 = (dp.d2 - dm.d2).scale(0.5 / h);
+            assert!(norm(fd3 - d.d3) < 1e-4, "d3 at {s}");
             // Curvature of a helix: r / (r² + c²) with c the rise per radian.
             let c = 3.0 / core::f32::consts::FRAC_PI_2;
             assert!((norm(d.d2) - 10.0 / (100.0 + c * c)).abs() < 1e-6);

@@ -205,7 +205,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         run: RunState::Run,
         hold_point: None,
         exec_mode: ExecMode::Idle,
-        end_pos: [0.0; 3],
+        end_pos: V3::new(0.0, 0.0, 0.0),
         slips: 0,
         scan: ScanCache::new(),
         ahead: Ahead::new(0.0, 0.0, 0.0),
@@ -239,7 +239,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.blank();
         self.set = set;
         self.run_id = run;
-        self.end_pos = start_mm;
+        self.end_pos = V3::from_array(start_mm);
         Ok(())
     }
 
@@ -262,7 +262,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.run = RunState::Run;
         self.hold_point = None;
         self.exec_mode = ExecMode::Idle;
-        self.end_pos = [0.0; 3];
+        self.end_pos = V3::new(0.0, 0.0, 0.0);
         self.slips = 0;
         self.scan = ScanCache::new();
         self.ahead = Ahead::new(0.0, 0.0, 0.0);
@@ -284,7 +284,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
 
     /// Where the queued path ends (the start of the next segment), mm.
     pub fn end_position_mm(&self) -> [f32; 3] {
-        self.end_pos
+        self.end_pos.to_array()
     }
 
     pub fn status(&self) -> PlannerStatus {
@@ -671,38 +671,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         let len = e.piece.len;
         let sa = e.cursor;
         if e.piece.is_dwell() {
-            let span = Span {
-                seq: self.next_seq,
-                path_gen: self.path_gen,
-                run: self.run_id,
-                tag: e.attr.tag,
-                len_mm: 0.0,
-                inv_len: 0.0,
-                inv_feed: 0.0,
-                coef: constant_coef(e.piece.start),
-            };
-            self.push_slot(SpanSlot {
-                span,
-                piece_id,
-                sigma0: 0.0,
-                lim: PathLimits {
-                    vel: 0.0,
-                    acc: self.set.acc_floor,
-                    jerk: self.set.jerk_floor,
-                },
-                feed: 0.0,
-                rapid: false,
-                stop_after: true,
-                dwell_periods: e.attr.dwell_periods,
-                sent: false,
-                cum: 0,
-                next_cap: None,
-                prev_cap: None,
-            });
-            if let Some(m) = self.pieces.get_mut(k) {
-                m.cursor = len;
-                m.done = true;
-            }
+            self.generate_dwell(k, piece_id);
             return;
         }
         if !(sa < len) {
@@ -790,6 +759,46 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         }
     }
 
+    /// The one span of the dwell piece `k`: zero length, a stop, held `dwell_periods`.
+    fn generate_dwell(&mut self, k: usize, piece_id: u32) {
+        let Some(e) = self.pieces.get(k) else {
+            return;
+        };
+        let len = e.piece.len;
+        let span = Span {
+            seq: self.next_seq,
+            path_gen: self.path_gen,
+            run: self.run_id,
+            tag: e.attr.tag,
+            len_mm: 0.0,
+            inv_len: 0.0,
+            inv_feed: 0.0,
+            coef: constant_coef(e.piece.start),
+        };
+        self.push_slot(SpanSlot {
+            span,
+            piece_id,
+            sigma0: 0.0,
+            lim: PathLimits {
+                vel: 0.0,
+                acc: self.set.acc_floor,
+                jerk: self.set.jerk_floor,
+            },
+            feed: 0.0,
+            rapid: false,
+            stop_after: true,
+            dwell_periods: e.attr.dwell_periods,
+            sent: false,
+            cum: 0,
+            next_cap: None,
+            prev_cap: None,
+        });
+        if let Some(m) = self.pieces.get_mut(k) {
+            m.cursor = len;
+            m.done = true;
+        }
+    }
+
     fn push_slot(&mut self, slot: SpanSlot) {
         if self.spans.push_back(slot) {
             self.next_seq = self.next_seq.wrapping_add(1);
@@ -841,23 +850,9 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             }
         }
         // Dwell spans: wait, then move on.
-        let slot = self.spans.get(idx)?;
-        if slot.dwell_periods > 0 || (slot.span.len_mm == 0.0 && slot.stop_after) {
-            let (periods, lim) = (slot.dwell_periods, slot.lim);
-            if !self.gen.dwell_started {
-                self.gen.dwell_started = true;
-                self.gen.dwell_left = periods;
-            }
-            if self.gen.dwell_left > 0 {
-                self.gen.dwell_left -= 1;
-                return Some(self.step_here(lim.acc, lim.jerk));
-            }
-            if idx + 1 < self.spans.len() && self.ensure_sent(idx + 1, out) {
-                idx += 1;
-                self.gen = GenState::at(self.gen.seq.wrapping_add(1), 0.0);
-            } else {
-                return None;
-            }
+        match self.dwell(idx, out)? {
+            Ok(next) => idx = next,
+            Err(step) => return Some(step),
         }
         let (v, a) = (self.gen.vel, self.gen.acc);
         let cur = self.spans.get(idx)?;
@@ -871,40 +866,19 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         // The spans the next period can touch bound its acceleration and jerk (not beyond
         // an exact stop: the motion rests there before it enters the next span).
         let pos_here = cum0.wrapping_add(to_cum(self.gen.sigma));
-        let touch = to_cum(v_next * t + 1.0e-6);
-        let (mut acc_touch, mut jerk) = (lim0.acc, lim0.jerk);
-        let mut stops_before = stop0;
-        for k in idx + 1..idx + 1 + SPANS_PER_PERIOD + 2 {
-            match self.spans.get(k) {
-                Some(s) if !stops_before && s.cum.wrapping_sub(pos_here) < touch => {
-                    acc_touch = acc_touch.mn(s.lim.acc);
-                    jerk = jerk.mn(s.lim.jerk);
-                    stops_before = s.stops();
-                }
-                _ => break,
-            }
-        }
+        let (acc_touch, jerk) = self.touched_limits(idx, pos_here, v_next, lim0, stop0);
         // Scan as far as any braking could need: to a stop with the weakest limits of the
         // spans held (any braking runs on them; the end of what is held is a stop), plus
         // the most that braking to a low speed w instead of zero can add (it ends with a
         // ramp-out at w: (v+w)τ/2 − w²/2A grows until w = Aτ/2, by A³/8J² at most). The
         // acceleration with the slack the executor's own stop may brake with
         // (`scan::STOP_ACC_SLACK`), so that its stop too ends within what is sent.
-        let last_idx = self.spans.len() - 1;
-        let weak_a = (self.spans.min_acc(idx, last_idx) * (1.0 - STOP_ACC_SLACK)).mx(floor_a);
-        let weak_j = self.spans.min_jerk(idx, last_idx).mx(floor_j);
-        let horizon = braking_distance(v_next, a.mx(0.0) + lim0.jerk * t, 0.0, weak_a, weak_j)
-            + weak_a * weak_a * weak_a / (8.0 * weak_j * weak_j)
-            + 2.0 * v_next * t
-            + 1.0e-3;
+        let horizon = self.braking_horizon(idx, v_next, a, lim0.jerk);
         // Acceleration limits matter up to the most the acceleration can reach next period
         // and within the distance a ramp from there needs (at the floor jerk: the spans
         // ahead may have less than this one; plus two periods at the speed it ends with).
         let a1max = a.abs() + lim0.jerk * t;
-        let reach = |a1: f32| {
-            let tau = a1 / floor_j;
-            v_next * tau + 0.5 * a1 * tau * tau + 3.0 * t * (v_next + 0.5 * a1 * tau) + 1.0e-3
-        };
+        let reach = |a1: f32| reach_mm(v_next, a1, floor_j, t);
         // Position on the path (fixed point) plus the Kahan compensation of σ: on a long
         // span f32 σ alone is only good to its ulp (1.9e-6 mm at 20 mm), which would make
         // the constraints jitter.
@@ -923,58 +897,23 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 self.next_seq,
             ))
         {
-            // Scan a margin further than needed now, so that the scan lasts.
-            let horizon_s = horizon * SCAN_MARGIN + SCAN_MARGIN_MM;
-            let acc_below = if steady {
-                a1max + (SCAN_MARGIN - 1.0) * lim0.acc
-            } else {
-                a1max
-            };
-            let reach_s = reach(acc_below) * SCAN_MARGIN + SCAN_MARGIN_MM;
-            // The spans the scan may rely on: those starting within the horizon. They are
-            // handed over (frozen) first; if the channel is full, the known path ends
-            // there.
-            let last = self.spans.len() - 1;
-            let rel = to_cum(self.gen.sigma).wrapping_add(to_cum(horizon_s));
-            let mut scan_last = if stop0 {
-                idx
-            } else {
-                self.spans.last_starting_within(idx, rel)
-            };
-            let mut end_stop = false;
-            let mut channel_full = false;
-            if !self.ensure_sent(scan_last, out) {
-                let sent = self.sent_end.wrapping_sub(front_seq) as usize;
-                scan_last = sent.saturating_sub(1).max(idx);
-                end_stop = true;
-                channel_full = true;
-            } else if scan_last == last {
-                let end = self.spans.get(last).map(|s| s.cum_end()).unwrap_or(cum0);
-                end_stop = end.wrapping_sub(pos) <= to_cum(horizon_s);
-            }
-            let input = ScanInput {
-                idx,
-                sigma_cum: to_cum(self.gen.sigma),
-                scan_last,
-                end_stop,
-                horizon_end: pos.wrapping_add(to_cum(horizon_s)),
-                cap0,
-                ovr,
-                hold: self.hold_point.map(|h| (h.seq, h.sigma)),
-                acc_below,
-                acc_end: pos.wrapping_add(to_cum(reach_s)),
-                next_seq: self.next_seq,
-                stop_from: (
-                    if steady { v_next * SCAN_MARGIN } else { v_next },
-                    a.mx(0.0) + lim0.jerk * t,
-                ),
-                period_s: t,
-            };
-            self.scan.scan(&self.spans, &input);
-            if channel_full || !steady {
-                // Good for this period only.
-                self.scan.valid = false;
-            }
+            self.refresh_scan(
+                &ScanNeed {
+                    idx,
+                    front_seq,
+                    pos,
+                    cum0,
+                    stop0,
+                    cap0,
+                    lim0,
+                    ovr,
+                    steady,
+                    v_next,
+                    horizon,
+                    a1max,
+                },
+                out,
+            );
         }
         let (stop_dist, at_path_end) = self.scan.fill(&mut self.ahead, pos, cum0, comp);
         self.ahead.cap = cap0;
@@ -994,6 +933,171 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             return None;
         }
 
+        self.advance(idx, pos, horizon, stop_dist, jerk);
+        self.pass_finished_spans(&mut idx, out);
+        Some(Step {
+            epoch: self.epoch,
+            path_gen: self.path_gen,
+            run: self.run_id,
+            span_seq: self.gen.seq,
+            sigma_mm: self.gen.sigma,
+            vel_mm_s: self.gen.vel,
+            acc_mm_s2: self.gen.acc,
+            stop_acc_mm_s2: stop_acc,
+            stop_jerk_mm_s3: stop_jerk,
+        })
+    }
+
+    /// The acceleration and jerk limits of the spans the next period can touch from
+    /// `pos_here` at speeds up to `v_next`, starting with the current span's `lim0`.
+    fn touched_limits(
+        &self,
+        idx: usize,
+        pos_here: i64,
+        v_next: f32,
+        lim0: PathLimits,
+        stop0: bool,
+    ) -> (f32, f32) {
+        let t = self.set.period_s;
+        let touch = to_cum(v_next * t + 1.0e-6);
+        let (mut acc_touch, mut jerk) = (lim0.acc, lim0.jerk);
+        let mut stops_before = stop0;
+        for k in idx + 1..idx + 1 + SPANS_PER_PERIOD + 2 {
+            match self.spans.get(k) {
+                Some(s) if !stops_before && s.cum.wrapping_sub(pos_here) < touch => {
+                    acc_touch = acc_touch.mn(s.lim.acc);
+                    jerk = jerk.mn(s.lim.jerk);
+                    stops_before = s.stops();
+                }
+                _ => break,
+            }
+        }
+        (acc_touch, jerk)
+    }
+
+    /// How far any braking from `v_next` (acceleration `a`, the current span's jerk
+    /// `jerk0`) could need, with the weakest limits of the spans held (mm).
+    fn braking_horizon(&self, idx: usize, v_next: f32, a: f32, jerk0: f32) -> f32 {
+        let t = self.set.period_s;
+        let (floor_a, floor_j) = (self.set.acc_floor, self.set.jerk_floor);
+        let last_idx = self.spans.len() - 1;
+        let weak_a = (self.spans.min_acc(idx, last_idx) * (1.0 - STOP_ACC_SLACK)).mx(floor_a);
+        let weak_j = self.spans.min_jerk(idx, last_idx).mx(floor_j);
+        braking_distance(v_next, a.mx(0.0) + jerk0 * t, 0.0, weak_a, weak_j)
+            + weak_a * weak_a * weak_a / (8.0 * weak_j * weak_j)
+            + 2.0 * v_next * t
+            + 1.0e-3
+    }
+
+    /// On a dwell span (or a zero-length stop): `Err` with the step of a period still
+    /// waiting, `Ok` with the index of the span to go on with, `None` when the next span
+    /// cannot be handed over yet.
+    fn dwell(&mut self, idx: usize, out: &mut impl Sink<Span>) -> Option<Result<usize, Step>> {
+        let mut idx = idx;
+        let slot = self.spans.get(idx)?;
+        if slot.dwell_periods > 0 || (slot.span.len_mm == 0.0 && slot.stop_after) {
+            let (periods, lim) = (slot.dwell_periods, slot.lim);
+            if !self.gen.dwell_started {
+                self.gen.dwell_started = true;
+                self.gen.dwell_left = periods;
+            }
+            if self.gen.dwell_left > 0 {
+                self.gen.dwell_left -= 1;
+                return Some(Err(self.step_here(lim.acc, lim.jerk)));
+            }
+            if idx + 1 < self.spans.len() && self.ensure_sent(idx + 1, out) {
+                idx += 1;
+                self.gen = GenState::at(self.gen.seq.wrapping_add(1), 0.0);
+            } else {
+                return None;
+            }
+        }
+        Some(Ok(idx))
+    }
+
+    /// Scans the path ahead again (see [`ScanNeed`]), a margin further than needed now so
+    /// that the scan lasts.
+    fn refresh_scan(&mut self, need: &ScanNeed, out: &mut impl Sink<Span>) {
+        let ScanNeed {
+            idx,
+            front_seq,
+            pos,
+            cum0,
+            stop0,
+            cap0,
+            lim0,
+            ovr,
+            steady,
+            v_next,
+            horizon,
+            a1max,
+        } = *need;
+        let t = self.set.period_s;
+        let a = self.gen.acc;
+        let floor_j = self.set.jerk_floor;
+        let reach = |a1: f32| reach_mm(v_next, a1, floor_j, t);
+        // Scan a margin further than needed now, so that the scan lasts.
+        let horizon_s = horizon * SCAN_MARGIN + SCAN_MARGIN_MM;
+        let acc_below = if steady {
+            a1max + (SCAN_MARGIN - 1.0) * lim0.acc
+        } else {
+            a1max
+        };
+        let reach_s = reach(acc_below) * SCAN_MARGIN + SCAN_MARGIN_MM;
+        // The spans the scan may rely on: those starting within the horizon. They are
+        // handed over (frozen) first; if the channel is full, the known path ends
+        // there.
+        let last = self.spans.len() - 1;
+        let rel = to_cum(self.gen.sigma).wrapping_add(to_cum(horizon_s));
+        let mut scan_last = if stop0 {
+            idx
+        } else {
+            self.spans.last_starting_within(idx, rel)
+        };
+        let mut end_stop = false;
+        let mut channel_full = false;
+        if !self.ensure_sent(scan_last, out) {
+            let sent = self.sent_end.wrapping_sub(front_seq) as usize;
+            scan_last = sent.saturating_sub(1).max(idx);
+            end_stop = true;
+            channel_full = true;
+        } else if scan_last == last {
+            let end = self.spans.get(last).map(|s| s.cum_end()).unwrap_or(cum0);
+            end_stop = end.wrapping_sub(pos) <= to_cum(horizon_s);
+        }
+        let input = ScanInput {
+            idx,
+            sigma_cum: to_cum(self.gen.sigma),
+            scan_last,
+            end_stop,
+            horizon_end: pos.wrapping_add(to_cum(horizon_s)),
+            cap0,
+            ovr,
+            hold: self.hold_point.map(|h| (h.seq, h.sigma)),
+            acc_below,
+            acc_end: pos.wrapping_add(to_cum(reach_s)),
+            next_seq: self.next_seq,
+            stop_from: (
+                if steady { v_next * SCAN_MARGIN } else { v_next },
+                a.mx(0.0) + lim0.jerk * t,
+            ),
+            period_s: t,
+        };
+        self.scan.scan(&self.spans, &input);
+        if channel_full || !steady {
+            // Good for this period only.
+            self.scan.valid = false;
+        }
+    }
+
+    /// One period of motion along the path: lands on a stop point reached at (almost) zero
+    /// speed, or applies the jerk [`choose_jerk`] picks.
+    fn advance(&mut self, idx: usize, pos: i64, horizon: f32, stop_dist: f32, jerk: f32) {
+        // (the index, position and horizon are for the tests' cross-check only)
+        #[cfg(not(test))]
+        let _ = (idx, pos, horizon);
+        let t = self.set.period_s;
+        let (v, a) = (self.gen.vel, self.gen.acc);
         // Land on a stop point reached at (almost) zero speed: this period brings the
         // acceleration to zero (|Δa| ≤ J·T, so the jerk stays within the limit) and ends
         // the asymptotic creep of the discrete braking.
@@ -1033,16 +1137,19 @@ impl<const N: usize, const S: usize> Planner<N, S> {
                 g.acc = a1c;
             }
         }
-        // Move onto the following spans.
-        while let Some(cur) = self.spans.get(idx) {
+    }
+
+    /// Moves onto the following spans once the current one is passed.
+    fn pass_finished_spans(&mut self, idx: &mut usize, out: &mut impl Sink<Span>) {
+        while let Some(cur) = self.spans.get(*idx) {
             let (len, lim) = (cur.span.len_mm, cur.lim);
             // A dwell span is left by the dwell logic once its time is up.
             if self.gen.sigma < len || cur.dwell_periods > 0 {
                 break;
             }
-            let can_pass = idx + 1 < self.spans.len()
+            let can_pass = *idx + 1 < self.spans.len()
                 && (!cur.stop_after || self.gen.vel == 0.0)
-                && self.ensure_sent(idx + 1, out);
+                && self.ensure_sent(*idx + 1, out);
             if !can_pass {
                 self.gen.sigma = len;
                 break;
@@ -1051,19 +1158,8 @@ impl<const N: usize, const S: usize> Planner<N, S> {
             self.gen.sigma -= len;
             self.gen.seq = self.gen.seq.wrapping_add(1);
             self.gen.dwell_started = false;
-            idx += 1;
+            *idx += 1;
         }
-        Some(Step {
-            epoch: self.epoch,
-            path_gen: self.path_gen,
-            run: self.run_id,
-            span_seq: self.gen.seq,
-            sigma_mm: self.gen.sigma,
-            vel_mm_s: self.gen.vel,
-            acc_mm_s2: self.gen.acc,
-            stop_acc_mm_s2: stop_acc,
-            stop_jerk_mm_s3: stop_jerk,
-        })
     }
 
     /// Puts the hold's stop point where the time-optimal stop from the newest state ends,
@@ -1136,6 +1232,39 @@ fn kahan(sum: f32, add: f32, comp: &mut f32) -> f32 {
     let t = sum + y;
     *comp = (t - sum) - y;
     t
+}
+
+/// What a scan of the path ahead must cover, from one period of [`Planner::gen_step`].
+#[derive(Clone, Copy)]
+struct ScanNeed {
+    /// The current span (index in the queue) and the first queued span's sequence number.
+    idx: usize,
+    front_seq: u32,
+    /// Position on the path and the current span's start (fixed point).
+    pos: i64,
+    cum0: i64,
+    /// The current span ends in a stop.
+    stop0: bool,
+    /// The current span's speed cap (with the override) and limits.
+    cap0: f32,
+    lim0: PathLimits,
+    ovr: f32,
+    /// Running, no hold: the scan may serve later periods too.
+    steady: bool,
+    /// The speed bound of the next period (mm/s).
+    v_next: f32,
+    /// How far braking could need (mm).
+    horizon: f32,
+    /// The most the acceleration can reach next period (mm/s²).
+    a1max: f32,
+}
+
+/// Distance within which acceleration limits matter for an acceleration `a1`: a ramp
+/// from there at the floor jerk `floor_j`, plus three periods `t` at the speed it ends
+/// with (mm).
+fn reach_mm(v_next: f32, a1: f32, floor_j: f32, t: f32) -> f32 {
+    let tau = a1 / floor_j;
+    v_next * tau + 0.5 * a1 * tau * tau + 3.0 * t * (v_next + 0.5 * a1 * tau) + 1.0e-3
 }
 
 fn constant_coef(p: V3) -> [[f32; 8]; 3] {

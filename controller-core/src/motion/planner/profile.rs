@@ -4,7 +4,7 @@
 //!
 //! Every profile here is the classic 7-phase shape reduced to what one period needs: the
 //! acceleration ramps at ±J, holds at ±A, ramps back. Nothing is precomputed per segment:
-//! the look-ahead ([`super::lookahead`]) asks these functions every period whether the
+//! the look-ahead (`super::lookahead`) asks these functions every period whether the
 //! state after a candidate jerk can still brake in time for every constraint ahead, which
 //! is what lets the acceleration stay non-zero across any number of short spans.
 //!

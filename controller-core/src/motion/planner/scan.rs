@@ -300,8 +300,6 @@ impl ScanCache {
         let (cur_seq, cur_cum, cur_acc, cur_next_cap) =
             (cur.span.seq, cur.cum, cur.lim.acc, cur.next_cap);
         let idx = inp.idx;
-        let within = |i: usize| i <= inp.scan_last;
-        let beyond = |p: i64| p.wrapping_sub(inp.horizon_end) > 0;
 
         // The hold's stop point on the current span.
         if let Some((hseq, hsigma)) = inp.hold {
@@ -313,6 +311,26 @@ impl ScanCache {
                 );
             }
         }
+        let stop_ev = self.speed_events(spans, inp, cur_next_cap);
+
+        // A stop at the end of the queue stops being one when more path arrives.
+        self.soft_end = inp.end_stop || self.stop_at_path_end;
+
+        self.accel_limits(spans, inp, (cur_cum, cur_acc, cur.lim.jerk), stop_ev);
+    }
+
+    /// The speed events of the scan in path order (at equal spans: cap, hold, then the
+    /// stop at its end), from the current span's next cap `cur_next_cap` on; returns the
+    /// span of the nearest stop, if any.
+    fn speed_events<const S: usize>(
+        &mut self,
+        spans: &SpanRing<S>,
+        inp: &ScanInput,
+        cur_next_cap: Option<u32>,
+    ) -> Option<usize> {
+        let idx = inp.idx;
+        let within = |i: usize| i <= inp.scan_last;
+        let beyond = |p: i64| p.wrapping_sub(inp.horizon_end) > 0;
         // Speed events in path order; at equal spans: cap, hold, then the stop at its end.
         let mut c_ev = spans.link(cur_next_cap).filter(|&i| within(i));
         let mut h_ev = inp
@@ -398,10 +416,21 @@ impl ScanCache {
                 h_ev = None;
             }
         }
+        stop_ev
+    }
 
-        // A stop at the end of the queue stops being one when more path arrives.
-        self.soft_end = inp.end_stop || self.stop_at_path_end;
-
+    /// The acceleration limits below the threshold and the jerk drops, in path order,
+    /// before the nearest stop `stop_ev`; `cur` is the current span's start, acceleration
+    /// and jerk limit.
+    fn accel_limits<const S: usize>(
+        &mut self,
+        spans: &SpanRing<S>,
+        inp: &ScanInput,
+        cur: (i64, f32, f32),
+        stop_ev: Option<usize>,
+    ) {
+        let idx = inp.idx;
+        let (cur_cum, cur_acc, cur_jerk) = cur;
         // Acceleration limits below the threshold, in path order, before the nearest stop.
         let acc_last = spans
             .last_starting_within(idx, inp.acc_end.wrapping_sub(cur_cum))
@@ -427,7 +456,7 @@ impl ScanCache {
         }
         // Where the jerk limit drops, over the same reach (any ramp-out of the
         // acceleration ends within it): a ramp-out is modelled span by span.
-        let mut j_below = cur.lim.jerk;
+        let mut j_below = cur_jerk;
         let mut from_j = idx + 1;
         for _ in 0..MAX_CONSTRAINTS {
             let Some(k) = spans.first_jerk_below(from_j, acc_last, j_below) else {

@@ -4,9 +4,7 @@
 
 use super::config::Settings;
 use super::fmath::{self, F32Ext};
-use super::geometry::{
-    cross, dot, norm, plane_axes, scale, sub, unit_axis, Helix, Piece, Shape, V3,
-};
+use super::geometry::{norm, Helix, Piece, Shape, V3};
 use core::f32::consts::TAU;
 
 /// Arc plane: G17 (XY, normal +Z), G18 (ZX, normal +Y), G19 (YZ, normal +X).
@@ -17,6 +15,17 @@ pub enum Plane {
     XY,
     ZX,
     YZ,
+}
+
+/// Axes (in-plane first, in-plane second, normal) of a plane. The order makes a positive
+/// rotation (i1 toward i2) counter-clockwise seen from the positive normal, as G2/G3
+/// define it: XY about +Z, ZX about +Y, YZ about +X.
+pub(crate) fn plane_axes(p: Plane) -> (usize, usize, usize) {
+    match p {
+        Plane::XY => (0, 1, 2),
+        Plane::ZX => (2, 0, 1),
+        Plane::YZ => (1, 2, 0),
+    }
 }
 
 /// Feed of a line.
@@ -254,14 +263,14 @@ impl ArcSplit {
         let r = self.r0 + self.pdr * k as f32;
         // (the plane's axes are 0-2 by construction; `get` keeps a panic path out of the
         // control interrupt all the same)
-        let rise = self.start.get(n).copied().unwrap_or(0.0) + self.prise * k as f32;
-        let mut e = self.center;
+        let rise = self.start.to_array().get(n).copied().unwrap_or(0.0) + self.prise * k as f32;
+        let mut e = self.center.to_array();
         for (i, add, x) in [(i1, true, r * cs), (i2, true, r * sn), (n, false, rise)] {
             if let Some(slot) = e.get_mut(i) {
                 *slot = if add { *slot + x } else { x };
             }
         }
-        e
+        V3::from_array(e)
     }
 
     fn piece(&self, k: usize) -> Piece {
@@ -271,9 +280,9 @@ impl ArcSplit {
             end: self.point(k + 1),
             len: self.plen,
             shape: Shape::Helix(Helix {
-                e1: unit_axis(i1),
-                e2: unit_axis(i2),
-                n: unit_axis(n),
+                e1: V3::unit_axis(i1),
+                e2: V3::unit_axis(i2),
+                n: V3::unit_axis(n),
                 psi0: libm::fmodf(self.psi0 + self.psweep * k as f32, TAU),
                 omega: self.psweep / self.plen,
                 r0: self.r0 + self.pdr * k as f32,
@@ -296,7 +305,7 @@ impl Prepared {
 
 fn finite3(v: [f32; 3], name: &'static str) -> Result<V3, SegmentError> {
     if v.iter().all(|x| x.is_finite()) {
-        Ok(v)
+        Ok(V3::from_array(v))
     } else {
         Err(SegmentError::NotFinite(name))
     }
@@ -313,8 +322,8 @@ fn feed_ok(f: f32) -> Result<f32, SegmentError> {
 }
 
 const EMPTY: Piece = Piece {
-    start: [0.0; 3],
-    end: [0.0; 3],
+    start: V3::new(0.0, 0.0, 0.0),
+    end: V3::new(0.0, 0.0, 0.0),
     len: 0.0,
     shape: Shape::Dwell,
 };
@@ -352,7 +361,7 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
                 Feed::MmPerS(f) => out.attr.feed = feed_ok(f)?,
                 Feed::Rapid => out.attr.rapid = true,
             }
-            let d = sub(end, start);
+            let d = end - start;
             let len = norm(d);
             if len >= s.min_segment_mm {
                 let k = 1.0 / len;
@@ -361,7 +370,7 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
                     end,
                     len,
                     shape: Shape::Line {
-                        u: [d[0] * k, d[1] * k, d[2] * k],
+                        u: V3::new(d[0] * k, d[1] * k, d[2] * k),
                     },
                 });
                 out.n = 1;
@@ -419,21 +428,21 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
 /// The circle through `start`, `via`, `end` as a helix piece (no rise), in the order the
 /// three points give. All in offsets from `start`, so f32 keeps the local precision.
 fn arc_through(start: V3, via: V3, end: V3, s: &Settings) -> Result<Piece, SegmentError> {
-    let a = sub(via, start);
-    let b = sub(end, start);
-    let (la, lb, lc) = (norm(a), norm(b), norm(sub(end, via)));
+    let a = via - start;
+    let b = end - start;
+    let (la, lb, lc) = (norm(a), norm(b), norm(end - via));
     if !(la >= s.min_segment_mm && lb >= s.min_segment_mm && lc >= s.min_segment_mm) {
         return Err(SegmentError::ArcCollinear);
     }
-    let axb = cross(a, b);
-    let n2 = dot(axb, axb);
+    let axb = a.cross(b);
+    let n2 = axb.dot(axb);
     // |a × b| = |a||b| sin(angle at the start): below 1e-6 relative, no usable plane.
     if !(n2 > (1.0e-6 * la * lb) * (1.0e-6 * la * lb)) {
         return Err(SegmentError::ArcCollinear);
     }
     // Circumcentre relative to the start: (|a|² b − |b|² a) × (a × b) / (2 |a × b|²).
-    let m = sub(scale(b, dot(a, a)), scale(a, dot(b, b)));
-    let c = scale(cross(m, axb), 0.5 / n2);
+    let m = b.scale(a.dot(a)) - a.scale(b.dot(b));
+    let c = m.cross(axb).scale(0.5 / n2);
     let r = norm(c);
     if !(r >= s.min_segment_mm) {
         return Err(SegmentError::ArcZeroRadius);
@@ -441,12 +450,12 @@ fn arc_through(start: V3, via: V3, end: V3, s: &Settings) -> Result<Piece, Segme
     if !(r <= MAX_ARC_THROUGH_RADIUS_MM) {
         return Err(SegmentError::ArcRadiusTooLarge);
     }
-    let n = scale(axb, 1.0 / fmath::sqrt(n2));
-    let e1 = scale(c, -1.0 / r);
-    let e2 = cross(n, e1);
+    let n = axb.scale(1.0 / fmath::sqrt(n2));
+    let e1 = c.scale(-1.0 / r);
+    let e2 = n.cross(e1);
     // End angle from e1 toward e2 in (0, 2π): the points run counter-clockwise about n.
-    let pe = sub(b, c);
-    let mut sweep = libm::atan2f(dot(pe, e2), dot(pe, e1));
+    let pe = b - c;
+    let mut sweep = libm::atan2f(pe.dot(e2), pe.dot(e1));
     if sweep <= 0.0 {
         sweep += TAU;
     }
@@ -541,7 +550,6 @@ fn arc_split(
 #[cfg(test)]
 mod tests {
     use super::super::config::{Settings, GANTRY_PLANNER};
-    use super::super::geometry::add;
     use super::*;
 
     fn settings() -> Settings {
@@ -562,15 +570,15 @@ mod tests {
                 end[n] += 2.0;
                 start[n] += 0.0;
                 let seg = Segment::arc(end, center, plane, cw, 0, 10.0, 1);
-                let p = prepare(&seg, start, &s).unwrap();
+                let p = prepare(&seg, V3::from_array(start), &s).unwrap();
                 assert_eq!(p.n, 1);
                 let pc = &p.piece(0);
                 // CCW: quarter turn; CW: three quarters.
                 let quarter = if cw { 3.0 } else { 1.0 } * core::f32::consts::FRAC_PI_2 * 5.0;
                 let len = fmath::hypot(quarter, 2.0);
                 assert!((pc.len - len).abs() < 1e-4, "{plane:?} cw {cw}: {}", pc.len);
-                let e = add(pc.start, pc.delta(0.0, pc.len));
-                assert!(norm(sub(e, end)) < 2e-5);
+                let e = pc.start + pc.delta(0.0, pc.len);
+                assert!(norm(e - V3::from_array(end)) < 2e-5);
                 // The tangent at the start turns the right way about the normal.
                 let t = pc.derivs(0.0).d1;
                 let sign = if cw { -1.0 } else { 1.0 };
@@ -584,12 +592,12 @@ mod tests {
         let s = settings();
         let start = [10.0, 0.0, 0.0];
         let seg = Segment::arc(start, [0.0; 3], Plane::XY, false, 2, 10.0, 1);
-        let p = prepare(&seg, start, &s).unwrap();
+        let p = prepare(&seg, V3::from_array(start), &s).unwrap();
         assert_eq!(p.n, 3);
         for k in 0..3 {
             let pc = &p.piece(k);
             assert!((pc.len - TAU * 10.0).abs() < 1e-3);
-            assert!(norm(sub(pc.end, start)) < 1e-4);
+            assert!(norm(pc.end - V3::from_array(start)) < 1e-4);
         }
     }
 
@@ -602,16 +610,16 @@ mod tests {
             for (tilt, yaw) in [(0.0f32, 0.0f32), (0.4, 1.1), (1.2, -2.0), (-0.9, 2.9)] {
                 for sweep in [0.05f32, 1.0, 3.0, 5.2] {
                     k += 1;
-                    let n = [tilt.sin() * yaw.cos(), tilt.sin() * yaw.sin(), tilt.cos()];
+                    let n = V3::new(tilt.sin() * yaw.cos(), tilt.sin() * yaw.sin(), tilt.cos());
                     // an orthonormal frame about n
                     let helper = if n[0].abs() < 0.9 {
-                        [1.0, 0.0, 0.0]
+                        V3::new(1.0, 0.0, 0.0)
                     } else {
-                        [0.0, 1.0, 0.0]
+                        V3::new(0.0, 1.0, 0.0)
                     };
-                    let u = cross(helper, n);
-                    let u = scale(u, 1.0 / norm(u));
-                    let w = cross(n, u);
+                    let u = helper.cross(n);
+                    let u = u.scale(1.0 / norm(u));
+                    let w = n.cross(u);
                     let center = [10.0f32, -20.0, 5.0];
                     let at = |ang: f32| {
                         let (sn, cs) = (libm::sinf(ang), libm::cosf(ang));
@@ -623,7 +631,7 @@ mod tests {
                     };
                     let (start, via, end) = (at(0.3), at(0.3 + 0.37 * sweep), at(0.3 + sweep));
                     let seg = Segment::arc_through(via, end, 10.0, k);
-                    let p = prepare(&seg, start, &s).unwrap();
+                    let p = prepare(&seg, V3::from_array(start), &s).unwrap();
                     assert_eq!(p.n, 1);
                     let pc = p.piece(0);
                     let tol = 2e-5 * (1.0 + r);
@@ -632,11 +640,14 @@ mod tests {
                         "{r} {sweep}: {}",
                         pc.len
                     );
-                    let e = add(pc.start, pc.delta(0.0, pc.len));
-                    assert!(norm(sub(e, end)) < tol, "{r} {sweep}: end {e:?} vs {end:?}");
-                    let mid = add(pc.start, pc.delta(0.0, 0.37 * pc.len));
+                    let e = pc.start + pc.delta(0.0, pc.len);
                     assert!(
-                        norm(sub(mid, via)) < tol,
+                        norm(e - V3::from_array(end)) < tol,
+                        "{r} {sweep}: end {e:?} vs {end:?}"
+                    );
+                    let mid = pc.start + pc.delta(0.0, 0.37 * pc.len);
+                    assert!(
+                        norm(mid - V3::from_array(via)) < tol,
                         "{r} {sweep}: via {mid:?} vs {via:?}"
                     );
                     // curvature 1/r, in the plane
@@ -650,7 +661,7 @@ mod tests {
                         "{r} {sweep}: {}",
                         norm(d.d2)
                     );
-                    assert!(dot(d.d2, n).abs() < kt * norm(d.d2), "{r} {sweep}: plane");
+                    assert!(d.d2.dot(n).abs() < kt * norm(d.d2), "{r} {sweep}: plane");
                 }
             }
         }
@@ -661,7 +672,12 @@ mod tests {
         let s = settings();
         let o = [1.0f32, 2.0, 3.0];
         let e = |via: [f32; 3], end: [f32; 3]| {
-            prepare(&Segment::arc_through(via, end, 5.0, 0), o, &s).err()
+            prepare(
+                &Segment::arc_through(via, end, 5.0, 0),
+                V3::from_array(o),
+                &s,
+            )
+            .err()
         };
         assert_eq!(
             e([2.0, 2.0, 3.0], [3.0, 2.0, 3.0]),
@@ -684,7 +700,7 @@ mod tests {
         assert_eq!(
             prepare(
                 &Segment::arc_through([2.0, 3.0, 3.0], [3.0, 2.0, 3.0], -1.0, 0),
-                o,
+                V3::from_array(o),
                 &s
             )
             .err(),
@@ -696,7 +712,7 @@ mod tests {
     fn bad_segments_are_rejected_with_the_reason() {
         let s = settings();
         let o = [0.0; 3];
-        let e = |seg: Segment| prepare(&seg, o, &s).err();
+        let e = |seg: Segment| prepare(&seg, V3::from_array(o), &s).err();
         assert_eq!(
             e(Segment::line([f32::NAN, 0.0, 0.0], 10.0, 0)),
             Some(SegmentError::NotFinite("end_mm"))
@@ -738,6 +754,11 @@ mod tests {
             Some(SegmentError::NegativeDwell)
         );
         // A zero-length line is accepted and yields no piece.
-        assert_eq!(prepare(&Segment::line(o, 5.0, 0), o, &s).unwrap().n, 0);
+        assert_eq!(
+            prepare(&Segment::line(o, 5.0, 0), V3::from_array(o), &s)
+                .unwrap()
+                .n,
+            0
+        );
     }
 }

@@ -63,7 +63,7 @@ pub struct Span {
     pub inv_len: f32,
     /// `1 / programmed feed` (s/mm; 0 for rapids and dwells), for the feed ratio.
     pub inv_feed: f32,
-    /// `coef[axis][k]`: position = Σ coef[axis][k] u^k (mm), `coef[axis][0]` absolute.
+    /// `coef[axis][k]`: position = Σ `coef[axis][k]` u^k (mm), `coef[axis][0]` absolute.
     pub coef: [[f32; 8]; 3],
 }
 
@@ -152,7 +152,7 @@ pub(crate) fn offset_at(coef: &[[f32; 8]; 3], u: f32) -> V3 {
         }
         out[i] = p * u;
     }
-    out
+    V3::from_array(out)
 }
 
 /// Bernstein conversion of degree `n` (`D = n + 1` coefficients): row `i` holds
@@ -387,22 +387,22 @@ mod tests {
     fn hermite_fit_reproduces_a_cubic_exactly() {
         // x(σ) = σ + 0.1 σ² - 0.02 σ³ over h = 2.
         let h = 2.0f32;
-        let f = |s: f32| [s + 0.1 * s * s - 0.02 * s * s * s, 0.0, 0.0];
-        let df = |s: f32| [1.0 + 0.2 * s - 0.06 * s * s, 0.0, 0.0];
-        let d2f = |s: f32| [0.2 - 0.12 * s, 0.0, 0.0];
+        let f = |s: f32| V3::new(s + 0.1 * s * s - 0.02 * s * s * s, 0.0, 0.0);
+        let df = |s: f32| V3::new(1.0 + 0.2 * s - 0.06 * s * s, 0.0, 0.0);
+        let d2f = |s: f32| V3::new(0.2 - 0.12 * s, 0.0, 0.0);
         let j0 = Jet {
-            p: [0.0; 3],
+            p: V3::new(0.0, 0.0, 0.0),
             d1: df(0.0),
             d2: d2f(0.0),
-            d3: [-0.12, 0.0, 0.0],
+            d3: V3::new(-0.12, 0.0, 0.0),
         };
         let j1 = Jet {
             p: f(h),
             d1: df(h),
             d2: d2f(h),
-            d3: [-0.12, 0.0, 0.0],
+            d3: V3::new(-0.12, 0.0, 0.0),
         };
-        let c = fit(&j0, &j1, h, [5.0, 0.0, 0.0]);
+        let c = fit(&j0, &j1, h, V3::new(5.0, 0.0, 0.0));
         for (k, ck) in c[0].iter().enumerate().skip(4) {
             assert!(ck.abs() < 1e-5, "c{k} = {ck}");
         }
@@ -420,7 +420,7 @@ mod tests {
         let s = Settings::new(&c).unwrap();
         let u = [0.6f32, 0.8, 0.0];
         let b = DerivBounds {
-            p1: [0.6, 0.8, 0.0],
+            p1: V3::new(0.6, 0.8, 0.0),
             ..DerivBounds::default()
         };
         let l = path_limits(&b, 10.0, f32::INFINITY, &s);

@@ -10,11 +10,11 @@ use std::vec::Vec;
 use super::*;
 use crate::config::ConfigError;
 use crate::law::LawConfig;
+use crate::plant::AxisModel;
 use crate::presets::board::BOARD_RATE_HZ;
 use crate::presets::gantry::{dsmc_for, tuning_for, GANTRY_X, GANTRY_Y};
 use crate::settings::{FACTORY, TOOL_COUNT, WORK_SYSTEMS};
 use crate::sysid::tuning;
-use crate::sysid::AxisModel;
 
 const RATE: u32 = BOARD_RATE_HZ;
 

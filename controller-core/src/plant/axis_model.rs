@@ -1,8 +1,8 @@
 //! The identified model of one axis: what identification produces and what every
-//! model-based law is tuned from ([`super::tuning`]).
+//! model-based law is tuned from ([`crate::sysid::tuning`]).
 //!
 //! `J x'' + B x' + f(x') = u`, with `f = f+` while moving forward and `f = f-` while moving
-//! backward (spec 1.3 without the load term). Units as in [`crate::physical_plant`]: mm,
+//! backward (spec 1.3 without the load term). Units as in [`super::physical`]: mm,
 //! s, and the *effort* the controller commands, mN·m when the command-to-torque scale is
 //! known (see docs/identification.md: the scale itself is not observable from counts and
 //! effort alone, so every parameter is "per unit of commanded effort").
@@ -13,8 +13,8 @@
 //! torque the laws must supply in each direction, so it is what they need; it also means
 //! `f-` may come out positive on an axis whose load exceeds its reverse friction.
 
+use super::physical::PhysicalAxisConfig;
 use crate::config::{finite, non_negative, positive, ConfigError};
-use crate::sim::physical::PhysicalAxisConfig;
 
 /// Rigid-body model of one axis (see the module docs for the equation and units).
 #[derive(Clone, Copy, Debug, PartialEq)]
