@@ -134,17 +134,6 @@ impl<R> IndexMut<usize> for Vec3<R> {
     }
 }
 
-impl<R: Real> Vec3<R> {
-    /// The cross product `self × o` (right-handed).
-    pub fn cross(self, o: Self) -> Self {
-        Self::new(
-            self.y * o.z - self.z * o.y,
-            self.z * o.x - self.x * o.z,
-            self.x * o.y - self.y * o.x,
-        )
-    }
-}
-
 impl Vec3<f64> {
     /// `self / |self|` (each component divided by the norm), or zero for a vector of no
     /// positive length (the host's path geometry: a degenerate move has no direction).
