@@ -163,7 +163,7 @@ impl Settings {
             .watchdog()
             .validate()
             .map_err(SettingsError::Link)?;
-        crate::motion::planner::Settings::new(&self.planner_config(rate_hz))
+        crate::motion::planner::ValidPlannerConfig::new(&self.planner_config(rate_hz))
             .map_err(SettingsError::Planner)?;
         for (a, axis) in self.axis.iter().zip(Axis::ALL) {
             if !(a.planner.vel_max_mm_s <= a.vel_max_mm_s) {

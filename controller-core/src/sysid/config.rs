@@ -166,7 +166,7 @@ pub const MAX_PERIOD_S: f32 = 0.01;
 
 /// Validated configuration with derived quantities.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Settings {
+pub(crate) struct ValidIdentifyConfig {
     pub(crate) c: IdentifyConfig,
     /// Turn points: the planned motion stays within `[turn_min, turn_max]`.
     pub(crate) turn_min_mm: f32,
@@ -198,7 +198,7 @@ fn in_range(v: f32, name: &'static str, min: f32, max: f32) -> Result<f32, Ident
     }
 }
 
-impl Settings {
+impl ValidIdentifyConfig {
     pub(crate) fn new(c: &IdentifyConfig, start_mm: f32) -> Result<Self, IdentifyConfigError> {
         let period = positive(c.period_s, "period_s")?;
         in_range(period, "period_s", 0.0, MAX_PERIOD_S)?;
@@ -300,7 +300,7 @@ mod tests {
 
     #[test]
     fn defaults_are_valid_and_speeds_evenly_spaced() {
-        let s = Settings::new(&IDENTIFY_DEFAULTS, 0.0).unwrap();
+        let s = ValidIdentifyConfig::new(&IDENTIFY_DEFAULTS, 0.0).unwrap();
         assert_eq!(s.n_speeds, 5);
         assert_eq!(&s.speeds_mm_s[..5], &[20.0, 55.0, 90.0, 125.0, 160.0]);
         assert_eq!((s.turn_min_mm, s.turn_max_mm), (-45.0, 45.0));
@@ -309,7 +309,7 @@ mod tests {
     #[test]
     fn errors_name_the_field() {
         let d = IDENTIFY_DEFAULTS;
-        let e = |c: IdentifyConfig| Settings::new(&c, 0.0).unwrap_err();
+        let e = |c: IdentifyConfig| ValidIdentifyConfig::new(&c, 0.0).unwrap_err();
         assert_eq!(
             e(IdentifyConfig {
                 torque_cap_mnm: 0.0,
@@ -372,16 +372,16 @@ mod tests {
     #[test]
     fn start_must_be_inside_the_margins() {
         assert_eq!(
-            Settings::new(&IDENTIFY_DEFAULTS, 46.0),
+            ValidIdentifyConfig::new(&IDENTIFY_DEFAULTS, 46.0),
             Err(IdentifyConfigError::StartOutsideWindow {
                 start_mm: 46.0,
                 min_mm: -45.0,
                 max_mm: 45.0
             })
         );
-        assert!(Settings::new(&IDENTIFY_DEFAULTS, -45.0).is_ok());
+        assert!(ValidIdentifyConfig::new(&IDENTIFY_DEFAULTS, -45.0).is_ok());
         assert_eq!(
-            Settings::new(&IDENTIFY_DEFAULTS, f32::NAN),
+            ValidIdentifyConfig::new(&IDENTIFY_DEFAULTS, f32::NAN),
             Err(IdentifyConfigError::Param(ConfigError::NotFinite(
                 "start_pos_mm"
             )))

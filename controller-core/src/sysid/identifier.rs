@@ -34,7 +34,7 @@
 //! at a phase's end one 4×4 solve (see [`super::lsq`]). No allocation, no panics; the
 //! output is finite and within `±torque_cap_mnm` whatever the input.
 
-use super::config::{IdentifyConfig, IdentifyConfigError, Settings};
+use super::config::{IdentifyConfig, IdentifyConfigError, ValidIdentifyConfig};
 use super::lsq::{LsError, LsSolution, NormalEquations};
 use super::velocity_loop::{Ramp, VelocityLoop};
 use crate::plant::AxisModel;
@@ -408,7 +408,7 @@ impl RowCounts {
 /// Identification of one axis (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Identifier {
-    s: Settings,
+    s: ValidIdentifyConfig,
     /// Periods since start.
     k: u32,
     stage: Stage,
@@ -461,7 +461,7 @@ impl Identifier {
     /// Validate `cfg` and prepare to start from rest at `start_pos_mm`, which must lie
     /// inside the window by at least the edge margin.
     pub fn new(cfg: &IdentifyConfig, start_pos_mm: f32) -> Result<Self, IdentifyConfigError> {
-        let s = Settings::new(cfg, start_pos_mm)?;
+        let s = ValidIdentifyConfig::new(cfg, start_pos_mm)?;
         let c = &s.c;
         let mut id = Self {
             s,

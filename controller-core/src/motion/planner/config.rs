@@ -1,8 +1,8 @@
 //! Planner configuration: machine limits per axis, path tolerance, control period. Validated
-//! once into [`Settings`], the runtime value both halves (planner and executor) use.
+//! once into [`ValidPlannerConfig`], the runtime value both halves (planner and executor) use.
 
 /// Machine limits and planning parameters. Units in the names; every value is checked by
-/// [`Settings::new`].
+/// [`ValidPlannerConfig::new`].
 use super::fmath::F32Ext;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -69,7 +69,7 @@ pub enum PlannerConfigError {
 
 /// Validated configuration plus derived values.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Settings {
+pub struct ValidPlannerConfig {
     pub period_s: f32,
     pub vel_max: [f32; 3],
     pub acc_max: [f32; 3],
@@ -108,7 +108,7 @@ fn positive3(v: [f32; 3], name: &'static str) -> Result<[f32; 3], PlannerConfigE
     Ok(v)
 }
 
-impl Settings {
+impl ValidPlannerConfig {
     /// No configuration (zero limits): what [`super::planner::Planner::BLANK`] holds
     /// until it is restarted with a validated one.
     pub const BLANK: Self = Self {
@@ -183,35 +183,35 @@ mod tests {
 
     #[test]
     fn gantry_config_is_valid_and_errors_name_the_field() {
-        assert!(Settings::new(&GANTRY_PLANNER).is_ok());
+        assert!(ValidPlannerConfig::new(&GANTRY_PLANNER).is_ok());
         let mut c = GANTRY_PLANNER;
         c.acc_max_mm_s2[1] = 0.0;
         assert_eq!(
-            Settings::new(&c),
+            ValidPlannerConfig::new(&c),
             Err(PlannerConfigError::NotPositive("acc_max_mm_s2"))
         );
         let mut c = GANTRY_PLANNER;
         c.jerk_max_mm_s3[2] = f32::NAN;
         assert_eq!(
-            Settings::new(&c),
+            ValidPlannerConfig::new(&c),
             Err(PlannerConfigError::NotFinite("jerk_max_mm_s3"))
         );
         let mut c = GANTRY_PLANNER;
         c.tangential_share = 1.0;
         assert_eq!(
-            Settings::new(&c),
+            ValidPlannerConfig::new(&c),
             Err(PlannerConfigError::OutOfRange("tangential_share"))
         );
         let mut c = GANTRY_PLANNER;
         c.servo_reserve = 1.0;
         assert_eq!(
-            Settings::new(&c),
+            ValidPlannerConfig::new(&c),
             Err(PlannerConfigError::OutOfRange("servo_reserve"))
         );
         let mut c = GANTRY_PLANNER;
         c.tolerance_mm = -0.1;
         assert_eq!(
-            Settings::new(&c),
+            ValidPlannerConfig::new(&c),
             Err(PlannerConfigError::OutOfRange("tolerance_mm"))
         );
     }

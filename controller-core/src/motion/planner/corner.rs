@@ -23,7 +23,7 @@
 //! about 30-45° stop (`tests`).
 
 use super::blend::Junction;
-use super::config::Settings;
+use super::config::ValidPlannerConfig;
 use super::fmath::{self, F32Ext};
 use super::geometry::Piece;
 use super::span::{path_limits, DerivBounds};
@@ -35,7 +35,7 @@ pub(crate) fn stop_is_faster(
     a: &Piece,
     b: &Piece,
     feed_mm_s: f32,
-    s: &Settings,
+    s: &ValidPlannerConfig,
 ) -> bool {
     let d = j.d;
     if j.stop || j.mixed || a.is_curved() || b.is_curved() || !(d > 0.0) {
@@ -91,7 +91,7 @@ mod tests {
     fn stops(turn_deg: f32, reserve: f32, feed: f32) -> bool {
         let mut c = GANTRY_PLANNER;
         c.servo_reserve = reserve;
-        let s = Settings::new(&c).unwrap();
+        let s = ValidPlannerConfig::new(&c).unwrap();
         let t = turn_deg.to_radians();
         let a = line([0.0; 3], [10.0, 0.0, 0.0]);
         let b = line(

@@ -49,7 +49,7 @@ pub mod segment;
 pub mod span;
 pub mod split;
 
-pub use config::{PlannerConfig, PlannerConfigError, Settings, GANTRY_PLANNER};
+pub use config::{PlannerConfig, PlannerConfigError, ValidPlannerConfig, GANTRY_PLANNER};
 pub use executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step};
 pub use handle::{Offer, PlannerHandle, RestartError};
 pub use pipeline::MotionPlanner;

@@ -19,7 +19,7 @@ use heapless::Deque;
 
 use super::blend::{plan_junction, Jet, Junction};
 use super::channel::Sink;
-use super::config::{PlannerConfig, PlannerConfigError, Settings};
+use super::config::{PlannerConfig, PlannerConfigError, ValidPlannerConfig};
 use super::corner::stop_is_faster;
 use super::executor::{ExecMode, ExecutorStatus, Step};
 use super::geometry::{Piece, V3};
@@ -157,7 +157,7 @@ pub struct PlannerStatus {
 /// (capacity `S` spans).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Planner<const N: usize, const S: usize> {
-    set: Settings,
+    set: ValidPlannerConfig,
     pieces: Deque<PieceEntry, N>,
     front_piece_id: u32,
     spans: SpanRing<S>,
@@ -191,7 +191,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
     /// A planner with no configuration, to be [`Planner::restart`]ed before use: a
     /// constant, so a static can hold one without a copy on the stack (the firmware).
     pub const BLANK: Self = Self {
-        set: Settings::BLANK,
+        set: ValidPlannerConfig::BLANK,
         pieces: Deque::new(),
         front_piece_id: 0,
         spans: SpanRing::new(),
@@ -230,7 +230,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         start_mm: [f32; 3],
         run: u16,
     ) -> Result<(), PlannerConfigError> {
-        let set = Settings::new(cfg)?;
+        let set = ValidPlannerConfig::new(cfg)?;
         for x in start_mm {
             if !x.is_finite() {
                 return Err(PlannerConfigError::NotFinite("start_mm"));
@@ -248,7 +248,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
     /// half in a zero-filled static (no initial image in flash) and calls this at boot;
     /// `tests::blank_in_place_equals_blank` checks that it leaves exactly `BLANK`.
     pub fn blank(&mut self) {
-        self.set = Settings::BLANK;
+        self.set = ValidPlannerConfig::BLANK;
         self.pieces.clear();
         self.front_piece_id = 0;
         self.spans.reset();
@@ -268,7 +268,7 @@ impl<const N: usize, const S: usize> Planner<N, S> {
         self.ahead = Ahead::new(0.0, 0.0, 0.0);
     }
 
-    pub fn settings(&self) -> &Settings {
+    pub fn settings(&self) -> &ValidPlannerConfig {
         &self.set
     }
 

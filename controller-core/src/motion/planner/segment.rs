@@ -2,7 +2,7 @@
 //! validation into geometric pieces. Validation either produces the pieces or an error;
 //! it never touches planner state, so a rejected segment changes nothing.
 
-use super::config::Settings;
+use super::config::ValidPlannerConfig;
 use super::fmath::{self, F32Ext};
 use super::geometry::{norm, Helix, Piece, Shape, V3};
 use core::f32::consts::TAU;
@@ -329,7 +329,11 @@ const EMPTY: Piece = Piece {
 };
 
 /// Validates `seg` starting at `start` into pieces.
-pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared, SegmentError> {
+pub(crate) fn prepare(
+    seg: &Segment,
+    start: V3,
+    s: &ValidPlannerConfig,
+) -> Result<Prepared, SegmentError> {
     let tol_after = match seg.blend {
         Blend::Default => Some(s.tolerance_mm),
         Blend::Tolerance(e) => {
@@ -427,7 +431,7 @@ pub(crate) fn prepare(seg: &Segment, start: V3, s: &Settings) -> Result<Prepared
 
 /// The circle through `start`, `via`, `end` as a helix piece (no rise), in the order the
 /// three points give. All in offsets from `start`, so f32 keeps the local precision.
-fn arc_through(start: V3, via: V3, end: V3, s: &Settings) -> Result<Piece, SegmentError> {
+fn arc_through(start: V3, via: V3, end: V3, s: &ValidPlannerConfig) -> Result<Piece, SegmentError> {
     let a = via - start;
     let b = end - start;
     let (la, lb, lc) = (norm(a), norm(b), norm(end - via));
@@ -487,7 +491,7 @@ fn arc_split(
     plane: Plane,
     clockwise: bool,
     turns: u32,
-    s: &Settings,
+    s: &ValidPlannerConfig,
 ) -> Result<ArcSplit, SegmentError> {
     let (i1, i2, n) = plane_axes(plane);
     let (a0, b0) = (start[i1] - center[i1], start[i2] - center[i2]);
@@ -549,11 +553,11 @@ fn arc_split(
 
 #[cfg(test)]
 mod tests {
-    use super::super::config::{Settings, GANTRY_PLANNER};
+    use super::super::config::{ValidPlannerConfig, GANTRY_PLANNER};
     use super::*;
 
-    fn settings() -> Settings {
-        Settings::new(&GANTRY_PLANNER).unwrap()
+    fn settings() -> ValidPlannerConfig {
+        ValidPlannerConfig::new(&GANTRY_PLANNER).unwrap()
     }
 
     #[test]

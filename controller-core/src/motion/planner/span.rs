@@ -31,7 +31,7 @@
 //! whatever the fit error.
 
 use super::blend::Jet;
-use super::config::Settings;
+use super::config::ValidPlannerConfig;
 use super::fmath::{self, F32Ext};
 use super::geometry::V3;
 
@@ -307,7 +307,12 @@ fn cubic_root_down(a: f32, b: f32, c: f32) -> f32 {
 /// and jerk (the look-ahead brakes with these where spans differ, and its horizon is the
 /// stopping distance at the floor). V is the largest speed that still leaves the floor,
 /// capped at `v_design` so that slow spans give the rest to A and J instead.
-pub(crate) fn path_limits(b: &DerivBounds, h: f32, v_design: f32, s: &Settings) -> PathLimits {
+pub(crate) fn path_limits(
+    b: &DerivBounds,
+    h: f32,
+    v_design: f32,
+    s: &ValidPlannerConfig,
+) -> PathLimits {
     let (a_req, j_req) = (s.acc_floor, s.jerk_floor);
     let mut vel = if h > 0.0 {
         SPANS_PER_PERIOD as f32 * h / s.period_s
@@ -417,7 +422,7 @@ mod tests {
     fn straight_span_gets_the_projected_axis_limits() {
         let mut c = super::super::config::GANTRY_PLANNER;
         c.servo_reserve = 0.0;
-        let s = Settings::new(&c).unwrap();
+        let s = ValidPlannerConfig::new(&c).unwrap();
         let u = [0.6f32, 0.8, 0.0];
         let b = DerivBounds {
             p1: V3::new(0.6, 0.8, 0.0),

@@ -23,7 +23,7 @@
 use heapless::spsc::{Consumer, Producer, Queue};
 use heapless::Deque;
 
-use super::config::{PlannerConfig, PlannerConfigError, Settings};
+use super::config::{PlannerConfig, PlannerConfigError, ValidPlannerConfig};
 use super::executor::{ExecMode, Executor, ExecutorStatus, PathSample, Step};
 use super::handle::{Offer, PlannerHandle, RestartError};
 use super::planner::{check_feed_override, Planner, PlannerState};
@@ -251,7 +251,7 @@ impl PlannerHandle for SplitExecutor<'_> {
         if self.ends.is_none() {
             return Err(RestartError::Detached);
         }
-        let set = Settings::new(cfg).map_err(RestartError::Config)?;
+        let set = ValidPlannerConfig::new(cfg).map_err(RestartError::Config)?;
         if start_mm.iter().any(|x| !x.is_finite()) {
             return Err(RestartError::Config(PlannerConfigError::NotFinite(
                 "start_mm",
