@@ -147,37 +147,8 @@ pub const MIN_FEED_MM_MIN: f64 = 0.01;
 /// Axis names by index.
 pub const AXIS_NAMES: [char; 3] = ['X', 'Y', 'Z'];
 
-/// Arc plane (G17/G18/G19).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Plane {
-    /// G17: arc in X, Y; helix along Z.
-    XY,
-    /// G18: arc in Z, X (first axis Z); helix along Y.
-    ZX,
-    /// G19: arc in Y, Z; helix along X.
-    YZ,
-}
-
-impl Plane {
-    /// Axis indices `[first, second, normal]`; first × second = normal, so positive angles
-    /// (G3, counter-clockwise) are seen from the positive normal axis.
-    pub const fn axes(self) -> [usize; 3] {
-        match self {
-            Plane::XY => [0, 1, 2],
-            Plane::ZX => [2, 0, 1],
-            Plane::YZ => [1, 2, 0],
-        }
-    }
-
-    /// "G17 (XY)" etc., for messages.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Plane::XY => "G17 (XY)",
-            Plane::ZX => "G18 (ZX)",
-            Plane::YZ => "G19 (YZ)",
-        }
-    }
-}
+/// Arc plane (G17/G18/G19): the planner's own, which the program's segments carry.
+pub use controller_core::motion::planner::Plane;
 
 /// Path control mode (G61/G61.1/G64) in force for the moves that follow (LinuxCNC's
 /// trajectory control).

@@ -4,19 +4,11 @@
 
 use crate::gcode::{self, check_travel, compress, MoveKind, ParseOptions, Program, Travel};
 use anyhow::{anyhow, Result};
-use controller_core::motion::planner::{Blend, Plane, Segment};
+use controller_core::motion::planner::{Blend, Segment};
 use controller_core::settings::{Settings, FACTORY, TOOL_COUNT};
 use controller_core::sim::run::RunConfig;
 use std::ops::Range;
 use std::path::Path;
-
-fn plane_of(p: gcode::Plane) -> Plane {
-    match p {
-        gcode::Plane::XY => Plane::XY,
-        gcode::Plane::ZX => Plane::ZX,
-        gcode::Plane::YZ => Plane::YZ,
-    }
-}
 
 fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
@@ -69,7 +61,7 @@ pub fn segments(program: &Program, default_tol_mm: f64) -> (Vec<PlanSegment>, co
                 } => Segment::arc(
                     f32s(to),
                     f32s(center),
-                    plane_of(plane),
+                    plane,
                     clockwise,
                     turns.saturating_sub(1),
                     feed_mm_s as f32,

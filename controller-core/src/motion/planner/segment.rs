@@ -12,20 +12,41 @@ use core::f32::consts::TAU;
 // serde + Schema always: segments travel on the host link (machine::messages)
 #[derive(serde::Serialize, serde::Deserialize, postcard_schema::Schema)]
 pub enum Plane {
+    /// G17: arc in X, Y; helix along Z.
     XY,
+    /// G18: arc in Z, X (first axis Z); helix along Y.
     ZX,
+    /// G19: arc in Y, Z; helix along X.
     YZ,
+}
+
+impl Plane {
+    /// Axis indices `[first, second, normal]`; first × second = normal, so positive angles
+    /// (G3, counter-clockwise) are seen from the positive normal axis.
+    pub const fn axes(self) -> [usize; 3] {
+        match self {
+            Plane::XY => [0, 1, 2],
+            Plane::ZX => [2, 0, 1],
+            Plane::YZ => [1, 2, 0],
+        }
+    }
+
+    /// "G17 (XY)" etc., for messages.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Plane::XY => "G17 (XY)",
+            Plane::ZX => "G18 (ZX)",
+            Plane::YZ => "G19 (YZ)",
+        }
+    }
 }
 
 /// Axes (in-plane first, in-plane second, normal) of a plane. The order makes a positive
 /// rotation (i1 toward i2) counter-clockwise seen from the positive normal, as G2/G3
 /// define it: XY about +Z, ZX about +Y, YZ about +X.
 pub(crate) fn plane_axes(p: Plane) -> (usize, usize, usize) {
-    match p {
-        Plane::XY => (0, 1, 2),
-        Plane::ZX => (2, 0, 1),
-        Plane::YZ => (1, 2, 0),
-    }
+    let [first, second, normal] = p.axes();
+    (first, second, normal)
 }
 
 /// Feed of a line.
