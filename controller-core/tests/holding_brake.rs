@@ -1,4 +1,4 @@
-//! The holding brake on the gantry's vertical Z axis (issue 20 item 3): the servo step of
+//! The holding brake on the gantry's vertical Z axis (docs/safety.md "Holding brakes"): the servo step of
 //! the board's configuration (`presets::board`, Z brake fitted) against the simulated
 //! gantry, whose Z brake holds 320 mN·m once it grips.
 //!

@@ -1,4 +1,4 @@
-//! Counts to positions in `f32` over a 24-hour run at the board's rate (issue 14).
+//! Counts to positions in `f32` over a 24-hour run at the board's rate (the position's resolution must not decay with time).
 //!
 //! The servo step's positions are `count_to_real(n) · len` in `f32` (no `f64`: soft float
 //! on the board), from wide counts `n` kept exactly in `i64` by [`WideCounter`]. Nothing

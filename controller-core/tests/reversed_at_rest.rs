@@ -8,7 +8,7 @@
 //!
 //! The arm check (`safety.arm_encoder_check`) moves each axis' hold point 16 counts out
 //! and back both ways at arming and faults a reading that goes the wrong way: X and Y
-//! within 61 and 48 periods of motion (issue 20's goal: 100), Z 113 periods after its
+//! within 61 and 48 periods of motion (the goal: 100), Z 113 periods after its
 //! brake opens (its load's runaway must outgrow a healthy Z's 6-count sag first), a few
 //! µm of travel (docs/safety.md, "Swapped A/B at rest").
 //!

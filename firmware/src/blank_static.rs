@@ -2,7 +2,7 @@
 //! the CCM RAM) and the machine memory (the scope's buffer and the executor, 8.7 KiB)
 //! are zero-filled statics (`.bss`, and the CCM's `NOLOAD` `.ccmbss`, firmware/memory.x)
 //! made blank in place at boot, field by field. As initialised statics their images
-//! cost 71 KiB of flash and a copy at every boot (issue 21, memory); as constants
+//! cost 71 KiB of flash and a copy at every boot; as constants
 //! written whole they would be copied through the stack, which cannot hold them.
 //!
 //! Zero bytes are a valid planner, executor and scope (numbers, bools, heapless queues'

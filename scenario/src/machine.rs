@@ -1,5 +1,5 @@
 //! Checks of a machine description (`machine.*` of a scenario, usually included from
-//! `host-sim/machines/*.toml`) before anything is built from it (issue 20, item 8).
+//! `host-sim/machines/*.toml`) before anything is built from it.
 //!
 //! Two kinds of value, one rule each:
 //!

@@ -1,4 +1,4 @@
-//! Velocity estimators (controller-core `estimator`) against issue 6's numeric
+//! Velocity estimators (controller-core `estimator`) against the numeric
 //! requirements: zero steady-state velocity error on a ramp, bounded lag on a sine,
 //! noise attenuation with ±1 count dither, no lost count at 16/32-bit counter wrap, and
 //! rejection of unstable gain/period combinations. All signals are synthetic counts at

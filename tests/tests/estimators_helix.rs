@@ -1,4 +1,4 @@
-//! Issue 6's goal on the paper helix through host-sim's discrete engine (10 kHz, 1e-4
+//! The velocity estimators' goal (docs/velocity-estimation.md) on the paper helix through host-sim's discrete engine (10 kHz, 1e-4
 //! quantisation, |u| <= 500, controller in f32): with the Kalman estimator DSMC's
 //! contour error (t >= 1 s) stays within 1.5 quantisation steps and its chattering within
 //! twice that with the exact velocity, while the backward difference is far worse.

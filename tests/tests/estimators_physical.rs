@@ -1,4 +1,4 @@
-//! Issue 6's comparison on the physical gantry (host-sim `estimators`, JSON `"physical"`):
+//! The velocity estimators' comparison on the physical gantry (host-sim `estimators`, JSON `"physical"`):
 //! the seeds helix (r 20 mm, 50 mm/s, 150 mN·m load step on X at 1.5 s, 3 s) on the
 //! friction axes with 0.625 µm counts at 10 kHz, DSMC with the seeds' per-axis presets.
 //! Measured (docs/velocity-estimation.md): the contour error is set by friction and the

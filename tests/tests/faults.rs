@@ -67,7 +67,7 @@ fn matrix_json_has_the_issue_keys() {
     }
 }
 
-/// The speed grid (issue 20's goals): a stuck encoder on X, Y, Z, both ways (Z with and
+/// The speed grid (docs/safety.md's bounds): a stuck encoder on X, Y, Z, both ways (Z with and
 /// against gravity), at 1 to 250 mm/s is found within 20 periods with at most 5 µm of
 /// travel before the detection; a swapped A/B within 10 periods; nothing else is
 /// reported first.

@@ -57,7 +57,7 @@ fn paper_machine_file_is_the_papers_axis() {
     }
 }
 
-// ---- machine files checked as the settings are (issue 20, item 8) ----
+// ---- machine files checked as the settings are ----
 
 use gantry_scenario::file::{load, load_str_with, DirIncludes};
 use gantry_scenario::Resolved;

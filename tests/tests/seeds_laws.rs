@@ -1,4 +1,4 @@
-//! Closed-loop behaviour of the seed methods (issue 5) on the physical gantry axes:
+//! Closed-loop behaviour of the seed methods (docs/seed-methods.md) on the physical gantry axes:
 //! disturbance observer, DOB-SMC load rejection, variable-gain cross-coupling, adaptive
 //! friction identification. Every run is the servo step against the simulated gantry
 //! (`host-sim/machines/gantry.toml`): controller in f32 at 10 kHz with zero-order hold,
@@ -120,7 +120,7 @@ fn friction_report() -> &'static SeedsReport {
 
 #[test]
 fn adaptive_estimates_end_within_10_percent_of_the_truth_on_x_and_y() {
-    // issue 5: J, B, f+, f- within 10 % on a persistently exciting trajectory, on every
+    // the identification goal: J, B, f+, f- within 10 % on a persistently exciting trajectory, on every
     // moving axis (measured: all within 4 %)
     let rep = friction_report();
     for axis in ["x", "y"] {
