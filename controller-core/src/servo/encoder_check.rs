@@ -3,13 +3,41 @@
 //! axis' hold reference moves out and back each way; each reading must follow).
 
 use super::faults::{Fault, FaultKind};
+use super::io::ServoIo;
 use super::motion::Motion;
 use super::state::ServoState;
-use super::step::{ArmPhase, Check, Servo, ARM_CHECK_SETTLE_COUNTS};
+use super::step::{ArmPhase, Check, Sensed, Servo, ARM_CHECK_SETTLE_COUNTS};
 use crate::axes::{Axis, AXES};
 use crate::{Real, Vec3};
 
 impl<R: Real> Servo<R> {
+    /// The period of the check at reset: the checked axis' effort written out (none while
+    /// its brake still opens), or the outputs off once the check ended. Returns the effort
+    /// applied.
+    #[inline(always)]
+    pub(super) fn encoder_check_period<IO: ServoIo<R>>(
+        &mut self,
+        io: &mut IO,
+        s: &Sensed<R>,
+        index_fault: Option<(Fault, f32)>,
+    ) -> Vec3<R> {
+        if let Some((f, v)) = index_fault {
+            self.trip(f, v, None);
+        }
+        let mut applied = if s.held {
+            Vec3::zero()
+        } else {
+            self.encoder_check(&s.counts)
+        };
+        if self.state.drives() {
+            io.write_outputs(&self.drive(applied));
+        } else {
+            applied = Vec3::zero();
+            io.disable_outputs();
+        }
+        applied
+    }
+
     /// The next axis after `after` (from the first without one) with an encoder fault
     /// latched: the one the encoder check at reset tries next.
     pub(super) fn next_check(&self, after: Option<usize>) -> Option<usize> {

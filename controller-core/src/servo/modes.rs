@@ -178,6 +178,9 @@ impl<R: Real> Servo<R> {
         self.motion = Motion::Hold(self.position_of(counts));
     }
 
+    /// Apply one operator command at the start of the period: refused when [`check`]
+    /// says it is not valid now, or when the configuration cannot serve it (no path, no
+    /// homing, an identification window that does not fit).
     #[cold]
     #[inline(never)]
     pub(super) fn apply_command(
@@ -189,54 +192,89 @@ impl<R: Real> Servo<R> {
         self.snapshot.inputs = *inputs;
         self.snapshot.state = self.state;
         check(&self.snapshot, c)?;
-        let here = || super::motion::sample(&self.motion, self.path.as_ref(), &self.clock).0;
-        match (*c, self.state) {
-            (Command::Arm, _) => {
-                self.state = ServoState::Idle;
-                self.hold_here(counts);
-                if self.arm_check_on {
-                    // the encoders proven before anything may move (a swapped A/B is a
-                    // wiring change made with the power off; holding still shows nothing)
-                    let brake = |i: usize| self.brakes[i].present();
-                    self.arm_check = Some(ArmCheck {
-                        phase: core::array::from_fn(|i| {
-                            if brake(i) {
-                                ArmPhase::Settle
-                            } else {
-                                ArmPhase::Out
-                            }
-                        }),
-                        k: [0; AXES],
-                        base: *counts,
-                        hold: self.position_of(counts),
-                        offset: [0.0; AXES],
-                    });
-                    self.state = ServoState::EncoderCheck;
-                }
+        match *c {
+            Command::Arm => self.arm(counts),
+            Command::Disarm => self.disarm(),
+            Command::Reset => return self.reset(inputs, counts),
+            Command::StartPath => return self.start_path(counts),
+            Command::Home => return self.home(counts),
+            Command::Jog { axis, vel_mm_s } => self.jog(axis, vel_mm_s),
+            Command::Identify { axis, window_mm } => {
+                return self.start_identify(axis, window_mm, counts)
             }
-            (Command::Disarm, ServoState::Idle) => {
+            Command::Run => self.run_planner(),
+            Command::Stop => self.stop(counts),
+            Command::LinkLost => {
+                self.link_down = true;
+                // (identifying: the stop is immediate, as for any fault there)
+                let r = self.here();
+                self.trip(Fault::system(FaultKind::LinkLost), 0.0, Some(&r));
+            }
+            Command::LinkUp => self.link_down = false,
+        }
+        Ok(())
+    }
+
+    /// The reference of the motion under way, now.
+    #[inline(always)]
+    fn here(&self) -> RefSample<R> {
+        super::motion::sample(&self.motion, self.path.as_ref(), &self.clock).0
+    }
+
+    /// Arm: hold where the axes are; with the arm check on, prove the encoders first.
+    #[inline(always)]
+    fn arm(&mut self, counts: &[i64; AXES]) {
+        self.state = ServoState::Idle;
+        self.hold_here(counts);
+        if self.arm_check_on {
+            // the encoders proven before anything may move (a swapped A/B is a
+            // wiring change made with the power off; holding still shows nothing)
+            let brake = |i: usize| self.brakes[i].present();
+            self.arm_check = Some(ArmCheck {
+                phase: core::array::from_fn(|i| {
+                    if brake(i) {
+                        ArmPhase::Settle
+                    } else {
+                        ArmPhase::Out
+                    }
+                }),
+                k: [0; AXES],
+                base: *counts,
+                hold: self.position_of(counts),
+                offset: [0.0; AXES],
+            });
+            self.state = ServoState::EncoderCheck;
+        }
+    }
+
+    /// Disarm: outputs off at once where nothing moves and every brake grips; else a
+    /// controlled stop that ends with them off.
+    #[inline(always)]
+    fn disarm(&mut self) {
+        match self.state {
+            ServoState::Idle => {
                 if self.brakes_gripping() {
                     self.state = ServoState::Disabled;
                 } else {
                     // a released brake grips first: hold where the axes are (already at
                     // rest, so no settling), engage, then outputs off
-                    let r = here();
+                    let r = self.here();
                     self.begin_stop(&r, ServoState::Disabled);
                     self.rest_periods = self.settle_periods;
                     self.braking = true;
                 }
             }
-            (Command::Disarm, ServoState::Identify) => {
+            ServoState::Identify => {
                 self.end_identify(true);
                 self.state = ServoState::Disabled;
             }
-            (Command::Disarm, ServoState::Run | ServoState::Jog | ServoState::Homing) => {
-                let r = here();
+            ServoState::Run | ServoState::Jog | ServoState::Homing => {
+                let r = self.here();
                 self.begin_stop(&r, ServoState::Disabled);
             }
-            (Command::Disarm, ServoState::EncoderCheck) if self.arm_check.is_some() => {
+            ServoState::EncoderCheck if self.arm_check.is_some() => {
                 // an arm check given up: nothing was proven, nothing is latched
-                let r = here();
+                let r = self.here();
                 self.arm_check = None;
                 if self.brakes_gripping() {
                     self.state = ServoState::Disabled;
@@ -246,109 +284,146 @@ impl<R: Real> Servo<R> {
                     self.braking = true;
                 }
             }
-            (Command::Disarm, ServoState::EncoderCheck) => {
+            ServoState::EncoderCheck => {
                 self.check = None;
                 self.state = ServoState::Fault;
             }
-            (Command::Disarm, _) => {}
-            (Command::Reset, _) => {
-                if !self.causes_gone(inputs) {
-                    return Err(Refusal::FaultLatched);
-                }
-                match self.next_check(None) {
-                    Some(axis) => {
-                        self.check = Some(Check {
-                            axis,
-                            positive: true,
-                            k: 0,
-                            n0: counts[axis],
-                        });
-                        self.state = ServoState::EncoderCheck;
-                    }
-                    None => {
-                        self.faults.clear();
-                        self.publish_faults();
-                        self.state = ServoState::Disabled;
-                    }
-                }
-            }
-            (Command::StartPath, _) => {
-                let Some((traj, _)) = &self.path else {
-                    return Err(Refusal::NoPath);
-                };
-                let origin = match self.path_start {
-                    PathStart::Absolute => None,
-                    PathStart::FromCurrentPosition => {
-                        Some(self.position_of(counts) - traj.sample(R::ZERO).pos)
-                    }
-                };
-                self.motion = Motion::Path { k: 0, origin };
-                self.state = ServoState::Run;
-            }
-            (Command::Home, _) => {
-                let pos = self.position_of(counts).to_array().map(Real::to_f32);
-                let Some(run) = Homing::start(&self.homing_cfg, &pos) else {
-                    return Err(Refusal::NoHoming);
-                };
-                // homing again: every homing axis must find its switch anew
-                self.homed = 0;
-                self.snapshot.homed = self.no_homing;
-                self.motion = Motion::Homing {
-                    hold: here().pos,
-                    run,
-                };
-                self.state = ServoState::Homing;
-            }
-            (Command::Jog { axis, vel_mm_s }, st) => {
-                if st == ServoState::Idle {
-                    let pos = here().pos.to_array().map(Real::to_f32);
-                    self.motion = Motion::Jog(Jog::at(pos));
-                    self.state = ServoState::Jog;
-                }
-                if let Motion::Jog(j) = &mut self.motion {
-                    j.command(
-                        axis.index(),
-                        vel_mm_s,
-                        &self.jog_cfg,
-                        self.jog_timeout_periods,
-                    );
-                }
-            }
-            (Command::Identify { axis, window_mm }, st) => {
-                // (`min`: lets the compiler drop the bounds checks below)
-                let i = axis.index().min(AXES - 1);
-                let pos = self.position_of(counts)[i].to_f32();
-                let travel = if self.referenced(i) {
-                    self.travel.axes[i]
-                } else {
-                    super::travel::AxisTravel::UNLIMITED
-                };
-                let run = IdentifyRun::start(
-                    &self.identify_cfg,
+            _ => {}
+        }
+    }
+
+    /// Reset: refused while a cause remains; an encoder fault first runs the encoder
+    /// check, anything else clears at once.
+    #[inline(always)]
+    fn reset(&mut self, inputs: &Inputs, counts: &[i64; AXES]) -> Result<(), Refusal> {
+        if !self.causes_gone(inputs) {
+            return Err(Refusal::FaultLatched);
+        }
+        match self.next_check(None) {
+            Some(axis) => {
+                self.check = Some(Check {
                     axis,
-                    pos,
-                    &travel,
-                    window_mm,
-                    self.full_scale[i].to_f32(),
-                    self.period_s as f32,
-                    st == ServoState::Idle,
-                )?;
-                if st == ServoState::Disabled {
-                    self.hold_here(counts);
-                }
-                self.identify = Some(run);
-                self.identify_outcome = None;
-                self.state = ServoState::Identify;
+                    positive: true,
+                    k: 0,
+                    n0: counts[axis],
+                });
+                self.state = ServoState::EncoderCheck;
             }
-            (Command::Run, _) => {
-                // until the first sample arrives the reference holds where the servo was
-                let mut r = here();
-                r.vel = Vec3::zero();
-                r.acc = Vec3::zero();
-                self.motion = Motion::Planner(r);
-                self.state = ServoState::Run;
+            None => {
+                self.faults.clear();
+                self.publish_faults();
+                self.state = ServoState::Disabled;
             }
-            (Command::Stop, ServoState::Identify) => {
+        }
+        Ok(())
+    }
+
+    /// Follow the configured path (from where the axes are, when it says so).
+    #[inline(always)]
+    fn start_path(&mut self, counts: &[i64; AXES]) -> Result<(), Refusal> {
+        let Some((traj, _)) = &self.path else {
+            return Err(Refusal::NoPath);
+        };
+        let origin = match self.path_start {
+            PathStart::Absolute => None,
+            PathStart::FromCurrentPosition => {
+                Some(self.position_of(counts) - traj.sample(R::ZERO).pos)
+            }
+        };
+        self.motion = Motion::Path { k: 0, origin };
+        self.state = ServoState::Run;
+        Ok(())
+    }
+
+    /// Start homing: every homing axis must find its switch anew.
+    #[inline(always)]
+    fn home(&mut self, counts: &[i64; AXES]) -> Result<(), Refusal> {
+        let pos = self.position_of(counts).to_array().map(Real::to_f32);
+        let Some(run) = Homing::start(&self.homing_cfg, &pos) else {
+            return Err(Refusal::NoHoming);
+        };
+        // homing again: every homing axis must find its switch anew
+        self.homed = 0;
+        self.snapshot.homed = self.no_homing;
+        self.motion = Motion::Homing {
+            hold: self.here().pos,
+            run,
+        };
+        self.state = ServoState::Homing;
+        Ok(())
+    }
+
+    /// Jog `axis` at `vel_mm_s` (from Idle the jog starts where the reference is).
+    #[inline(always)]
+    fn jog(&mut self, axis: Axis, vel_mm_s: f32) {
+        if self.state == ServoState::Idle {
+            let pos = self.here().pos.to_array().map(Real::to_f32);
+            self.motion = Motion::Jog(Jog::at(pos));
+            self.state = ServoState::Jog;
+        }
+        if let Motion::Jog(j) = &mut self.motion {
+            j.command(
+                axis.index(),
+                vel_mm_s,
+                &self.jog_cfg,
+                self.jog_timeout_periods,
+            );
+        }
+    }
+
+    /// Start identifying `axis` inside its travel (once referenced) or `window_mm`.
+    #[inline(always)]
+    fn start_identify(
+        &mut self,
+        axis: Axis,
+        window_mm: Option<[f32; 2]>,
+        counts: &[i64; AXES],
+    ) -> Result<(), Refusal> {
+        let st = self.state;
+        // (`min`: lets the compiler drop the bounds checks below)
+        let i = axis.index().min(AXES - 1);
+        let pos = self.position_of(counts)[i].to_f32();
+        let travel = if self.referenced(i) {
+            self.travel.axes[i]
+        } else {
+            super::travel::AxisTravel::UNLIMITED
+        };
+        let run = IdentifyRun::start(
+            &self.identify_cfg,
+            axis,
+            pos,
+            &travel,
+            window_mm,
+            self.full_scale[i].to_f32(),
+            self.period_s as f32,
+            st == ServoState::Idle,
+        )?;
+        if st == ServoState::Disabled {
+            self.hold_here(counts);
+        }
+        self.identify = Some(run);
+        self.identify_outcome = None;
+        self.state = ServoState::Identify;
+        Ok(())
+    }
+
+    /// Follow the planner's reference: until the first sample arrives the reference
+    /// holds where the servo was.
+    #[inline(always)]
+    fn run_planner(&mut self) {
+        let mut r = self.here();
+        r.vel = Vec3::zero();
+        r.acc = Vec3::zero();
+        self.motion = Motion::Planner(r);
+        self.state = ServoState::Run;
+    }
+
+    /// Stop: an identification ends (holding, or off when it started from Disabled);
+    /// any other motion ends with a controlled stop to Idle.
+    #[inline(always)]
+    fn stop(&mut self, counts: &[i64; AXES]) {
+        match self.state {
+            ServoState::Identify => {
                 let hold = self.identify.as_ref().is_some_and(|r| r.hold_others);
                 self.end_identify(true);
                 if hold {
@@ -358,20 +433,12 @@ impl<R: Real> Servo<R> {
                     self.state = ServoState::Disabled;
                 }
             }
-            (Command::Stop, ServoState::Idle) => {}
-            (Command::LinkLost, _) => {
-                self.link_down = true;
-                // (identifying: the stop is immediate, as for any fault there)
-                let r = here();
-                self.trip(Fault::system(FaultKind::LinkLost), 0.0, Some(&r));
-            }
-            (Command::LinkUp, _) => self.link_down = false,
-            (Command::Stop, _) => {
-                let r = here();
+            ServoState::Idle => {}
+            _ => {
+                let r = self.here();
                 self.begin_stop(&r, ServoState::Idle);
             }
         }
-        Ok(())
     }
 
     /// End the identification (aborted by the user when `aborted`), keeping its outcome.

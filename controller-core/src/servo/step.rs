@@ -87,6 +87,19 @@ pub(super) const ARM_CHECK_WRONG_COUNTS: f32 = 2.0;
 /// counts is a runaway, not a sag.
 pub(super) const ARM_CHECK_SETTLE_COUNTS: f32 = 8.0;
 
+/// What the period sensed, for its control and telemetry steps: the inputs, the counts
+/// and their steps, the estimates, and whether the motion waits for the brakes or its
+/// reference is at rest.
+pub(super) struct Sensed<R> {
+    pub(super) inputs: Inputs,
+    pub(super) counts: [i64; AXES],
+    pub(super) steps: [i32; AXES],
+    pub(super) meas: Measured<R>,
+    pub(super) vel: [f32; AXES],
+    pub(super) held: bool,
+    pub(super) at_rest: bool,
+}
+
 /// The servo step's state, owned by the control interrupt.
 pub struct Servo<R> {
     pub(super) period_s: f64,
@@ -680,14 +693,64 @@ impl<R: Real> Servo<R> {
         fault
     }
 
-    /// One control period. See the module documentation for the sequence. Commands that
-    /// are not valid now are refused: the refusal is in the snapshot
+    /// One control period. See the module documentation of [`super`] for the sequence.
+    /// Commands that are not valid now are refused: the refusal is in the snapshot
     /// ([`Snapshot::refused`]).
     pub fn period<IO: ServoIo<R>>(&mut self, io: &mut IO, commands: &[Command]) -> &Snapshot {
         self.snapshot.period = self.snapshot.period.wrapping_add(1);
 
         // 1. Safety first: hard inputs and commands decide before anything is computed.
         let inputs = io.read_inputs();
+        self.latch_hard_inputs(&inputs);
+        self.outputs_off_unless_driving(io);
+        if self.state != ServoState::EncoderCheck {
+            // a fault or a stop ended the arm check
+            self.arm_check = None;
+        }
+
+        // 2. Wide and machine counts.
+        let (mut counts, steps) = self.read_counts(io);
+        self.apply_commands(commands, &inputs, &counts);
+        self.outputs_off_unless_driving(io);
+        // motion that starts waits for the brakes to open
+        let held = self.motion_held();
+        let (index, index_fault) = self.read_index(io, &steps, &mut counts);
+
+        // 3. Reference.
+        let arm_checking = self.step_reference(io, &inputs, index, held, &mut counts);
+        let (reference, motion_t, at_rest) = self.sample_reference(held);
+
+        // 4. Positions and velocities.
+        let meas: Measured<R> = self
+            .estimators
+            .update(counts, reference.acc, io.true_velocity());
+        let vel = meas.vel.to_array().map(Real::to_f32);
+
+        // 5. Control.
+        let sensed = Sensed {
+            inputs,
+            counts,
+            steps,
+            meas,
+            vel,
+            held,
+            at_rest,
+        };
+        let (applied, evaluated) = self.control(io, &sensed, &reference, index_fault, arm_checking);
+        self.applied = applied;
+        self.estimators.applied(applied);
+        self.write_brakes(io);
+
+        // 6. Telemetry (plain copies).
+        self.publish(&sensed, &reference, applied, motion_t, evaluated);
+        &self.snapshot
+    }
+
+    /// Step 1: the e-stop and the amplifier faults latch in any state, the limit switches
+    /// while the outputs are on (homing's own switch excepted); a category-1 e-stop's
+    /// stop counts down its bounded time.
+    #[inline(always)]
+    fn latch_hard_inputs(&mut self, inputs: &Inputs) {
         if inputs.estop {
             self.trip(Fault::system(FaultKind::EStop), 0.0, None);
         }
@@ -715,7 +778,7 @@ impl<R: Real> Servo<R> {
         }
         if self.state.drives() {
             let tripped = if self.state == ServoState::Homing {
-                self.homing_limit(&inputs)
+                self.homing_limit(inputs)
             } else {
                 inputs.first_limit()
             };
@@ -728,55 +791,78 @@ impl<R: Real> Servo<R> {
                 self.trip(Fault::on(kind, axis), 0.0, None);
             }
         }
+    }
+
+    /// Outputs and brake coils off now when the state may not drive them (recorded at
+    /// the end of the period; the coil is off from now on).
+    #[inline(always)]
+    fn outputs_off_unless_driving<IO: ServoIo<R>>(&mut self, io: &mut IO) {
         if !self.state.drives() {
             io.disable_outputs();
-            // (recorded at the end of the period; the coil is off from now on)
             io.write_brakes([false; AXES]);
         }
+    }
 
-        if self.state != ServoState::EncoderCheck {
-            // a fault or a stop ended the arm check
-            self.arm_check = None;
-        }
-
-        // 2. Wide and machine counts.
+    /// Step 2: the counters extended to wide counts, and their steps (exact `i32`
+    /// counter deltas) for the encoder checks.
+    #[inline(always)]
+    fn read_counts<IO: ServoIo<R>>(&mut self, io: &mut IO) -> ([i64; AXES], [i32; AXES]) {
         let raw = io.read_counters();
         let mut counts = [0i64; AXES];
-        // the steps of the wide counts (exact i32 counter deltas) for the encoder checks
         let mut steps = [0i32; AXES];
         for i in 0..AXES {
             counts[i] = self.counters[i].update(raw[i]);
             steps[i] = self.counters[i].step();
         }
+        (counts, steps)
+    }
+
+    /// The period's commands, in order; the last refusal (if any) in the snapshot.
+    #[inline(always)]
+    fn apply_commands(&mut self, commands: &[Command], inputs: &Inputs, counts: &[i64; AXES]) {
         if !commands.is_empty() {
             self.snapshot.refused = None;
             for c in commands {
-                if let Err(why) = self.apply_command(c, &inputs, &counts) {
+                if let Err(why) = self.apply_command(c, inputs, counts) {
                     self.snapshot.refused = Some((*c, why));
                 }
             }
         }
-        if !self.state.drives() {
-            io.disable_outputs();
-            io.write_brakes([false; AXES]);
-        }
-        // motion that starts waits for the brakes to open
-        let held = self.motion_held();
+    }
 
-        // the index pulses: glitches corrected (or faulted) before anything uses the counts
-        // (a fault waits for the encoder checks: a jump that lands on an index pass is
-        // reported as the jump it is)
+    /// The index pulses: glitches corrected (or faulted) before anything uses the counts
+    /// (a fault waits for the encoder checks: a jump that lands on an index pass is
+    /// reported as the jump it is). Returns the pulses read and the fault.
+    #[inline(always)]
+    fn read_index<IO: ServoIo<R>>(
+        &mut self,
+        io: &mut IO,
+        steps: &[i32; AXES],
+        counts: &mut [i64; AXES],
+    ) -> ([Option<u32>; AXES], Option<(Fault, f32)>) {
         let mut index_fault = None;
         let index = if self.index.any() {
             let index = io.read_index();
-            self.index.moved(&steps);
-            index_fault = self.check_index(&index, &mut counts);
+            self.index.moved(steps);
+            index_fault = self.check_index(&index, counts);
             index
         } else {
             [None; AXES]
         };
+        (index, index_fault)
+    }
 
-        // 3. Reference.
+    /// Step 3: jog's and homing's ramps and the arm check's reference advance (unless
+    /// the motion waits for the brakes); returns whether the arm check runs.
+    #[inline(always)]
+    fn step_reference<IO: ServoIo<R>>(
+        &mut self,
+        io: &mut IO,
+        inputs: &Inputs,
+        index: [Option<u32>; AXES],
+        held: bool,
+        counts: &mut [i64; AXES],
+    ) -> bool {
         if matches!(self.state, ServoState::Jog | ServoState::Homing) && !held {
             let index = if matches!(self.motion, Motion::Homing { .. }) {
                 if self.index.any() {
@@ -787,12 +873,19 @@ impl<R: Real> Servo<R> {
             } else {
                 [None; AXES]
             };
-            self.step_manual(&inputs, index, &mut counts);
+            self.step_manual(inputs, index, counts);
         }
         let arm_checking = self.state == ServoState::EncoderCheck && self.arm_check.is_some();
         if arm_checking && !held {
-            self.step_arm_check(&counts);
+            self.step_arm_check(counts);
         }
+        arm_checking
+    }
+
+    /// The reference of this period, the time since its motion began and whether it is
+    /// at rest.
+    #[inline(always)]
+    fn sample_reference(&self, held: bool) -> (RefSample<R>, R, bool) {
         let (mut reference, motion_t, at_rest) =
             super::motion::sample(&self.motion, self.path.as_ref(), &self.clock);
         if held {
@@ -800,16 +893,20 @@ impl<R: Real> Servo<R> {
             reference.vel = Vec3::zero();
             reference.acc = Vec3::zero();
         }
+        (reference, motion_t, at_rest)
+    }
 
-        // 4. Positions and velocities.
-        let meas: Measured<R> = self
-            .estimators
-            .update(counts, reference.acc, io.true_velocity());
-        let vel = meas.vel.to_array().map(Real::to_f32);
-
-        // 5. Control.
-        let mut applied = Vec3::zero();
-        let mut evaluated = false;
+    /// Step 5: the period's effort by state, written out (or the outputs switched off);
+    /// returns it and whether the laws were evaluated.
+    #[inline(always)]
+    fn control<IO: ServoIo<R>>(
+        &mut self,
+        io: &mut IO,
+        s: &Sensed<R>,
+        reference: &RefSample<R>,
+        index_fault: Option<(Fault, f32)>,
+        arm_checking: bool,
+    ) -> (Vec3<R>, bool) {
         let law = arm_checking
             || matches!(
                 self.state,
@@ -821,134 +918,176 @@ impl<R: Real> Servo<R> {
                     | ServoState::Stopping
             );
         match self.state {
-            _ if law => {
-                let prev = self.applied.to_array().map(Real::to_f32);
-                if let Some((f, v)) = self.monitor.check_encoders(&steps, &vel, &prev) {
-                    self.trip(f, v, Some(&reference));
-                }
-                let v_ref = reference.vel.to_array().map(Real::to_f32);
-                let a_ref = reference.acc.to_array().map(Real::to_f32);
-                if let Some((f, v)) = self.monitor.check_counts_due(&steps, &v_ref, &a_ref, &prev) {
-                    self.trip(f, v, Some(&reference));
-                }
-                if let Some((f, v)) = index_fault.take() {
-                    self.trip(f, v, Some(&reference));
-                }
-                if let Some((f, v)) = self
-                    .monitor
-                    .check_overrun(inputs.overrun, self.snapshot.period)
-                {
-                    self.trip(f, v, Some(&reference));
-                }
-                let mut reference = reference;
-                let identifying = self.state == ServoState::Identify;
-                if identifying && !held {
-                    self.identify_reference(&mut reference, &meas);
-                }
-                self.controller
-                    .evaluate_into(&reference, &meas, &mut self.out);
-                let bad = (0..AXES)
-                    .find(|&i| self.out.nonfinite[i])
-                    .or_else(|| self.controller.unhealthy_axis());
-                if let Some(i) = bad {
-                    self.trip(
-                        Fault::on(FaultKind::NonFinite, Axis::ALL[i]),
-                        0.0,
-                        Some(&reference),
-                    );
-                }
-                let mut u = self.out.u;
-                for i in 0..AXES {
-                    // finite_or_zero, then clamp_sym (in-range case first: issue 14)
-                    u[i] = u[i].clamp_finite(self.full_scale[i]);
-                }
-                if identifying && self.state.drives() {
-                    if !held {
-                        u = self.identify_effort(u, &meas, &vel);
-                    } else if self.driven_mask() != 0b111 {
-                        // started from Disabled: nothing is driven before the run begins
-                        u = Vec3::zero();
-                    }
-                }
-                if self.referenced_mask() != 0 && self.state.drives() && !identifying {
-                    self.check_soft_limits(&reference);
-                }
-                if self.state.drives() && !identifying {
-                    let tracking = self.out.tracking.to_array().map(Real::to_f32);
-                    let v_ref = reference.vel.to_array().map(Real::to_f32);
-                    let stopping = self.state == ServoState::Stopping;
-                    let scale = if stopping { STOPPING_FERROR_SCALE } else { 1.0 };
-                    if let Some((f, v)) =
-                        self.monitor.check_tracking(&tracking, &v_ref, &vel, scale)
-                    {
-                        if stopping && f.kind == FaultKind::FollowingError {
-                            // the stop itself cannot be followed: off at once
-                            self.faults.record(FaultRecord {
-                                fault: f,
-                                period: self.snapshot.period,
-                                value: v,
-                            });
-                            self.publish_faults();
-                            self.state = ServoState::Fault;
-                        } else {
-                            self.trip(f, v, Some(&reference));
-                        }
-                    }
-                }
-                if at_rest && matches!(self.state, ServoState::Stopping | ServoState::Jog) {
-                    self.finish_motion(&reference, &vel);
-                }
-                if self.state.drives() {
-                    io.write_outputs(&self.drive(u));
-                    applied = u;
-                } else {
-                    io.disable_outputs();
-                }
-                self.controller
-                    .commit(&self.out, &reference, &meas, applied, self.dt);
-                if !held {
-                    self.motion.advance();
-                }
-                evaluated = true;
-            }
-            ServoState::EncoderCheck => {
-                if let Some((f, v)) = index_fault.take() {
-                    self.trip(f, v, None);
-                }
-                applied = if held {
-                    Vec3::zero()
-                } else {
-                    self.encoder_check(&counts)
-                };
-                if self.state.drives() {
-                    io.write_outputs(&self.drive(applied));
-                } else {
-                    applied = Vec3::zero();
-                    io.disable_outputs();
-                }
-            }
+            _ if law => (self.closed_loop(io, s, reference, index_fault), true),
+            ServoState::EncoderCheck => (self.encoder_check_period(io, s, index_fault), false),
             ServoState::Disabled | ServoState::Fault => {
-                if let Some((f, v)) = index_fault.take() {
+                if let Some((f, v)) = index_fault {
                     self.trip(f, v, None);
                 }
+                (Vec3::zero(), false)
             }
-            _ => {}
+            _ => (Vec3::zero(), false),
         }
-        self.applied = applied;
-        self.estimators.applied(applied);
-        self.write_brakes(io);
+    }
 
-        // 6. Telemetry (plain copies).
+    /// Under the laws: the encoder checks, the controller, its saturation, the limits of
+    /// the motion, the output written (or switched off) and every state committed with
+    /// the effort applied. Returns that effort.
+    #[inline(always)]
+    fn closed_loop<IO: ServoIo<R>>(
+        &mut self,
+        io: &mut IO,
+        s: &Sensed<R>,
+        reference: &RefSample<R>,
+        index_fault: Option<(Fault, f32)>,
+    ) -> Vec3<R> {
+        let mut applied = Vec3::zero();
+        self.check_sensors(s, reference, index_fault);
+        let mut reference = *reference;
+        let identifying = self.state == ServoState::Identify;
+        let u = self.law_effort(s, &mut reference, identifying);
+        self.check_motion_limits(s, &reference, identifying);
+        if s.at_rest && matches!(self.state, ServoState::Stopping | ServoState::Jog) {
+            self.finish_motion(&reference, &s.vel);
+        }
+        if self.state.drives() {
+            io.write_outputs(&self.drive(u));
+            applied = u;
+        } else {
+            io.disable_outputs();
+        }
+        self.controller
+            .commit(&self.out, &reference, &s.meas, applied, self.dt);
+        if !s.held {
+            self.motion.advance();
+        }
+        applied
+    }
+
+    /// The encoder checks (jumps, counts due, index), and overruns of the period.
+    #[inline(always)]
+    fn check_sensors(
+        &mut self,
+        s: &Sensed<R>,
+        reference: &RefSample<R>,
+        index_fault: Option<(Fault, f32)>,
+    ) {
+        let prev = self.applied.to_array().map(Real::to_f32);
+        if let Some((f, v)) = self.monitor.check_encoders(&s.steps, &s.vel, &prev) {
+            self.trip(f, v, Some(reference));
+        }
+        let v_ref = reference.vel.to_array().map(Real::to_f32);
+        let a_ref = reference.acc.to_array().map(Real::to_f32);
+        if let Some((f, v)) = self
+            .monitor
+            .check_counts_due(&s.steps, &v_ref, &a_ref, &prev)
+        {
+            self.trip(f, v, Some(reference));
+        }
+        if let Some((f, v)) = index_fault {
+            self.trip(f, v, Some(reference));
+        }
+        if let Some((f, v)) = self
+            .monitor
+            .check_overrun(s.inputs.overrun, self.snapshot.period)
+        {
+            self.trip(f, v, Some(reference));
+        }
+    }
+
+    /// The controller's evaluation, checked finite and saturated to the amplifiers'
+    /// range; the identified axis' effort in its place while identifying.
+    #[inline(always)]
+    fn law_effort(
+        &mut self,
+        s: &Sensed<R>,
+        reference: &mut RefSample<R>,
+        identifying: bool,
+    ) -> Vec3<R> {
+        if identifying && !s.held {
+            self.identify_reference(reference, &s.meas);
+        }
+        self.controller
+            .evaluate_into(reference, &s.meas, &mut self.out);
+        let bad = (0..AXES)
+            .find(|&i| self.out.nonfinite[i])
+            .or_else(|| self.controller.unhealthy_axis());
+        if let Some(i) = bad {
+            self.trip(
+                Fault::on(FaultKind::NonFinite, Axis::ALL[i]),
+                0.0,
+                Some(reference),
+            );
+        }
+        let mut u = self.out.u;
+        for i in 0..AXES {
+            // finite_or_zero, then clamp_sym (the in-range case first: it is the common
+            // one, and the cheapest)
+            u[i] = u[i].clamp_finite(self.full_scale[i]);
+        }
+        if identifying && self.state.drives() {
+            if !s.held {
+                u = self.identify_effort(u, &s.meas, &s.vel);
+            } else if self.driven_mask() != 0b111 {
+                // started from Disabled: nothing is driven before the run begins
+                u = Vec3::zero();
+            }
+        }
+        u
+    }
+
+    /// The soft limits of the referenced axes, the following error and the speed (not
+    /// while identifying: the identified axis has no reference).
+    #[inline(always)]
+    fn check_motion_limits(&mut self, s: &Sensed<R>, reference: &RefSample<R>, identifying: bool) {
+        if self.referenced_mask() != 0 && self.state.drives() && !identifying {
+            self.check_soft_limits(reference);
+        }
+        if self.state.drives() && !identifying {
+            let tracking = self.out.tracking.to_array().map(Real::to_f32);
+            let v_ref = reference.vel.to_array().map(Real::to_f32);
+            let stopping = self.state == ServoState::Stopping;
+            let scale = if stopping { STOPPING_FERROR_SCALE } else { 1.0 };
+            if let Some((f, v)) = self
+                .monitor
+                .check_tracking(&tracking, &v_ref, &s.vel, scale)
+            {
+                if stopping && f.kind == FaultKind::FollowingError {
+                    // the stop itself cannot be followed: off at once
+                    self.faults.record(FaultRecord {
+                        fault: f,
+                        period: self.snapshot.period,
+                        value: v,
+                    });
+                    self.publish_faults();
+                    self.state = ServoState::Fault;
+                } else {
+                    self.trip(f, v, Some(reference));
+                }
+            }
+        }
+    }
+
+    /// Step 6: the telemetry snapshot (plain copies).
+    #[inline(always)]
+    fn publish(
+        &mut self,
+        sensed: &Sensed<R>,
+        reference: &RefSample<R>,
+        applied: Vec3<R>,
+        motion_t: R,
+        evaluated: bool,
+    ) {
         if matches!(self.state, ServoState::Homing | ServoState::Identify) {
             self.snapshot.progress = self.progress();
         }
         let s = &mut self.snapshot;
         s.motion_t_s = motion_t.to_f32();
         s.state = self.state;
-        s.inputs = inputs;
-        s.pos = meas.pos.to_array().map(Real::to_f32);
-        s.vel = vel;
-        s.counts = counts;
+        s.inputs = sensed.inputs;
+        s.pos = sensed.meas.pos.to_array().map(Real::to_f32);
+        s.vel = sensed.vel;
+        s.counts = sensed.counts;
         s.effort = applied.to_array().map(Real::to_f32);
         s.outputs_on = self.state.drives();
         if evaluated {
@@ -962,7 +1101,6 @@ impl<R: Real> Servo<R> {
             s.contour = [0.0; AXES];
             s.s = [0.0; AXES];
         }
-        &self.snapshot
     }
 
     /// The identified axis' effort this period (the others: their laws' when holding,
