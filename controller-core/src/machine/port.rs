@@ -39,7 +39,6 @@ use heapless::Deque;
 
 use super::messages::{Outcome, Request, Status, Telemetry};
 use super::settings_agent::{Resolution, SettingsAgent};
-use super::REQUEST_QUEUE;
 use crate::link::{RealtimeRequest, Seq};
 use crate::settings::{Apply, Settings};
 
@@ -128,6 +127,11 @@ pub enum Up {
     Status { id: Seq, status: Status },
     Telemetry(Telemetry),
 }
+
+/// Requests waiting to be executed in the machine's queue, at most: the link's credit
+/// (the host never has more in flight than [`super::Machine::free_slots`] says), which
+/// this side computes and the machine's queue is sized by.
+pub const REQUEST_QUEUE: usize = 16;
 
 /// Capacity of the down queue: the request queue's credit, plus room for real-time
 /// requests and session events (a real-time request that finds it full is dropped; the

@@ -26,7 +26,7 @@ use super::messages::{
     FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, ProgramEnd, ProgramProgress, Request,
     Status, Telemetry, TELEMETRY_SIGNALS, VALUE_MAX,
 };
-use super::port::{ControlSide, Down, Up};
+use super::port::{ControlSide, Down, Up, REQUEST_QUEUE};
 use super::scope::{Scope, Signal};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
@@ -39,10 +39,6 @@ use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoState};
 use crate::settings::{Apply, Settings, SettingsError};
 use crate::sysid::IdentifyStatus;
-
-/// Requests waiting to be executed, at most (the link's credit: the host never has more
-/// in flight than [`Machine::free_slots`] says).
-pub const REQUEST_QUEUE: usize = 16;
 
 /// Segment slots of the machine's planner.
 pub const MACHINE_SEGMENTS: usize = 48;
