@@ -3,15 +3,15 @@
 //! refused ([`ReconfigureError`]).
 
 use super::brake::BrakeConfig;
-use super::homing::HomingConfig;
 use super::io::{AmplifierConfig, EncoderConfig};
-use super::jog::JogConfig;
 use super::monitor::SafetyConfig;
 use super::travel::TravelConfig;
 use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::controller::ControllerConfig;
 use crate::estimator::EstimatorBankConfig;
+use crate::motion::homing::HomingConfig;
+use crate::motion::jog::JogConfig;
 use crate::motion::path::{PathConfig, PathStart};
 use crate::sysid::IdentifyConfig;
 #[cfg(feature = "serde")]

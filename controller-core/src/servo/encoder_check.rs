@@ -4,10 +4,10 @@
 
 use super::faults::{Fault, FaultKind};
 use super::io::ServoIo;
-use super::motion::Motion;
 use super::state::ServoState;
 use super::step::{ArmPhase, Check, Sensed, Servo, ARM_CHECK_SETTLE_COUNTS};
 use crate::axes::{Axis, AXES};
+use crate::motion::reference::Motion;
 use crate::{Real, Vec3};
 
 impl<R: Real> Servo<R> {

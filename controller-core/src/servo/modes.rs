@@ -5,16 +5,16 @@
 
 use super::commands::{Command, Refusal};
 use super::faults::{Fault, FaultKind, FaultRecord, StopCategory};
-use super::homing::Homing;
 use super::identify::IdentifyRun;
 use super::io::Inputs;
-use super::jog::Jog;
-use super::motion::Motion;
 use super::snapshot::Snapshot;
 use super::state::ServoState;
 use super::step::{ArmCheck, ArmPhase, Check, Servo};
 use crate::axes::{Axis, AXES};
+use crate::motion::homing::Homing;
+use crate::motion::jog::Jog;
 use crate::motion::path::PathStart;
+use crate::motion::reference::Motion;
 use crate::motion::trajectory::RefSample;
 use crate::sysid::AxisSample;
 use crate::{Real, Vec3};
@@ -125,8 +125,12 @@ impl<R: Real> Servo<R> {
                 let from = match reference {
                     Some(r) => r,
                     None => {
-                        here =
-                            super::motion::sample(&self.motion, self.path.as_ref(), &self.clock).0;
+                        here = crate::motion::reference::sample(
+                            &self.motion,
+                            self.path.as_ref(),
+                            &self.clock,
+                        )
+                        .0;
                         &here
                     }
                 };
@@ -218,7 +222,7 @@ impl<R: Real> Servo<R> {
     /// The reference of the motion under way, now.
     #[inline(always)]
     fn here(&self) -> RefSample<R> {
-        super::motion::sample(&self.motion, self.path.as_ref(), &self.clock).0
+        crate::motion::reference::sample(&self.motion, self.path.as_ref(), &self.clock).0
     }
 
     /// Arm: hold where the axes are; with the arm check on, prove the encoders first.

@@ -8,13 +8,10 @@ use super::brake::BrakeState;
 use super::commands::Command;
 use super::config::{ReconfigureError, ServoConfig, MAX_RATE_HZ, MIN_RATE_HZ};
 use super::faults::{Fault, FaultKind, FaultLog, FaultRecord};
-use super::homing::{HomingConfig, HomingEvent, HomingInputs};
 use super::identify::{IdentifyOutcome, IdentifyRun};
 use super::index_check::{IndexCheck, IndexVerdict};
 use super::io::{Inputs, ServoIo};
-use super::jog::JogConfig;
 use super::monitor::Monitor;
-use super::motion::{Clock, Motion};
 use super::snapshot::Snapshot;
 use super::state::ServoState;
 use super::travel::TravelConfig;
@@ -22,8 +19,11 @@ use crate::axes::{Axis, AXES};
 use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3, Measured};
 use crate::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
+use crate::motion::homing::{HomingConfig, HomingEvent, HomingInputs};
+use crate::motion::jog::JogConfig;
 use crate::motion::path::PathStart;
 use crate::motion::planner::PathSample;
+use crate::motion::reference::{Clock, Motion};
 use crate::motion::trajectory::{RefSample, Trajectory};
 use crate::sysid::{AxisSample, IdentifyConfig};
 use crate::{Real, Vec3};
@@ -492,9 +492,9 @@ impl<R: Real> Servo<R> {
 
     /// The motion just started waits for the brakes to open: the reference is held (the
     /// path's, jog's and homing's clocks stand still, identification and the encoder
-    /// check have not begun, planner samples are ignored). The supervisor does not advance
-    /// the planner's program while this holds, so the program starts where it was
-    /// planned to once the brakes are open.
+    /// check have not begun, planner samples are ignored). The machine's supervisor does
+    /// not advance the planner's program while this holds, so the program starts where it
+    /// was planned to once the brakes are open.
     pub fn motion_held(&self) -> bool {
         matches!(
             self.state,
@@ -653,7 +653,7 @@ impl<R: Real> Servo<R> {
                     }
                     HomingEvent::Failed { axis, .. } => {
                         let axis = Axis::ALL[axis.min(AXES - 1)];
-                        let r = super::motion::sample(&self.motion, None, &self.clock).0;
+                        let r = crate::motion::reference::sample(&self.motion, None, &self.clock).0;
                         self.trip(Fault::on(FaultKind::HomingFailed, axis), 0.0, Some(&r));
                     }
                 }
@@ -887,7 +887,7 @@ impl<R: Real> Servo<R> {
     #[inline(always)]
     fn sample_reference(&self, held: bool) -> (RefSample<R>, R, bool) {
         let (mut reference, motion_t, at_rest) =
-            super::motion::sample(&self.motion, self.path.as_ref(), &self.clock);
+            crate::motion::reference::sample(&self.motion, self.path.as_ref(), &self.clock);
         if held {
             // held at its start: a path that starts moving (the helix) is held at rest
             reference.vel = Vec3::zero();
