@@ -22,8 +22,8 @@ mod supervisor;
 
 pub use endpoint::Endpoint;
 pub use port::{
-    Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort, SaveJob, Up,
-    REQUEST_QUEUE,
+    Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort,
+    PreparedSettings, SaveJob, Up, REQUEST_QUEUE,
 };
 #[cfg(feature = "store")]
 pub use save::{save_blocking, save_due_into, write_blocking};
