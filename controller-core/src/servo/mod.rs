@@ -51,6 +51,7 @@
 //! is finite and within the amplifier's range.
 
 pub mod brake;
+mod build;
 pub mod commands;
 pub mod config;
 mod encoder_check;
