@@ -18,7 +18,7 @@ impl<R: Real> Servo<R> {
     pub(super) fn encoder_check_period<IO: ServoIo<R>>(
         &mut self,
         io: &mut IO,
-        s: &Sensed<R>,
+        s: &Sensed<'_, R>,
         index_fault: Option<(Fault, f32)>,
     ) -> Vec3<R> {
         if let Some((f, v)) = index_fault {
@@ -27,7 +27,7 @@ impl<R: Real> Servo<R> {
         let mut applied = if s.held {
             Vec3::zero()
         } else {
-            self.encoder_check(&s.counts)
+            self.encoder_check(s.counts)
         };
         if self.state.drives() {
             io.write_outputs(&self.drive(applied));
