@@ -22,12 +22,13 @@ mod supervisor;
 
 pub use endpoint::Endpoint;
 pub use port::{
-    Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort, SaveJob, Up,
+    Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort,
+    PreparedSettings, SaveJob, Up, REQUEST_QUEUE,
 };
 #[cfg(feature = "store")]
 pub use save::{save_blocking, save_due_into, write_blocking};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{
     Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, Seen,
-    MACHINE_SEGMENTS, MACHINE_SPANS, REQUEST_QUEUE,
+    MACHINE_SEGMENTS, MACHINE_SPANS,
 };

@@ -12,8 +12,8 @@
 //!
 //! Settings requests are resolved on the link side ([`SettingsAgent`]): the text, the
 //! key table and the error messages stay out of the control interrupt, which gets a
-//! validated tree ([`Down::Apply`]) or a decided outcome ([`Down::Resolved`]) in the
-//! request's place. Such a request waits (and everything behind it) until the requests
+//! validated tree with the servo configuration derived from it ([`PreparedSettings`],
+//! [`Down::Apply`]) or a decided outcome ([`Down::Resolved`]) in the request's place. Such a request waits (and everything behind it) until the requests
 //! before it were executed, so that it reads the settings the machine runs; the machine
 //! echoes each tree it took back up (a queue of its own).
 //!
@@ -39,8 +39,8 @@ use heapless::Deque;
 
 use super::messages::{Outcome, Request, Status, Telemetry};
 use super::settings_agent::{Resolution, SettingsAgent};
-use super::REQUEST_QUEUE;
 use crate::link::{RealtimeRequest, Seq};
+use crate::servo::ServoConfig;
 use crate::settings::{Apply, Settings};
 
 /// What the link hands the machine. No variant holds a settings tree (628 bytes): a
@@ -82,6 +82,26 @@ pub enum Down {
     /// The host ended its session cleanly: what needs it stops (a controlled stop of a
     /// program, a jog, homing, an identification), no `LinkLost` fault; the rest stays.
     SessionEnded,
+}
+
+/// A settings change as the link side hands it down: the validated tree and the servo
+/// configuration derived from it here, outside the control interrupt, which only swaps
+/// the prepared value in at the period the change's request executes ([`Down::Apply`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedSettings {
+    pub settings: Settings,
+    /// `None` when the tree gives no servo configuration (the machine refuses the change).
+    pub servo: Option<ServoConfig>,
+}
+
+impl PreparedSettings {
+    /// `settings` with the servo configuration it gives at `rate_hz`.
+    pub fn new(settings: Settings, rate_hz: u32) -> Self {
+        Self {
+            servo: settings.servo_config(rate_hz).ok(),
+            settings,
+        }
+    }
 }
 
 /// What the machine reports back to the link side about settings (a queue of its own).
@@ -129,6 +149,11 @@ pub enum Up {
     Telemetry(Telemetry),
 }
 
+/// Requests waiting to be executed in the machine's queue, at most: the link's credit
+/// (the host never has more in flight than [`super::Machine::free_slots`] says), which
+/// this side computes and the machine's queue is sized by.
+pub const REQUEST_QUEUE: usize = 16;
+
 /// Capacity of the down queue: the request queue's credit, plus room for real-time
 /// requests and session events (a real-time request that finds it full is dropped; the
 /// host repeats it).
@@ -149,7 +174,7 @@ pub struct Channels {
     down: Queue<Down, { DOWN_QUEUE + 1 }>,
     up: Queue<Up, { UP_QUEUE + 1 }>,
     echo: Queue<Echo, { ECHO_QUEUE + 1 }>,
-    applies: Queue<Settings, { APPLY_QUEUE + 1 }>,
+    applies: Queue<PreparedSettings, { APPLY_QUEUE + 1 }>,
     /// Requests retired by the machine (control side writes).
     retired: AtomicU32,
 }
@@ -203,7 +228,7 @@ pub struct LinkEnds<'a> {
     down: Producer<'a, Down>,
     up: Consumer<'a, Up>,
     echo: Consumer<'a, Echo>,
-    applies: Producer<'a, Settings>,
+    applies: Producer<'a, PreparedSettings>,
     retired: &'a AtomicU32,
 }
 
@@ -216,9 +241,12 @@ impl LinkEnds<'_> {
     }
 
     /// Hand a recorded [`Down::Apply`]'s tree down (before or after its event, within
-    /// the same period). `false` when the queue is full.
-    pub fn replay_settings(&mut self, s: Settings) -> bool {
-        self.applies.enqueue(s).is_ok()
+    /// the same period), prepared as the link side prepares it for a machine at
+    /// `rate_hz`. `false` when the queue is full.
+    pub fn replay_settings(&mut self, s: Settings, rate_hz: u32) -> bool {
+        self.applies
+            .enqueue(PreparedSettings::new(s, rate_hz))
+            .is_ok()
     }
 }
 
@@ -381,7 +409,10 @@ impl<'a, 's> LinkSide<'a, 's> {
                 break;
             }
             if let Some(t) = tree {
-                let _ = self.ends.applies.enqueue(t);
+                // the servo configuration derived here, in the link task: the control
+                // interrupt only swaps it in
+                let prepared = PreparedSettings::new(t, self.state.rate_hz());
+                let _ = self.ends.applies.enqueue(prepared);
             }
             let _ = self.ends.down.enqueue(d);
             if let Some((token, repair)) = lock {
@@ -457,7 +488,7 @@ pub struct ControlSide<'a> {
     down: Consumer<'a, Down>,
     up: Producer<'a, Up>,
     echo: Producer<'a, Echo>,
-    applies: Consumer<'a, Settings>,
+    applies: Consumer<'a, PreparedSettings>,
     retired: &'a AtomicU32,
     dropped_up: u32,
 }
@@ -468,9 +499,9 @@ impl ControlSide<'_> {
         self.down.dequeue()
     }
 
-    /// The tree of the [`Down::Apply`] just taken (`None` only if the link side broke
-    /// the order it enqueues them in).
-    pub fn take_settings(&mut self) -> Option<Settings> {
+    /// The prepared tree of the [`Down::Apply`] just taken (`None` only if the link side
+    /// broke the order it enqueues them in).
+    pub fn take_settings(&mut self) -> Option<PreparedSettings> {
         self.applies.dequeue()
     }
 

@@ -1,8 +1,9 @@
 //! The link side's half of the settings requests: everything that reads or writes text
 //! or walks the key table (parsing a value, checking its range, naming a field in an
 //! error, the change's class) happens here, in the link task, never in the control
-//! interrupt. The control interrupt only receives a whole, validated tree to swap in at a
-//! period boundary ([`super::Down::Apply`]) or an outcome already decided here
+//! interrupt. The control interrupt only receives a whole, validated tree with the servo
+//! configuration derived from it (by the link side, [`super::PreparedSettings`]) to swap in
+//! at a period boundary ([`super::Down::Apply`]), or an outcome already decided here
 //! ([`super::Down::Resolved`]), each in its place among the other requests.
 //!
 //! A settings request reads the settings the machine runs; so it is resolved only once

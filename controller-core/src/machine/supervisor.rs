@@ -26,7 +26,7 @@ use super::messages::{
     FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, ProgramEnd, ProgramProgress, Request,
     Status, Telemetry, TELEMETRY_SIGNALS, VALUE_MAX,
 };
-use super::port::{ControlSide, Down, Up};
+use super::port::{ControlSide, Down, Up, REQUEST_QUEUE};
 use super::scope::{Scope, Signal};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
@@ -36,13 +36,9 @@ use crate::motion::planner::{
     RestartError, Segment, SegmentError,
 };
 use crate::servo::io::ServoIo;
-use crate::servo::{Command, Servo, ServoState};
+use crate::servo::{Command, Servo, ServoConfig, ServoState};
 use crate::settings::{Apply, Settings, SettingsError};
 use crate::sysid::IdentifyStatus;
-
-/// Requests waiting to be executed, at most (the link's credit: the host never has more
-/// in flight than [`Machine::free_slots`] says).
-pub const REQUEST_QUEUE: usize = 16;
 
 /// Segment slots of the machine's planner.
 pub const MACHINE_SEGMENTS: usize = 48;
@@ -129,6 +125,10 @@ where
     pending: heapless::Vec<Command, 2>,
     sample: PathSample,
     held: bool,
+    /// The servo configuration the link side derived for the settings change in the
+    /// queue ([`super::port::PreparedSettings`]): at most one is queued, since a settings
+    /// request goes down only once every request before it was executed.
+    next_servo: Option<ServoConfig>,
     /// A settings save is writing the flash (its token): the outputs stay off, nothing
     /// queued or pending runs, until the link side's `SaveDone`.
     save_lock: Option<u32>,
@@ -256,6 +256,7 @@ where
             pending: heapless::Vec::new(),
             sample,
             held: false,
+            next_servo: None,
             save_lock: None,
             save_echo: None,
         })
@@ -324,6 +325,11 @@ where
 
     pub fn settings(&self) -> &Settings {
         &self.settings
+    }
+
+    /// The control rate, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.rate_hz
     }
 
     /// A real-time request, executed now (outside the queue).
@@ -409,9 +415,13 @@ where
                 Down::Request(r) => self.submit(r),
                 Down::Resolved(o) => self.enqueue(Queued::Resolved(o)),
                 Down::Apply { class } => match link.take_settings() {
-                    Some(settings) => {
-                        seen(Seen::Settings(&settings));
-                        self.enqueue(Queued::Apply { settings, class })
+                    Some(prepared) => {
+                        seen(Seen::Settings(&prepared.settings));
+                        self.next_servo = prepared.servo;
+                        self.enqueue(Queued::Apply {
+                            settings: prepared.settings,
+                            class,
+                        })
                     }
                     // (cannot happen: the tree is enqueued before its event) the
                     // request still retires, refused
@@ -746,10 +756,11 @@ where
         Step::Locked
     }
 
-    /// Swap in `next` (validated on the link side; `class` from there too) at this
-    /// period boundary, if the servo takes it now.
+    /// Swap in `next` (validated on the link side; `class` and the servo configuration
+    /// derived from it, [`Self::next_servo`], from there too) at this period boundary, if
+    /// the servo takes it now.
     fn apply(&mut self, next: Settings, class: Option<Apply>) -> Outcome {
-        let Ok(cfg) = next.servo_config(self.rate_hz) else {
+        let Some(cfg) = self.next_servo.take() else {
             return refused("rejected: the settings give no servo configuration");
         };
         match class {

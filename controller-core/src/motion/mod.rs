@@ -5,10 +5,19 @@
 //! - [`path`]: their configuration as it appears in scenario files and settings, and where
 //!   a path starts (absolute, or from the position the machine is at);
 //! - [`planner`]: the segment planner (queue, blending within a path tolerance, look-ahead,
-//!   jerk-limited feed, hold/resume/abort, feed override) and its per-period executor.
+//!   jerk-limited feed, hold/resume/abort, feed override) and its per-period executor;
+//! - [`reference`]: what produces the servo step's reference each period (hold, the
+//!   configured path, a controlled stop, a jog, homing, the planner's sample), with the
+//!   reference generators it steps: [`jog`], [`homing`] and their one-axis [`ramp`].
+//!
+//! Nothing here knows the servo: the servo step ([`crate::servo`]) drives these.
 
+pub mod homing;
+pub mod jog;
 pub mod path;
 pub mod planner;
+pub mod ramp;
+pub mod reference;
 pub mod trajectory;
 
 pub use trajectory::{RefSample, Trajectory};

@@ -19,12 +19,12 @@ use crate::controller::ControllerConfig;
 use crate::coupling::{ContourCouplingConfig, CouplingConfig};
 use crate::estimator::{EstimatorBankConfig, EstimatorConfig, PllConfig};
 use crate::law::LawConfig;
+use crate::motion::jog::JogConfig;
 use crate::motion::path::{PathConfig, PathStart};
 use crate::presets::gantry::{
     dsmc_for, GANTRY_AMPLIFIERS, GANTRY_BRAKES, GANTRY_ENCODERS, GANTRY_HOMING, GANTRY_SAFETY,
     GANTRY_TRAVEL, GANTRY_X, GANTRY_Y, GANTRY_Z,
 };
-use crate::servo::jog::JogConfig;
 use crate::servo::monitor::SafetyConfig;
 use crate::servo::{PathPlan, ServoConfig};
 use crate::sysid::IDENTIFY_DEFAULTS;

@@ -1,10 +1,7 @@
-//! Operator commands and the rule that decides, from what the servo publishes, whether a
-//! command may run now ([`check`]). The servo step applies the same rule to every command
-//! it receives, and the link's command handler calls it before queueing one, so a refusal
-//! reaches the user with its reason and never depends on which side looked first.
+//! Operator commands ([`Command`]), why one is refused ([`Refusal`], with the line the user
+//! reads), and the axis bit sets the servo publishes. Which command is valid when is
+//! decided by [`super::modes::check`].
 
-use super::snapshot::Snapshot;
-use super::ServoState;
 use crate::axes::{Axis, AXES};
 
 /// Operator commands, applied at the start of a period in the order given.
@@ -102,64 +99,6 @@ impl Refusal {
                 "identification cannot start here (too close to the window's ends, or its settings are invalid)"
             }
         }
-    }
-}
-
-/// Whether `c` may run now, judged from the latest snapshot (state, latched faults, inputs,
-/// homed and model masks). Checks that need the configuration (a path exists, the
-/// identification window) are the servo's own, after this one.
-pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
-    use ServoState as S;
-    let faulted = s.fault_bits.0 != 0 || s.fault_bits.1.iter().any(|b| *b != 0);
-    let needs_clear_inputs = || {
-        if faulted {
-            Err(Refusal::FaultLatched)
-        } else if s.inputs.estop {
-            Err(Refusal::EStopActive)
-        } else if s.inputs.first_limit().is_some() {
-            Err(Refusal::LimitActive)
-        } else {
-            Ok(())
-        }
-    };
-    let homed = |a: Axis| {
-        if s.homed & (1 << a.index()) != 0 {
-            Ok(())
-        } else {
-            Err(Refusal::NotHomed { axis: a })
-        }
-    };
-    match (c, s.state) {
-        (Command::Arm, S::Disabled) => {
-            needs_clear_inputs()?;
-            match Axis::ALL
-                .into_iter()
-                .find(|a| s.model_missing & (1 << a.index()) != 0)
-            {
-                Some(axis) => Err(Refusal::ModelMissing { axis }),
-                None => Ok(()),
-            }
-        }
-        (Command::Disarm, st) if st != S::Disabled && st != S::Fault => Ok(()),
-        (Command::Reset, S::Fault) => Ok(()),
-        (Command::StartPath, S::Idle | S::Run) => Ok(()),
-        (Command::Home, S::Idle) => Ok(()),
-        (Command::Jog { .. }, S::Idle | S::Jog) => Ok(()),
-        (Command::Identify { axis, window_mm }, S::Disabled | S::Idle) => {
-            needs_clear_inputs()?;
-            if window_mm.is_none() {
-                homed(*axis)?;
-            }
-            Ok(())
-        }
-        (Command::Run, S::Idle | S::Run) => {
-            Axis::ALL.into_iter().try_for_each(homed)?;
-            Ok(())
-        }
-        (Command::Stop, S::Run | S::Jog | S::Homing | S::Identify | S::Idle) => Ok(()),
-        (Command::LinkLost | Command::LinkUp, _) => Ok(()),
-        (Command::Arm | Command::Identify { .. }, S::Fault) => Err(Refusal::FaultLatched),
-        _ => Err(Refusal::WrongState),
     }
 }
 

@@ -389,6 +389,27 @@ pub struct Monitor {
 /// Largest `overrun_max` the window tracks.
 pub const MAX_OVERRUNS: usize = 16;
 
+/// One reading's step through a dead band (backlash) of `band` counts, `resid` the
+/// reading's place inside the band: the output moves only by what leaves the band, so
+/// noise within it never turns the output back; without a band the step is the reading's.
+#[inline(always)]
+fn dead_band(step: i32, resid: &mut i32, band: i32) -> i32 {
+    if band == 0 {
+        return step;
+    }
+    let r = resid.saturating_add(step);
+    if r > band {
+        *resid = band;
+        r - band
+    } else if r < -band {
+        *resid = -band;
+        r + band
+    } else {
+        *resid = r;
+        0
+    }
+}
+
 /// Periods in `s` at `period_s` (rounded up, but a duration within 0.1 % of a whole
 /// number of periods, as `f32` seconds usually are, is that number), at least 1.
 pub(crate) fn periods(s: f32, period_s: f64) -> u32 {
@@ -652,22 +673,7 @@ impl Monitor {
         // reading leaves the band around it, so noise within `noise_counts` never turns
         // it back while the axis moves one way (a reversal of it is a reversal of the
         // axis); without noise it is the reading itself
-        let step = if l.noise_band == 0 {
-            step
-        } else {
-            let r = d.resid.saturating_add(step);
-            let h = l.noise_band;
-            if r > h {
-                d.resid = h;
-                r - h
-            } else if r < -h {
-                d.resid = -h;
-                r + h
-            } else {
-                d.resid = r;
-                0
-            }
-        };
+        let step = dead_band(step, &mut d.resid, l.noise_band);
         // the deceleration this period may bring along the claimed direction, since the
         // last change (`decel`) and since the run began (`run_step`): the effort's drop
         // counts from when each began

@@ -6,7 +6,7 @@ use crate::axes::AXES;
 use crate::servo::commands::{Command, Refusal};
 use crate::servo::faults::FaultRecord;
 use crate::servo::io::Inputs;
-use crate::servo::ServoState;
+use crate::servo::state::ServoState;
 
 /// Everything a logger or a recorder needs about the last period.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -18,7 +18,7 @@ use core::fmt;
 
 use crate::axes::{Axis, AXES};
 use crate::link::watchdog::{MAX_WATCHDOG_TIMEOUT_MS, MIN_WATCHDOG_TIMEOUT_MS};
-use crate::servo::homing::HomeDirection;
+use crate::motion::homing::HomeDirection;
 
 use super::offsets::{TOOL_COUNT, WORK_SYSTEMS};
 use super::servo_config::{SettingsError, PLACEHOLDER_MODELS};

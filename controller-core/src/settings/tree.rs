@@ -15,6 +15,8 @@
 use crate::axes::AXES;
 use crate::estimator::PllConfig;
 use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
+use crate::motion::homing::AxisHomingConfig;
+use crate::motion::jog::{AxisJogConfig, JogConfig};
 use crate::motion::planner::{PlannerConfig, GANTRY_PLANNER};
 use crate::plant::AxisModel;
 use crate::presets::board::{BOARD_LAMBDA, BOARD_PLL};
@@ -23,8 +25,6 @@ use crate::presets::gantry::{
     LOOP_OMEGA,
 };
 use crate::servo::brake::BrakeConfig;
-use crate::servo::homing::AxisHomingConfig;
-use crate::servo::jog::{AxisJogConfig, JogConfig};
 use crate::servo::travel::AxisTravel;
 use crate::sysid::IDENTIFY_DEFAULTS;
 

@@ -298,7 +298,7 @@ fn run(
                     }
                 }
                 Record::Settings(s) => {
-                    if !ends.replay_settings(*s) {
+                    if !ends.replay_settings(*s, m.rate_hz()) {
                         return Ok(Err(format!("period {p}: two settings trees at once")));
                     }
                 }

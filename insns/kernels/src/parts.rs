@@ -14,10 +14,10 @@ use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, 
 use controller_core::coupling::contour::{cross_couple, Coupled};
 use controller_core::coupling::CouplingConfig;
 use controller_core::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
+use controller_core::motion::reference::{self, Clock, Motion};
 use controller_core::motion::trajectory::{RefSample, Trajectory};
 use controller_core::servo::io::ServoIo;
 use controller_core::servo::monitor::Monitor;
-use controller_core::servo::motion::{self, Clock, Motion};
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::servo::{Command, Servo, ServoConfig};
 use controller_core::Vec3;
@@ -94,7 +94,7 @@ impl BoardRun {
     fn reference(&self) -> Option<RefSample<f32>> {
         let path = self.path()?;
         let clock = Clock::new(self.cfg.rate_hz);
-        Some(motion::sample(&self.motion(), Some(&path), &clock).0)
+        Some(reference::sample(&self.motion(), Some(&path), &clock).0)
     }
 
     fn measured(&self) -> Measured<f32> {
@@ -169,7 +169,7 @@ impl PartEstimators {
 }
 
 /// `servo_part_reference`: step 3, the reference of the board's path at the counted period
-/// (`motion::sample`: clock, helix with sin/cos, origin shift, hold check).
+/// (`reference::sample`: clock, helix with sin/cos, origin shift, hold check).
 pub struct PartReference {
     motion: Motion<f32>,
     path: (Trajectory<f32>, Option<u32>),
@@ -188,7 +188,7 @@ impl PartReference {
 
     #[inline(never)]
     pub fn step(&mut self) -> RefSample<f32> {
-        motion::sample(&self.motion, Some(&self.path), &self.clock).0
+        reference::sample(&self.motion, Some(&self.path), &self.clock).0
     }
 }
 

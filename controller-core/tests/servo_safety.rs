@@ -1,5 +1,5 @@
-//! The servo step's supervisor on the simulated physical gantry (board configuration,
-//! controller-core presets): states, commands, stops and reset rules. The fault classes'
+//! The servo step's safety state machine on the simulated physical gantry (board
+//! configuration, controller-core presets): states, commands, stops and reset rules. The fault classes'
 //! detection bounds are the fault matrix's (`host-sim faults`, tests/tests/faults.rs).
 
 use controller_core::axes::Axis;

@@ -1,6 +1,6 @@
 //! What produces the servo step's reference each period: holding a point, the
 //! configured path, a controlled stop, a jog or the homing sequence (the planner's
-//! reference comes from its executor, see [`super::Servo::period`]).
+//! reference comes from its executor, see [`crate::servo::Servo::period`]).
 //!
 //! A controlled stop starts from the reference of the period the fault was found in and
 //! decelerates along that reference's direction of motion at the largest rate every
@@ -36,7 +36,7 @@ pub enum Motion<R> {
     /// Homing: the axis being homed follows the sequence's ramp, the others hold.
     Homing { hold: Vec3<R>, run: Homing },
     /// The planner's reference: the executor's sample of this period, handed to the servo
-    /// before the period by [`super::Servo::set_planner_reference`] (the executor runs in
+    /// before the period by [`crate::servo::Servo::set_planner_reference`] (the executor runs in
     /// the same interrupt, just before the servo step; host-sim does the same).
     Planner(RefSample<R>),
 }
