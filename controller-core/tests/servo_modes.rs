@@ -7,7 +7,7 @@ use controller_core::plant::AxisModel;
 use controller_core::presets::board::{factory_config, servo_config};
 use controller_core::presets::gantry::{GANTRY_AXES, GANTRY_HOMING};
 use controller_core::servo::faults::FaultKind;
-use controller_core::servo::{Command, Refusal, ServoConfig, ServoState};
+use controller_core::servo::{Command, CommandRefusal, ServoConfig, ServoState};
 use controller_core::sim::run::{RunConfig, SimRun};
 use controller_core::sim::truth::TruthSpec;
 use controller_core::sim::world::{
@@ -68,7 +68,7 @@ fn run(start: [f64; 3]) -> SimRun<f32> {
 }
 
 /// `n` periods with `cmds` in the first; the last snapshot's refusal, if any.
-fn step(r: &mut SimRun<f32>, cmds: &[Command], n: u32) -> Option<Refusal> {
+fn step(r: &mut SimRun<f32>, cmds: &[Command], n: u32) -> Option<CommandRefusal> {
     let mut refused = None;
     for k in 0..n {
         let s = r.control_with(if k == 0 { cmds } else { &[] });
@@ -171,7 +171,7 @@ fn a_board_config_fault_is_never_reset_and_keeps_the_outputs_off() {
         assert_eq!(r.servo().state(), ServoState::Fault);
         assert_eq!(
             step(&mut r, &[Command::Arm], 10),
-            Some(Refusal::FaultLatched)
+            Some(CommandRefusal::FaultLatched)
         );
         assert!(!r.world().outputs_on());
     }
@@ -193,14 +193,14 @@ fn a_forgotten_home_refuses_programs_until_homed_again() {
     assert_eq!(r.servo().snapshot().homed, 0b011);
     assert_eq!(
         step(&mut r, &[Command::Run], 1),
-        Some(Refusal::NotHomed { axis: Axis::Z })
+        Some(CommandRefusal::NotHomed { axis: Axis::Z })
     );
     assert_eq!(r.servo().state(), ServoState::Idle);
     home(&mut r);
     assert_eq!(r.servo().snapshot().homed, 0b111);
     assert_ne!(
         step(&mut r, &[Command::Run], 1),
-        Some(Refusal::NotHomed { axis: Axis::Z })
+        Some(CommandRefusal::NotHomed { axis: Axis::Z })
     );
 }
 
@@ -281,7 +281,10 @@ fn unhomed_jog_into_a_switch_is_a_hard_limit_fault() {
 fn refusals_name_the_reason_and_change_nothing() {
     let mut r = run([0.0; 3]);
     // not armed: no homing, no jog
-    assert_eq!(step(&mut r, &[Command::Home], 1), Some(Refusal::WrongState));
+    assert_eq!(
+        step(&mut r, &[Command::Home], 1),
+        Some(CommandRefusal::WrongState)
+    );
     assert_eq!(
         step(
             &mut r,
@@ -291,14 +294,14 @@ fn refusals_name_the_reason_and_change_nothing() {
             }],
             1
         ),
-        Some(Refusal::WrongState)
+        Some(CommandRefusal::WrongState)
     );
     assert_eq!(r.servo().state(), ServoState::Disabled);
     step(&mut r, &[Command::Arm], 1);
     // programs need a homed machine
     assert_eq!(
         step(&mut r, &[Command::Run], 1),
-        Some(Refusal::NotHomed { axis: Axis::X })
+        Some(CommandRefusal::NotHomed { axis: Axis::X })
     );
     assert_eq!(r.servo().state(), ServoState::Idle);
     // identification without homing needs a window that contains the axis
@@ -311,7 +314,7 @@ fn refusals_name_the_reason_and_change_nothing() {
             }],
             1
         ),
-        Some(Refusal::BadWindow { axis: Axis::X })
+        Some(CommandRefusal::BadWindow { axis: Axis::X })
     );
     assert_eq!(r.servo().state(), ServoState::Idle);
 
@@ -319,7 +322,7 @@ fn refusals_name_the_reason_and_change_nothing() {
     let mut f = run_with(factory_config(RATE_HZ), [0.0; 3]);
     assert_eq!(
         step(&mut f, &[Command::Arm], 1),
-        Some(Refusal::ModelMissing { axis: Axis::X })
+        Some(CommandRefusal::ModelMissing { axis: Axis::X })
     );
     assert_eq!(f.servo().state(), ServoState::Disabled);
     assert!(!f.world().outputs_on());
@@ -484,7 +487,7 @@ fn link_lost_is_a_controlled_stop_and_resets_only_after_the_link_is_back() {
     assert_eq!(f.fault.kind, FaultKind::LinkLost);
     assert_eq!(
         step(&mut r, &[Command::Reset], 1),
-        Some(Refusal::FaultLatched)
+        Some(CommandRefusal::FaultLatched)
     );
     assert_eq!(r.servo().state(), ServoState::Fault);
     step(&mut r, &[Command::LinkUp, Command::Reset], 1);

@@ -16,7 +16,7 @@ use crate::{Real, Vec3};
 
 /// The reference generator.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Motion<R> {
+pub enum ReferenceMode<R> {
     /// Hold a point.
     Hold(Vec3<R>),
     /// Follow the configured path: `k` periods since it started, shifted by `origin`.
@@ -41,7 +41,7 @@ pub enum Motion<R> {
     Planner(RefSample<R>),
 }
 
-impl<R: Real> Motion<R> {
+impl<R: Real> ReferenceMode<R> {
     /// A controlled stop from `from` with per-axis decelerations `decel_mm_s2`.
     pub fn stop_from(from: &RefSample<R>, decel_mm_s2: &[f32; AXES]) -> Self {
         let speed = from.vel.norm();
@@ -55,7 +55,7 @@ impl<R: Real> Motion<R> {
             }
         }
         let t_stop = speed.div_or(decel, R::ZERO);
-        Motion::Stop {
+        ReferenceMode::Stop {
             p0: from.pos,
             v0: from.vel,
             dir,
@@ -68,8 +68,13 @@ impl<R: Real> Motion<R> {
     /// Advance one period.
     pub fn advance(&mut self) {
         match self {
-            Motion::Hold(_) | Motion::Jog(_) | Motion::Homing { .. } | Motion::Planner(_) => {}
-            Motion::Path { k, .. } | Motion::Stop { k, .. } => *k = k.saturating_add(1),
+            ReferenceMode::Hold(_)
+            | ReferenceMode::Jog(_)
+            | ReferenceMode::Homing { .. }
+            | ReferenceMode::Planner(_) => {}
+            ReferenceMode::Path { k, .. } | ReferenceMode::Stop { k, .. } => {
+                *k = k.saturating_add(1)
+            }
         }
     }
 
@@ -133,7 +138,7 @@ impl<R: Real> Clock<R> {
 /// The reference of `motion` this period; `path` is the configured path. Returns the
 /// reference, the time since the motion began, and whether the reference is at rest.
 pub fn sample<R: Real>(
-    motion: &Motion<R>,
+    motion: &ReferenceMode<R>,
     path: Option<&(Trajectory<R>, Option<u32>)>,
     clock: &Clock<R>,
 ) -> (RefSample<R>, R, bool) {
@@ -146,14 +151,14 @@ pub fn sample<R: Real>(
         (r, R::ZERO, true)
     };
     match *motion {
-        Motion::Hold(p) => hold(p),
-        Motion::Planner(r) => (r, R::ZERO, false),
-        Motion::Jog(ref j) => {
+        ReferenceMode::Hold(p) => hold(p),
+        ReferenceMode::Planner(r) => (r, R::ZERO, false),
+        ReferenceMode::Jog(ref j) => {
             let r = ramps_sample(&j.ramps);
             let rest = j.finished();
             (r, R::ZERO, rest)
         }
-        Motion::Homing { hold: h, ref run } => {
+        ReferenceMode::Homing { hold: h, ref run } => {
             let mut r = RefSample {
                 pos: h,
                 vel: Vec3::zero(),
@@ -165,7 +170,7 @@ pub fn sample<R: Real>(
             r.acc[i] = R::from_f32(run.ramp.acc_mm_s2);
             (r, R::ZERO, run.ramp.at_rest())
         }
-        Motion::Stop {
+        ReferenceMode::Stop {
             p0,
             v0,
             dir,
@@ -174,10 +179,10 @@ pub fn sample<R: Real>(
             k,
         } => {
             let t = clock.time(k);
-            let (r, rest) = Motion::stop_sample(p0, v0, dir, decel, t_stop, t);
+            let (r, rest) = ReferenceMode::stop_sample(p0, v0, dir, decel, t_stop, t);
             (r, t, rest)
         }
-        Motion::Path { k, origin } => {
+        ReferenceMode::Path { k, origin } => {
             let Some((traj, end)) = path else {
                 return hold(Vec3::zero());
             };

@@ -15,7 +15,7 @@ use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3};
 use crate::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
 use crate::motion::path::PathStart;
-use crate::motion::reference::{Clock, Motion};
+use crate::motion::reference::{Clock, ReferenceMode};
 use crate::{Real, Vec3};
 
 impl<R: Real> Servo<R> {
@@ -113,7 +113,7 @@ impl<R: Real> Servo<R> {
             stop_then: ServoState::Fault,
             path,
             path_start,
-            motion: Motion::Hold(Vec3::zero()),
+            motion: ReferenceMode::Hold(Vec3::zero()),
             travel: cfg.travel,
             homing_cfg: cfg.homing,
             jog_cfg: cfg.jog,

@@ -1,4 +1,4 @@
-//! Operator commands ([`Command`]), why one is refused ([`Refusal`], with the line the user
+//! Operator commands ([`Command`]), why one is refused ([`CommandRefusal`], with the line the user
 //! reads), and the axis bit sets the servo publishes. Which command is valid when is
 //! decided by [`super::modes::check`].
 
@@ -46,7 +46,7 @@ pub enum Command {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Refusal {
+pub enum CommandRefusal {
     /// Not valid in the current state (the state is in the status).
     WrongState,
     /// A fault is latched: reset it first.
@@ -69,7 +69,7 @@ pub enum Refusal {
     IdentifyRejected { axis: Axis },
 }
 
-impl Refusal {
+impl CommandRefusal {
     /// One line for the user: what is wrong and how to fix it.
     pub const fn message(&self) -> &'static str {
         match self {
@@ -120,19 +120,19 @@ mod message_tests {
     #[test]
     fn every_refusal_message_fits_the_links_text() {
         let fixed = [
-            Refusal::WrongState,
-            Refusal::FaultLatched,
-            Refusal::EStopActive,
-            Refusal::LimitActive,
-            Refusal::NoPath,
-            Refusal::NoHoming,
+            CommandRefusal::WrongState,
+            CommandRefusal::FaultLatched,
+            CommandRefusal::EStopActive,
+            CommandRefusal::LimitActive,
+            CommandRefusal::NoPath,
+            CommandRefusal::NoHoming,
         ];
         let per_axis = [Axis::X, Axis::Y, Axis::Z].map(|axis| {
             [
-                Refusal::ModelMissing { axis },
-                Refusal::NotHomed { axis },
-                Refusal::BadWindow { axis },
-                Refusal::IdentifyRejected { axis },
+                CommandRefusal::ModelMissing { axis },
+                CommandRefusal::NotHomed { axis },
+                CommandRefusal::BadWindow { axis },
+                CommandRefusal::IdentifyRejected { axis },
             ]
         });
         let all = fixed.iter().chain(per_axis.iter().flatten());
@@ -140,7 +140,7 @@ mod message_tests {
             let m = r.message();
             assert!(m.len() <= TEXT_MAX, "{r:?}: {} > {TEXT_MAX}: {m}", m.len());
         }
-        assert!(Refusal::ModelMissing { axis: Axis::Y }
+        assert!(CommandRefusal::ModelMissing { axis: Axis::Y }
             .message()
             .contains("identify --axis y"));
     }

@@ -7,7 +7,7 @@ use super::io::ServoIo;
 use super::state::ServoState;
 use super::step::{ArmPhase, Check, Sensed, Servo, ARM_CHECK_SETTLE_COUNTS};
 use crate::axes::{Axis, AXES};
-use crate::motion::reference::Motion;
+use crate::motion::reference::ReferenceMode;
 use crate::{Real, Vec3};
 
 impl<R: Real> Servo<R> {
@@ -128,11 +128,11 @@ impl<R: Real> Servo<R> {
         if done {
             // every axis followed both ways: armed, holding where it armed
             self.arm_check = None;
-            self.motion = Motion::Hold(c.hold);
+            self.motion = ReferenceMode::Hold(c.hold);
             self.state = ServoState::Idle;
             return;
         }
-        self.motion = Motion::Hold(hold);
+        self.motion = ReferenceMode::Hold(hold);
         self.arm_check = Some(c);
     }
 

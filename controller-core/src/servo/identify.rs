@@ -7,7 +7,7 @@
 //! never larger than the travel. The torque cap is the configured one, never above the
 //! amplifier's full scale.
 
-use super::commands::Refusal;
+use super::commands::CommandRefusal;
 use super::travel::AxisTravel;
 use crate::axes::Axis;
 use crate::sysid::{
@@ -45,8 +45,8 @@ impl IdentifyRun {
         full_scale: f32,
         period_s: f32,
         hold_others: bool,
-    ) -> Result<Self, Refusal> {
-        let bad = Refusal::BadWindow { axis };
+    ) -> Result<Self, CommandRefusal> {
+        let bad = CommandRefusal::BadWindow { axis };
         let (lo, hi) = match window_mm {
             Some([lo, hi]) => {
                 if !(lo < hi && travel.contains(lo) && travel.contains(hi)) {
@@ -71,7 +71,7 @@ impl IdentifyRun {
             ..*template
         };
         let identifier =
-            Identifier::new(&cfg, pos_mm).map_err(|_| Refusal::IdentifyRejected { axis })?;
+            Identifier::new(&cfg, pos_mm).map_err(|_| CommandRefusal::IdentifyRejected { axis })?;
         Ok(Self {
             axis: axis.index(),
             hold_others,

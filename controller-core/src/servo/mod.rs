@@ -66,7 +66,7 @@ pub mod state;
 pub mod step;
 pub mod travel;
 
-pub use commands::{Command, Refusal};
+pub use commands::{Command, CommandRefusal};
 pub use config::{PathPlan, ReconfigureError, ServoConfig, MAX_RATE_HZ, MIN_RATE_HZ};
 pub use state::ServoState;
 pub use step::{Servo, ARM_CHECK_SPEED_MM_S, STOPPING_FERROR_SCALE};

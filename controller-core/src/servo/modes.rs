@@ -3,7 +3,7 @@
 //! its category asks for ([`Servo::trip`]), and the ends of stops, jogs and
 //! identifications.
 
-use super::commands::{Command, Refusal};
+use super::commands::{Command, CommandRefusal};
 use super::faults::{Fault, FaultKind, FaultRecord, StopCategory};
 use super::identify::IdentifyRun;
 use super::io::Inputs;
@@ -14,7 +14,7 @@ use crate::axes::{Axis, AXES};
 use crate::motion::homing::Homing;
 use crate::motion::jog::Jog;
 use crate::motion::path::PathStart;
-use crate::motion::reference::Motion;
+use crate::motion::reference::ReferenceMode;
 use crate::motion::trajectory::RefSample;
 use crate::sysid::AxisSample;
 use crate::{Real, Vec3};
@@ -22,16 +22,16 @@ use crate::{Real, Vec3};
 /// Whether `c` may run now, judged from the latest snapshot (state, latched faults, inputs,
 /// homed and model masks). Checks that need the configuration (a path exists, the
 /// identification window) are the servo's own, after this one.
-pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
+pub fn check(s: &Snapshot, c: &Command) -> Result<(), CommandRefusal> {
     use ServoState as S;
     let faulted = s.fault_bits.0 != 0 || s.fault_bits.1.iter().any(|b| *b != 0);
     let needs_clear_inputs = || {
         if faulted {
-            Err(Refusal::FaultLatched)
+            Err(CommandRefusal::FaultLatched)
         } else if s.inputs.estop {
-            Err(Refusal::EStopActive)
+            Err(CommandRefusal::EStopActive)
         } else if s.inputs.first_limit().is_some() {
-            Err(Refusal::LimitActive)
+            Err(CommandRefusal::LimitActive)
         } else {
             Ok(())
         }
@@ -40,7 +40,7 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
         if s.homed & (1 << a.index()) != 0 {
             Ok(())
         } else {
-            Err(Refusal::NotHomed { axis: a })
+            Err(CommandRefusal::NotHomed { axis: a })
         }
     };
     match (c, s.state) {
@@ -50,7 +50,7 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
                 .into_iter()
                 .find(|a| s.model_missing & (1 << a.index()) != 0)
             {
-                Some(axis) => Err(Refusal::ModelMissing { axis }),
+                Some(axis) => Err(CommandRefusal::ModelMissing { axis }),
                 None => Ok(()),
             }
         }
@@ -72,8 +72,8 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), Refusal> {
         }
         (Command::Stop, S::Run | S::Jog | S::Homing | S::Identify | S::Idle) => Ok(()),
         (Command::LinkLost | Command::LinkUp, _) => Ok(()),
-        (Command::Arm | Command::Identify { .. }, S::Fault) => Err(Refusal::FaultLatched),
-        _ => Err(Refusal::WrongState),
+        (Command::Arm | Command::Identify { .. }, S::Fault) => Err(CommandRefusal::FaultLatched),
+        _ => Err(CommandRefusal::WrongState),
     }
 }
 
@@ -82,7 +82,7 @@ impl<R: Real> Servo<R> {
     #[cold]
     #[inline(never)]
     pub(super) fn begin_stop(&mut self, from: &RefSample<R>, then: ServoState) {
-        self.motion = Motion::stop_from(from, &self.stop_decel);
+        self.motion = ReferenceMode::stop_from(from, &self.stop_decel);
         self.rest_periods = 0;
         self.braking = false;
         self.stop_then = then;
@@ -179,7 +179,7 @@ impl<R: Real> Servo<R> {
         self.estimators.reset(*counts);
         self.controller.reset();
         self.monitor.reset();
-        self.motion = Motion::Hold(self.position_of(counts));
+        self.motion = ReferenceMode::Hold(self.position_of(counts));
     }
 
     /// Apply one operator command at the start of the period: refused when [`check`]
@@ -192,7 +192,7 @@ impl<R: Real> Servo<R> {
         c: &Command,
         inputs: &Inputs,
         counts: &[i64; AXES],
-    ) -> Result<(), Refusal> {
+    ) -> Result<(), CommandRefusal> {
         self.snapshot.inputs = *inputs;
         self.snapshot.state = self.state;
         check(&self.snapshot, c)?;
@@ -299,9 +299,9 @@ impl<R: Real> Servo<R> {
     /// Reset: refused while a cause remains; an encoder fault first runs the encoder
     /// check, anything else clears at once.
     #[inline(always)]
-    fn reset(&mut self, inputs: &Inputs, counts: &[i64; AXES]) -> Result<(), Refusal> {
+    fn reset(&mut self, inputs: &Inputs, counts: &[i64; AXES]) -> Result<(), CommandRefusal> {
         if !self.causes_gone(inputs) {
-            return Err(Refusal::FaultLatched);
+            return Err(CommandRefusal::FaultLatched);
         }
         match self.next_check(None) {
             Some(axis) => {
@@ -324,9 +324,9 @@ impl<R: Real> Servo<R> {
 
     /// Follow the configured path (from where the axes are, when it says so).
     #[inline(always)]
-    fn start_path(&mut self, counts: &[i64; AXES]) -> Result<(), Refusal> {
+    fn start_path(&mut self, counts: &[i64; AXES]) -> Result<(), CommandRefusal> {
         let Some((traj, _)) = &self.path else {
-            return Err(Refusal::NoPath);
+            return Err(CommandRefusal::NoPath);
         };
         let origin = match self.path_start {
             PathStart::Absolute => None,
@@ -334,22 +334,22 @@ impl<R: Real> Servo<R> {
                 Some(self.position_of(counts) - traj.sample(R::ZERO).pos)
             }
         };
-        self.motion = Motion::Path { k: 0, origin };
+        self.motion = ReferenceMode::Path { k: 0, origin };
         self.state = ServoState::Run;
         Ok(())
     }
 
     /// Start homing: every homing axis must find its switch anew.
     #[inline(always)]
-    fn home(&mut self, counts: &[i64; AXES]) -> Result<(), Refusal> {
+    fn home(&mut self, counts: &[i64; AXES]) -> Result<(), CommandRefusal> {
         let pos = self.position_of(counts).to_array().map(Real::to_f32);
         let Some(run) = Homing::start(&self.homing_cfg, &pos) else {
-            return Err(Refusal::NoHoming);
+            return Err(CommandRefusal::NoHoming);
         };
         // homing again: every homing axis must find its switch anew
         self.homed = 0;
         self.snapshot.homed = self.no_homing;
-        self.motion = Motion::Homing {
+        self.motion = ReferenceMode::Homing {
             hold: self.here().pos,
             run,
         };
@@ -362,10 +362,10 @@ impl<R: Real> Servo<R> {
     fn jog(&mut self, axis: Axis, vel_mm_s: f32) {
         if self.state == ServoState::Idle {
             let pos = self.here().pos.to_array().map(Real::to_f32);
-            self.motion = Motion::Jog(Jog::at(pos));
+            self.motion = ReferenceMode::Jog(Jog::at(pos));
             self.state = ServoState::Jog;
         }
-        if let Motion::Jog(j) = &mut self.motion {
+        if let ReferenceMode::Jog(j) = &mut self.motion {
             j.command(
                 axis.index(),
                 vel_mm_s,
@@ -382,7 +382,7 @@ impl<R: Real> Servo<R> {
         axis: Axis,
         window_mm: Option<[f32; 2]>,
         counts: &[i64; AXES],
-    ) -> Result<(), Refusal> {
+    ) -> Result<(), CommandRefusal> {
         let st = self.state;
         // (`min`: lets the compiler drop the bounds checks below)
         let i = axis.index().min(AXES - 1);
@@ -418,7 +418,7 @@ impl<R: Real> Servo<R> {
         let mut r = self.here();
         r.vel = Vec3::zero();
         r.acc = Vec3::zero();
-        self.motion = Motion::Planner(r);
+        self.motion = ReferenceMode::Planner(r);
         self.state = ServoState::Run;
     }
 
@@ -481,7 +481,7 @@ impl<R: Real> Servo<R> {
                 if settled || self.rest_periods >= self.stop_timeout_periods {
                     if self.stop_then == ServoState::Idle {
                         self.state = ServoState::Idle;
-                        self.motion = Motion::Hold(reference.pos);
+                        self.motion = ReferenceMode::Hold(reference.pos);
                     } else if self.brakes_gripping() {
                         // the outputs go off only once every brake holds its axis
                         self.state = self.stop_then;
@@ -490,7 +490,7 @@ impl<R: Real> Servo<R> {
             }
             ServoState::Jog => {
                 self.state = ServoState::Idle;
-                self.motion = Motion::Hold(reference.pos);
+                self.motion = ReferenceMode::Hold(reference.pos);
             }
             _ => {}
         }

@@ -3,7 +3,7 @@
 //! statistics outside the control interrupt).
 
 use crate::axes::AXES;
-use crate::servo::commands::{Command, Refusal};
+use crate::servo::commands::{Command, CommandRefusal};
 use crate::servo::faults::FaultRecord;
 use crate::servo::io::Inputs;
 use crate::servo::state::ServoState;
@@ -28,7 +28,7 @@ pub struct Snapshot {
     /// Axes whose model-based law has no known model (arming is refused).
     pub model_missing: u8,
     /// A command refused in the last period that applied commands, with the reason.
-    pub refused: Option<(Command, Refusal)>,
+    pub refused: Option<(Command, CommandRefusal)>,
     /// Progress of the current (or last) homing or identification, 0..=1.
     pub progress: f32,
     /// Measured positions (encoder counts converted to length).

@@ -21,7 +21,7 @@ use crate::motion::homing::{HomingConfig, HomingEvent, HomingInputs};
 use crate::motion::jog::JogConfig;
 use crate::motion::path::PathStart;
 use crate::motion::planner::PathSample;
-use crate::motion::reference::{Clock, Motion};
+use crate::motion::reference::{Clock, ReferenceMode};
 use crate::motion::trajectory::{RefSample, Trajectory};
 use crate::sysid::{AxisSample, IdentifyConfig};
 use crate::{Real, Vec3};
@@ -126,7 +126,7 @@ pub struct Servo<R> {
     /// The configured path and the period after which its end point is held.
     pub(super) path: Option<(Trajectory<R>, Option<u32>)>,
     pub(super) path_start: PathStart,
-    pub(super) motion: Motion<R>,
+    pub(super) motion: ReferenceMode<R>,
     pub(super) travel: TravelConfig,
     pub(super) homing_cfg: HomingConfig,
     pub(super) jog_cfg: JogConfig,
@@ -224,7 +224,7 @@ impl<R: Real> Servo<R> {
             // the program starts once the brakes are open; until then the start is held
             return;
         }
-        if let Motion::Planner(r) = &mut self.motion {
+        if let ReferenceMode::Planner(r) = &mut self.motion {
             let ok = s
                 .pos_mm
                 .to_array()
@@ -248,8 +248,10 @@ impl<R: Real> Servo<R> {
     /// follows; `None` outside Idle and Run.
     pub fn planner_start_mm(&self) -> Option<[f32; AXES]> {
         match (self.state, &self.motion) {
-            (ServoState::Idle, Motion::Hold(p)) => Some(p.to_array().map(Real::to_f32)),
-            (ServoState::Run, Motion::Planner(r)) => Some(r.pos.to_array().map(Real::to_f32)),
+            (ServoState::Idle, ReferenceMode::Hold(p)) => Some(p.to_array().map(Real::to_f32)),
+            (ServoState::Run, ReferenceMode::Planner(r)) => {
+                Some(r.pos.to_array().map(Real::to_f32))
+            }
             _ => None,
         }
     }
@@ -410,8 +412,8 @@ impl<R: Real> Servo<R> {
         let dt = self.period_s as f32;
         let bounds = self.jog_bounds();
         match &mut self.motion {
-            Motion::Jog(j) => j.advance(&self.jog_cfg, &bounds, dt),
-            Motion::Homing { hold, run } => {
+            ReferenceMode::Jog(j) => j.advance(&self.jog_cfg, &bounds, dt),
+            ReferenceMode::Homing { hold, run } => {
                 let axis = run.axis().min(AXES - 1);
                 let side = self.homing_cfg.axes[axis].direction.switch();
                 let inp = HomingInputs {
@@ -453,7 +455,7 @@ impl<R: Real> Servo<R> {
                         self.homed |= 1 << i;
                         hold[i] = R::from_f32(run.ramp.pos_mm);
                         let h = *hold;
-                        self.motion = Motion::Hold(h);
+                        self.motion = ReferenceMode::Hold(h);
                         self.state = ServoState::Idle;
                     }
                     HomingEvent::Failed { axis, .. } => {
@@ -669,7 +671,7 @@ impl<R: Real> Servo<R> {
         counts: &mut [i64; AXES],
     ) -> bool {
         if matches!(self.state, ServoState::Jog | ServoState::Homing) && !held {
-            let index = if matches!(self.motion, Motion::Homing { .. }) {
+            let index = if matches!(self.motion, ReferenceMode::Homing { .. }) {
                 if self.index.any() {
                     index
                 } else {
@@ -948,7 +950,7 @@ impl<R: Real> Servo<R> {
                 ServoState::Disabled
             };
             // holding: from here on the identified axis holds where it came to rest
-            self.motion = Motion::Hold(meas.pos);
+            self.motion = ReferenceMode::Hold(meas.pos);
             self.controller.reset();
             if !hold {
                 u = Vec3::zero();
@@ -962,7 +964,7 @@ impl<R: Real> Servo<R> {
     #[cold]
     #[inline(never)]
     pub(super) fn homing_limit(&self, inputs: &Inputs) -> Option<(Axis, bool)> {
-        let Motion::Homing { run, .. } = &self.motion else {
+        let ReferenceMode::Homing { run, .. } = &self.motion else {
             return inputs.first_limit();
         };
         Axis::ALL
@@ -1002,7 +1004,7 @@ impl<R: Real> Servo<R> {
     pub(super) fn progress(&self) -> f32 {
         match (&self.identify, &self.motion) {
             (Some(run), _) => run.last().progress,
-            (None, Motion::Homing { run, .. }) => {
+            (None, ReferenceMode::Homing { run, .. }) => {
                 let total = (!self.no_homing & 0b111).count_ones();
                 run.axes_done().count_ones() as f32 / total.max(1) as f32
             }
@@ -1016,7 +1018,7 @@ impl<R: Real> Servo<R> {
     #[inline(never)]
     pub(super) fn check_soft_limits(&mut self, reference: &RefSample<R>) {
         let homing_bit = match &self.motion {
-            Motion::Homing { run, .. } => 1u8 << run.axis(),
+            ReferenceMode::Homing { run, .. } => 1u8 << run.axis(),
             _ => 0,
         };
         let checked = self.referenced_mask() & !homing_bit;

@@ -14,7 +14,7 @@ use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, 
 use controller_core::coupling::contour::{cross_couple, Coupled};
 use controller_core::coupling::CouplingConfig;
 use controller_core::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
-use controller_core::motion::reference::{self, Clock, Motion};
+use controller_core::motion::reference::{self, Clock, ReferenceMode};
 use controller_core::motion::trajectory::{RefSample, Trajectory};
 use controller_core::servo::io::ServoIo;
 use controller_core::servo::monitor::Monitor;
@@ -75,8 +75,8 @@ impl BoardRun {
         1.0 / f64::from(self.cfg.rate_hz)
     }
 
-    fn motion(&self) -> Motion<f32> {
-        Motion::Path {
+    fn motion(&self) -> ReferenceMode<f32> {
+        ReferenceMode::Path {
             k: self.path_k(),
             origin: Some(self.origin),
         }
@@ -171,7 +171,7 @@ impl PartEstimators {
 /// `servo_part_reference`: step 3, the reference of the board's path at the counted period
 /// (`reference::sample`: clock, helix with sin/cos, origin shift, hold check).
 pub struct PartReference {
-    motion: Motion<f32>,
+    motion: ReferenceMode<f32>,
     path: (Trajectory<f32>, Option<u32>),
     clock: Clock<f32>,
 }
