@@ -26,7 +26,7 @@
 use crate::schema::{AxisSpec, MachineSpec};
 use controller_core::servo::monitor::AxisSafetyConfig;
 use controller_core::servo::travel::AxisTravel;
-use controller_core::settings::{SettingError, Settings, FACTORY};
+use controller_core::settings::{SetError, Settings, FACTORY};
 use controller_core::sim::world::PlantConfig;
 
 /// A physical range of a value no setting holds (bounds included).
@@ -126,9 +126,9 @@ fn field_of_key(suffix: &str) -> String {
 
 /// A settings error in the machine file's terms: the field path, the value and the
 /// allowed range, or the rule the axis' values break together.
-fn describe(axis: &str, e: &SettingError) -> String {
+fn describe(axis: &str, e: &SetError) -> String {
     match e {
-        SettingError::OutOfRange {
+        SetError::OutOfRange {
             key,
             value,
             range,
@@ -149,7 +149,7 @@ fn describe(axis: &str, e: &SettingError) -> String {
                 unit
             )
         }
-        SettingError::Tree(t) => format!(
+        SetError::Tree(t) => format!(
             "`machine.axes.{axis}`: its values are each in range but not valid together \
              (the settings' rule): {t}"
         ),

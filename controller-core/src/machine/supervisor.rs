@@ -37,7 +37,7 @@ use crate::motion::planner::{
 };
 use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoConfig, ServoState};
-use crate::settings::{Apply, Settings, SettingsError};
+use crate::settings::{Apply, ServoConfigError, Settings};
 use crate::sysid::IdentifyStatus;
 
 /// Segment slots of the machine's planner.
@@ -82,7 +82,7 @@ pub enum Seen<'a> {
 /// Why a machine could not be built.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MachineError {
-    Settings(SettingsError),
+    Settings(ServoConfigError),
     Planner(PlannerConfigError),
     /// A split planner whose task's channels were not attached.
     PlannerDetached,

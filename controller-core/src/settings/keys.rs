@@ -21,7 +21,7 @@ use crate::link::watchdog::{MAX_WATCHDOG_TIMEOUT_MS, MIN_WATCHDOG_TIMEOUT_MS};
 use crate::motion::homing::HomeDirection;
 
 use super::offsets::{TOOL_COUNT, WORK_SYSTEMS};
-use super::servo_config::{SettingsError, PLACEHOLDER_MODELS};
+use super::servo_config::{ServoConfigError, PLACEHOLDER_MODELS};
 use super::tree::{AxisSettings, CouplingKind, LawKind, Settings};
 
 /// A setting's value. Choices are the static names of [`Range::Choice`].
@@ -943,8 +943,8 @@ impl Key {
     }
 
     /// Parse the CLI's text as this key's value (type only; `set` checks the range).
-    pub fn parse(&self, text: &str) -> Result<Value, SettingError> {
-        self.range.parse(text).ok_or(SettingError::WrongType {
+    pub fn parse(&self, text: &str) -> Result<Value, SetError> {
+        self.range.parse(text).ok_or(SetError::WrongType {
             key: self.name,
             range: self.range,
         })
@@ -1057,7 +1057,7 @@ impl fmt::Display for KeyError {
 
 /// Why [`Settings::set`] refused; every variant names the key. Nothing was changed.
 #[derive(Clone, Debug, PartialEq)]
-pub enum SettingError {
+pub enum SetError {
     /// No such key.
     Unknown(KeyText),
     /// The value (or text) is not of the key's type.
@@ -1075,13 +1075,13 @@ pub enum SettingError {
     Rejected {
         key: &'static str,
         value: Value,
-        error: SettingsError,
+        error: ServoConfigError,
     },
     /// A whole tree from outside (store, import) gives no servo configuration.
-    Tree(SettingsError),
+    Tree(ServoConfigError),
 }
 
-impl fmt::Display for SettingError {
+impl fmt::Display for SetError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::Unknown(k) => write!(f, "unknown key `{}`", k.as_str()),
@@ -1110,7 +1110,7 @@ impl fmt::Display for SettingError {
     }
 }
 
-impl From<KeyError> for SettingError {
+impl From<KeyError> for SetError {
     fn from(e: KeyError) -> Self {
         match e {
             KeyError::Unknown(k) => Self::Unknown(k),
@@ -1134,7 +1134,7 @@ impl Settings {
     /// Set `key` to `value`: the value must have the key's type and lie in its range, and
     /// the whole tree with it must give a servo configuration at `rate_hz` (the control
     /// rate of the machine). On any error nothing changes.
-    pub fn set(&mut self, key: &str, value: Value, rate_hz: u32) -> Result<(), SettingError> {
+    pub fn set(&mut self, key: &str, value: Value, rate_hz: u32) -> Result<(), SetError> {
         self.set_all(&[(key, value)], rate_hz)
     }
 
@@ -1143,7 +1143,7 @@ impl Settings {
     /// beyond its old other end). Each value is checked like [`Self::set`]; the tree is
     /// validated once, after all of them. On any error nothing changes; a whole-tree
     /// rejection names the last key.
-    pub fn set_all(&mut self, changes: &[(&str, Value)], rate_hz: u32) -> Result<(), SettingError> {
+    pub fn set_all(&mut self, changes: &[(&str, Value)], rate_hz: u32) -> Result<(), SetError> {
         let mut next = *self;
         let mut last = None;
         for (key, value) in changes {
@@ -1153,22 +1153,22 @@ impl Settings {
         }
         if let Some((key, value)) = last {
             next.servo_config(rate_hz)
-                .map_err(|error| SettingError::Rejected { key, value, error })?;
+                .map_err(|error| SetError::Rejected { key, value, error })?;
         }
         *self = next;
         Ok(())
     }
 
     /// Type and range check of `value` for `k`, then write it (no whole-tree check).
-    fn put_checked(&mut self, k: &Key, value: Value) -> Result<(), SettingError> {
+    fn put_checked(&mut self, k: &Key, value: Value) -> Result<(), SetError> {
         if !k.range.fits_type(&value) {
-            return Err(SettingError::WrongType {
+            return Err(SetError::WrongType {
                 key: k.name,
                 range: k.range,
             });
         }
         if !k.range.admits(&value) {
-            return Err(SettingError::OutOfRange {
+            return Err(SetError::OutOfRange {
                 key: k.name,
                 value,
                 range: k.range,
@@ -1176,8 +1176,8 @@ impl Settings {
             });
         }
         k.put(self, value).map_err(|e| match e {
-            Put::NoModel => SettingError::NoModel { key: k.name },
-            Put::WrongType => SettingError::WrongType {
+            Put::NoModel => SetError::NoModel { key: k.name },
+            Put::WrongType => SetError::WrongType {
                 key: k.name,
                 range: k.range,
             },
@@ -1187,7 +1187,7 @@ impl Settings {
     /// Set `key` from the CLI's text, type- and range-checked but without the whole-tree
     /// check: one change of a transaction, whose tree is validated whole at its commit
     /// ([`Self::validate_change`]). On an error nothing changes.
-    pub fn stage_text(&mut self, key: &str, text: &str) -> Result<(), SettingError> {
+    pub fn stage_text(&mut self, key: &str, text: &str) -> Result<(), SetError> {
         let k = find(key)?;
         let value = k.parse(text)?;
         self.put_checked(&k, value)
@@ -1198,7 +1198,7 @@ impl Settings {
     /// that is found to be a cause: first one whose old value alone makes the tree valid
     /// again; else one whose new value alone makes `base` invalid (when several changes
     /// break rules, or one key was changed twice); else the last changed key.
-    pub fn validate_change(&self, base: &Settings, rate_hz: u32) -> Result<(), SettingError> {
+    pub fn validate_change(&self, base: &Settings, rate_hz: u32) -> Result<(), SetError> {
         if let Some(e) = self.out_of_range() {
             return Err(e);
         }
@@ -1215,7 +1215,7 @@ impl Settings {
             let Some(old) = old else { continue };
             let mut t = *self;
             if t.put_checked(&k, old).is_ok() && t.servo_config(rate_hz).is_ok() {
-                return Err(SettingError::Rejected {
+                return Err(SetError::Rejected {
                     key: k.name,
                     value,
                     error,
@@ -1225,7 +1225,7 @@ impl Settings {
         for (k, value, _) in changed() {
             let mut t = *base;
             if t.put_checked(&k, value).is_ok() && t.servo_config(rate_hz).is_err() {
-                return Err(SettingError::Rejected {
+                return Err(SetError::Rejected {
                     key: k.name,
                     value,
                     error,
@@ -1233,27 +1233,27 @@ impl Settings {
             }
         }
         Err(match changed().last() {
-            Some((k, value, _)) => SettingError::Rejected {
+            Some((k, value, _)) => SetError::Rejected {
                 key: k.name,
                 value,
                 error,
             },
-            None => SettingError::Tree(error),
+            None => SetError::Tree(error),
         })
     }
 
     /// [`Self::set`] from the CLI's text (`"1.5"`, `"true"`, `"dsmc"`).
-    pub fn set_text(&mut self, key: &str, text: &str, rate_hz: u32) -> Result<(), SettingError> {
+    pub fn set_text(&mut self, key: &str, text: &str, rate_hz: u32) -> Result<(), SetError> {
         let value = find(key)?.parse(text)?;
         self.set(key, value, rate_hz)
     }
 
     /// The first key whose value lies outside its range (a tree that did not come through
     /// [`Self::set`]: a stored record, an imported file).
-    pub fn out_of_range(&self) -> Option<SettingError> {
+    pub fn out_of_range(&self) -> Option<SetError> {
         self.list().find_map(|(k, v)| {
             let v = v?;
-            (!k.range.admits(&v)).then_some(SettingError::OutOfRange {
+            (!k.range.admits(&v)).then_some(SetError::OutOfRange {
                 key: k.name,
                 value: v,
                 range: k.range,
@@ -1264,13 +1264,13 @@ impl Settings {
 
     /// Whole validation of a tree from outside (store, import): every key in range and a
     /// servo configuration at `rate_hz`.
-    pub fn validate(&self, rate_hz: u32) -> Result<(), SettingError> {
+    pub fn validate(&self, rate_hz: u32) -> Result<(), SetError> {
         if let Some(e) = self.out_of_range() {
             return Err(e);
         }
         self.servo_config(rate_hz)
             .map(|_| ())
-            .map_err(SettingError::Tree)
+            .map_err(SetError::Tree)
     }
 
     /// What changing from `self` to `next` needs from the servo: `None` if no servo

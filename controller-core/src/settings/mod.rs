@@ -26,9 +26,9 @@ pub mod servo_config;
 pub mod store;
 pub mod tree;
 
-pub use keys::{Apply, Key, KeyError, Range, SettingError, Value};
+pub use keys::{Apply, Key, KeyError, Range, SetError, Value};
 pub use offsets::{ToolSettings, ToolTable, WorkOffset, WorkOffsets, TOOL_COUNT, WORK_SYSTEMS};
-pub use servo_config::{SettingsError, PLACEHOLDER_MODELS};
+pub use servo_config::{ServoConfigError, PLACEHOLDER_MODELS};
 pub use tree::{
     AmplifierSettings, AxisSettings, CouplingKind, CouplingSettings, EncoderSettings,
     EstimatorSettings, IdentifySettings, JogSettings, LawKind, LawSettings, LinkSettings,

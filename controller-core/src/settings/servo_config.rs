@@ -31,7 +31,7 @@ pub const PLACEHOLDER_MODELS: [AxisModel; AXES] = [
 
 /// Why a settings tree does not give a servo configuration; every variant names the part.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum SettingsError {
+pub enum ServoConfigError {
     /// The axis' model is not one a law can be built from.
     Model { axis: Axis, error: ConfigError },
     /// The axis' tuning (bandwidth, full scale, counts per mm) is invalid.
@@ -48,7 +48,7 @@ pub enum SettingsError {
     Servo(ConfigError),
 }
 
-impl core::fmt::Display for SettingsError {
+impl core::fmt::Display for ServoConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Model { axis, error } => write!(f, "axis.{}.model: {error}", axis.name()),
@@ -64,16 +64,20 @@ impl core::fmt::Display for SettingsError {
 }
 
 /// The law of one axis from its settings.
-fn law(a: &AxisSettings, placeholder: &AxisModel, axis: Axis) -> Result<LawConfig, SettingsError> {
+fn law(
+    a: &AxisSettings,
+    placeholder: &AxisModel,
+    axis: Axis,
+) -> Result<LawConfig, ServoConfigError> {
     let model = match &a.model {
         Some(m) => {
             m.validate()
-                .map_err(|error| SettingsError::Model { axis, error })?;
+                .map_err(|error| ServoConfigError::Model { axis, error })?;
             m
         }
         None => placeholder,
     };
-    let tuning_err = |error| SettingsError::Tuning { axis, error };
+    let tuning_err = |error| ServoConfigError::Tuning { axis, error };
     // guards the division below
     let counts = positive(a.encoder.counts_per_mm, "encoder.counts_per_mm").map_err(tuning_err)?;
     let t = TuningConfig {
@@ -103,7 +107,7 @@ impl Settings {
     ///
     /// This builds a `Servo<f32>` on the stack to validate (3.6 KiB on a 64-bit host,
     /// less on the MCU).
-    pub fn servo_config(&self, rate_hz: u32) -> Result<ServoConfig, SettingsError> {
+    pub fn servo_config(&self, rate_hz: u32) -> Result<ServoConfig, ServoConfigError> {
         let mut c = factory_config(rate_hz);
         for (i, a) in self.axis.iter().enumerate() {
             let Some((axis, placeholder)) = Axis::from_index(i).zip(PLACEHOLDER_MODELS.get(i))
@@ -162,16 +166,18 @@ impl Settings {
         self.link
             .watchdog()
             .validate()
-            .map_err(SettingsError::Link)?;
+            .map_err(ServoConfigError::Link)?;
         crate::motion::planner::ValidPlannerConfig::new(&self.planner_config(rate_hz))
-            .map_err(SettingsError::Planner)?;
+            .map_err(ServoConfigError::Planner)?;
         for (a, axis) in self.axis.iter().zip(Axis::ALL) {
             if !(a.planner.vel_max_mm_s <= a.vel_max_mm_s) {
-                return Err(SettingsError::PlannerSpeed { axis });
+                return Err(ServoConfigError::PlannerSpeed { axis });
             }
         }
-        c.safety.check_for_machine().map_err(SettingsError::Servo)?;
-        Servo::<f32>::new(&c, [0; AXES], [0; AXES]).map_err(SettingsError::Servo)?;
+        c.safety
+            .check_for_machine()
+            .map_err(ServoConfigError::Servo)?;
+        Servo::<f32>::new(&c, [0; AXES], [0; AXES]).map_err(ServoConfigError::Servo)?;
         Ok(c)
     }
 }
@@ -249,7 +255,7 @@ mod tests {
         });
         assert_eq!(
             s.servo_config(BOARD_RATE_HZ),
-            Err(SettingsError::Model {
+            Err(ServoConfigError::Model {
                 axis: Axis::Y,
                 error: ConfigError::NotPositive("inertia")
             })
@@ -258,7 +264,7 @@ mod tests {
         s.axis[2].encoder.counts_per_mm = 0.0;
         assert_eq!(
             s.servo_config(BOARD_RATE_HZ),
-            Err(SettingsError::Tuning {
+            Err(ServoConfigError::Tuning {
                 axis: Axis::Z,
                 error: ConfigError::NotPositive("encoder.counts_per_mm")
             })
@@ -267,7 +273,7 @@ mod tests {
         s.link.watchdog_ms = 5;
         assert_eq!(
             s.servo_config(BOARD_RATE_HZ),
-            Err(SettingsError::Link(LinkConfigError::OutOfRange(
+            Err(ServoConfigError::Link(LinkConfigError::OutOfRange(
                 "watchdog.timeout_ms"
             )))
         );
@@ -276,7 +282,7 @@ mod tests {
         s.estimator.pll_bandwidth_rad_s = 5000.0;
         assert!(matches!(
             s.servo_config(2_000),
-            Err(SettingsError::Servo(ConfigError::Unstable(_)))
+            Err(ServoConfigError::Servo(ConfigError::Unstable(_)))
         ));
         assert!(s.servo_config(20_000).is_ok());
     }

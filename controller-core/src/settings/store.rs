@@ -56,7 +56,7 @@ use embedded_storage_async::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, ReadNorFlash,
 };
 
-use super::keys::SettingError;
+use super::keys::SetError;
 use super::tree::{Settings, FACTORY, SETTINGS_VERSION};
 
 /// Version of the flash layout (the record header and the page rules above), in the
@@ -125,7 +125,7 @@ pub enum Corruption {
     Undecodable,
     /// The record decodes, but a value is out of range or the servo rejects the tree (e.g.
     /// firmware built for another control rate).
-    Invalid(SettingError),
+    Invalid(SetError),
 }
 
 /// Why a flash range cannot hold the store.
@@ -149,7 +149,7 @@ pub enum StoreError<E> {
     /// The flash range cannot hold the store.
     Range(RangeError),
     /// The tree is not valid: it was not saved.
-    Invalid(SettingError),
+    Invalid(SetError),
     /// The tree does not fit the record buffer ([`RECORD_BUFFER`]).
     TooLarge,
     /// The flash failed.

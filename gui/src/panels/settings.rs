@@ -11,7 +11,7 @@ use crate::app::GantryApp;
 use crate::session::Command;
 use controller_core::machine::messages::MachineState;
 use controller_core::settings::keys::{find, keys, Key};
-use controller_core::settings::{Range, SettingError, Settings, Value, FACTORY};
+use controller_core::settings::{Range, SetError, Settings, Value, FACTORY};
 use egui::{Color32, RichText};
 use std::collections::BTreeMap;
 
@@ -127,14 +127,14 @@ pub fn tree_of(values: &[(String, String)], rate_hz: u32) -> Result<Settings, St
 }
 
 /// The key an error names.
-fn error_key(e: &SettingError) -> Option<&str> {
+fn error_key(e: &SetError) -> Option<&str> {
     match e {
-        SettingError::Unknown(k) => Some(k.as_str()),
-        SettingError::WrongType { key, .. }
-        | SettingError::OutOfRange { key, .. }
-        | SettingError::NoModel { key }
-        | SettingError::Rejected { key, .. } => Some(key),
-        SettingError::Tree(_) => None,
+        SetError::Unknown(k) => Some(k.as_str()),
+        SetError::WrongType { key, .. }
+        | SetError::OutOfRange { key, .. }
+        | SetError::NoModel { key }
+        | SetError::Rejected { key, .. } => Some(key),
+        SetError::Tree(_) => None,
     }
 }
 

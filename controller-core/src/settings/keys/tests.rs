@@ -172,7 +172,7 @@ fn every_key_changes_its_value_and_nothing_else() {
                     // alone: refused
                     assert!(matches!(
                         s.set(k.name, candidate, RATE),
-                        Err(SettingError::Rejected { .. })
+                        Err(SetError::Rejected { .. })
                     ));
                     s.set_all(&[(k.name, candidate), (switch, Value::F32(-pos))], RATE)
                 }
@@ -187,10 +187,7 @@ fn every_key_changes_its_value_and_nothing_else() {
                     // a refused candidate changes nothing
                     assert!(same_tree(&s, &s0), "{}: {e}", k.name);
                     assert!(
-                        matches!(
-                            e,
-                            SettingError::Rejected { .. } | SettingError::OutOfRange { .. }
-                        ),
+                        matches!(e, SetError::Rejected { .. } | SetError::OutOfRange { .. }),
                         "{}: {e}",
                         k.name
                     );
@@ -245,7 +242,7 @@ fn out_of_range_values_name_the_key_and_range_and_change_nothing() {
         for v in bad {
             let mut s = s0;
             let e = s.set(k.name, v, RATE).unwrap_err();
-            let SettingError::OutOfRange {
+            let SetError::OutOfRange {
                 key,
                 value,
                 range,
@@ -286,7 +283,7 @@ fn wrong_types_and_unknown_keys_are_refused_and_change_nothing() {
         let mut s = s0;
         assert_eq!(
             s.set(k.name, wrong, RATE),
-            Err(SettingError::WrongType {
+            Err(SetError::WrongType {
                 key: k.name,
                 range: k.range
             })
@@ -295,7 +292,7 @@ fn wrong_types_and_unknown_keys_are_refused_and_change_nothing() {
         let e = s.set_text(k.name, "not-a-value", RATE).unwrap_err();
         assert_eq!(
             e,
-            SettingError::WrongType {
+            SetError::WrongType {
                 key: k.name,
                 range: k.range
             }
@@ -312,7 +309,7 @@ fn wrong_types_and_unknown_keys_are_refused_and_change_nothing() {
         "axis.x.model",
     ] {
         let e = s.set(bad, Value::F32(1.0), RATE).unwrap_err();
-        assert_eq!(e, SettingError::Unknown(KeyText::new(bad)));
+        assert_eq!(e, SetError::Unknown(KeyText::new(bad)));
         assert_eq!(e.to_string(), std::format!("unknown key `{bad}`"));
         assert!(matches!(s.get(bad), Err(KeyError::Unknown(_))));
     }
@@ -331,37 +328,37 @@ fn wrong_types_and_unknown_keys_are_refused_and_change_nothing() {
 #[test]
 fn values_valid_alone_but_rejected_by_the_servo_are_refused_with_its_reason() {
     let s0 = FACTORY;
-    let cases: [(&str, Value, SettingsError); 5] = [
+    let cases: [(&str, Value, ServoConfigError); 5] = [
         (
             "axis.x.following_error_mm",
             Value::F32(0.05),
-            SettingsError::Servo(ConfigError::OutOfRange(
+            ServoConfigError::Servo(ConfigError::OutOfRange(
                 "safety.ferror_mm (>= min_ferror_mm)",
             )),
         ),
         (
             "axis.y.travel.min_mm",
             Value::F32(200.0),
-            SettingsError::Servo(ConfigError::OutOfRange("travel.y (min_mm < max_mm)")),
+            ServoConfigError::Servo(ConfigError::OutOfRange("travel.y (min_mm < max_mm)")),
         ),
         (
             "axis.z.homing.switch_pos_mm",
             Value::F32(60.0),
-            SettingsError::Servo(ConfigError::OutOfRange(
+            ServoConfigError::Servo(ConfigError::OutOfRange(
                 "homing: switch_pos_mm -/+ pulloff_mm must lie inside the travel",
             )),
         ),
         (
             "axis.x.homing.locate_mm_s",
             Value::F32(30.0),
-            SettingsError::Servo(ConfigError::OutOfRange(
+            ServoConfigError::Servo(ConfigError::OutOfRange(
                 "homing.locate_mm_s (at most seek_mm_s)",
             )),
         ),
         (
             "estimator.pll_bandwidth_rad_s",
             Value::F32(9000.0),
-            SettingsError::Servo(ConfigError::Unstable(
+            ServoConfigError::Servo(ConfigError::Unstable(
                 "pll (bandwidth_rad_s too high for the control rate)",
             )),
         ),
@@ -369,7 +366,7 @@ fn values_valid_alone_but_rejected_by_the_servo_are_refused_with_its_reason() {
     for (key, value, expected) in cases {
         let mut s = s0;
         let e = s.set(key, value, RATE).unwrap_err();
-        let SettingError::Rejected {
+        let SetError::Rejected {
             key: k,
             value: v,
             error,
@@ -381,8 +378,8 @@ fn values_valid_alone_but_rejected_by_the_servo_are_refused_with_its_reason() {
         // the servo's own text is part of the message
         match (error, &expected) {
             (
-                SettingsError::Servo(ConfigError::Unstable(_)),
-                SettingsError::Servo(ConfigError::Unstable(_)),
+                ServoConfigError::Servo(ConfigError::Unstable(_)),
+                ServoConfigError::Servo(ConfigError::Unstable(_)),
             ) => {}
             _ => assert_eq!(*error, expected, "{key}"),
         }
@@ -417,7 +414,7 @@ fn a_model_entered_through_keys_arms_and_gives_the_presets_dsmc_bit_for_bit() {
     );
     assert_eq!(
         s.set("axis.x.model.inertia", Value::F32(0.064), RATE),
-        Err(SettingError::NoModel {
+        Err(SetError::NoModel {
             key: "axis.x.model.inertia"
         })
     );
@@ -518,7 +515,7 @@ fn text_from_the_cli_parses_by_the_keys_type() {
         let before = s;
         assert!(matches!(
             s.set_text(key, text, RATE),
-            Err(SettingError::WrongType { .. })
+            Err(SetError::WrongType { .. })
         ));
         assert_eq!(s, before);
     }

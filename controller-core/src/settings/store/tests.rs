@@ -184,7 +184,7 @@ fn a_record_the_servo_rejects_gives_factory_and_a_fault() {
     let (s, outcome) = block_on(store(flash).load(RATE));
     assert_eq!(s, FACTORY);
     match outcome {
-        LoadOutcome::Corrupt(Corruption::Invalid(SettingError::OutOfRange { key, .. })) => {
+        LoadOutcome::Corrupt(Corruption::Invalid(SetError::OutOfRange { key, .. })) => {
             assert_eq!(key, "axis.x.following_error_mm")
         }
         other => panic!("{other:?}"),
@@ -200,8 +200,8 @@ fn a_record_the_servo_rejects_gives_factory_and_a_fault() {
     assert_eq!(s, FACTORY);
     assert!(matches!(
         outcome,
-        LoadOutcome::Corrupt(Corruption::Invalid(SettingError::Tree(
-            crate::settings::SettingsError::Servo(crate::config::ConfigError::Unstable(_))
+        LoadOutcome::Corrupt(Corruption::Invalid(SetError::Tree(
+            crate::settings::ServoConfigError::Servo(crate::config::ConfigError::Unstable(_))
         )))
     ));
 }
@@ -213,7 +213,7 @@ fn save_refuses_an_invalid_tree_and_writes_nothing() {
     bad.axis[2].vel_max_mm_s = f32::NAN;
     assert!(matches!(
         block_on(st.save(&bad, RATE)),
-        Err(StoreError::Invalid(SettingError::OutOfRange {
+        Err(StoreError::Invalid(SetError::OutOfRange {
             key: "axis.z.vel_max_mm_s",
             ..
         }))
