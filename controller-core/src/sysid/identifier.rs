@@ -50,7 +50,7 @@ pub struct AxisSample {
     /// Effort applied over the period that just ended: what the identifier commanded last
     /// period after any clamp the caller applied, mN·m.
     pub effort_applied_mnm: f32,
-    /// Any fault the supervisor holds (watchdog, amplifier, limit switch, estop...).
+    /// Any fault the servo's safety state machine holds (watchdog, amplifier, limit switch, estop...).
     pub fault: bool,
 }
 
