@@ -1,15 +1,17 @@
 //! The simulated gantry the host's machines are built on: the built-in `gcode.toml`
 //! scenario (or one on a `--machine`) resolved with the planner configured from the
 //! settings, the physical world of `gantry --sim` and of the board twin, and the factory
-//! settings with the designed gantry's axis models entered. `host-sim gcode`, `gantry --sim`,
-//! the twin plant and the machine replay all start from here.
+//! settings with the designed gantry's axis models entered (both built by controller-core's
+//! `sim::gantry`, as the QEMU link rig builds its machine). `host-sim gcode`, `gantry
+//! --sim`, the twin plant and the machine replay all start from here.
 
 use crate::builtin::{self, resolve_all};
 use anyhow::{anyhow, bail, Result};
 use controller_core::motion::planner::PlannerConfig;
-use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
+use controller_core::settings::{Settings, FACTORY};
+use controller_core::sim::gantry::{self, GantryError, GantryOptions};
 use controller_core::sim::run::RunConfig;
-use controller_core::sim::world::{SwitchConfig, World};
+use controller_core::sim::world::World;
 use std::path::Path;
 
 /// The scenario (built-in `gcode.toml`, or on `machine`) resolved, and the planner's
@@ -61,37 +63,21 @@ pub fn gantry_world(
     board_amplifier: bool,
 ) -> Result<(World, u32)> {
     let (run, _) = machine_and_planner(None)?;
-    let mut wcfg = run.world;
-    // the switches where homing expects them; the index pulses the machine's encoders give
-    for (sw, homing) in wcfg
-        .switches
-        .iter_mut()
-        .zip(SwitchConfig::for_homing(settings))
-    {
-        *sw = SwitchConfig {
-            index_period_counts: sw.index_period_counts,
-            ..homing
-        };
-    }
     let rate_hz = rate_hz.unwrap_or(run.servo.rate_hz);
-    let mut servo_cfg = settings
-        .servo_config(rate_hz)
-        .map_err(|e| anyhow!("settings: {e:?}"))?;
-    if board_amplifier {
-        for a in &mut servo_cfg.amplifiers {
-            a.resolution_bits = 0;
-        }
-    }
-    let world = World::new(&wcfg, &servo_cfg).map_err(|e| anyhow!("machine: {e}"))?;
+    let options = GantryOptions {
+        index_pulses: true,
+        board_amplifier,
+    };
+    let world =
+        gantry::gantry_world(&run.world, settings, rate_hz, options).map_err(|e| match e {
+            GantryError::Settings(e) => anyhow!("settings: {e:?}"),
+            GantryError::World(e) => anyhow!("machine: {e}"),
+        })?;
     Ok((world, rate_hz))
 }
 
 /// Factory settings with the designed gantry's axis models entered (`gantry --sim`'s
-/// machine, and the QEMU link rig's).
+/// machine, and the QEMU link rig's: [`gantry::designed_settings`]).
 pub fn designed_settings() -> Settings {
-    let mut settings: Settings = FACTORY;
-    for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
-        a.model = Some(m);
-    }
-    settings
+    gantry::designed_settings()
 }

@@ -5,11 +5,14 @@
 //!
 //! - [`world`]: three plants behind encoders and amplifiers, implementing
 //!   [`crate::servo::io::ServoIo`];
+//! - [`gantry`]: the simulated gantry (designed settings, the world with its homing
+//!   switches) of host-sim's `gantry --sim` and the QEMU link rig;
 //! - [`run`]: a simulated run (servo step + world + figures, scripted commands);
 //! - [`truth`]: tracking and contour figures of the true plant state;
 //! - [`rng`]: the SplitMix64 generator every simulation and study draws from;
 //! - [`random`]: random physical axes from the documented range.
 
+pub mod gantry;
 pub mod random;
 pub mod rng;
 pub mod run;

@@ -2,7 +2,8 @@
 //! USART2 — the core's [`Machine`] (supervisor, planner, servo step) with factory
 //! settings and the designed axis models, against the simulated physical gantry of
 //! `gantry --sim` (host-sim/scenarios/gcode.toml, with limit switches where homing
-//! expects them). The control interrupt runs [`Machine::linked_period`] and advances the
+//! expects them, both built by controller-core's `sim::gantry` as host-sim builds them;
+//! the rig's world has no encoder index pulses). The control interrupt runs [`Machine::linked_period`] and advances the
 //! world; the link task (`crate::link`) talks to the host. It runs until QEMU is stopped.
 //!
 //! The simulated machine's e-stop is pressed and released on its operator panel, USART1
@@ -28,9 +29,10 @@ use controller_core::machine::record::{Digest, RecordRef, Recorder, BLOCK_PERIOD
 use controller_core::machine::{save_due_into, ControlSide, LinkSide};
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
-use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
+use controller_core::settings::Settings;
+use controller_core::sim::gantry::{designed_settings, gantry_world, GantryOptions};
 use controller_core::sim::run::RunConfig;
-use controller_core::sim::world::{SwitchConfig, World};
+use controller_core::sim::world::World;
 
 use super::panel::Panel;
 use crate::link::{SettingsSaver, LINK_CLOCK_MS};
@@ -126,23 +128,17 @@ impl LinkRig {
                 exit(EXIT_CONFIG)
             }
         };
-        let mut settings: Settings = FACTORY;
-        for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
-            a.model = Some(m);
-        }
+        let settings = designed_settings();
         let rate_hz = run.servo.rate_hz;
-        let mut wcfg = run.world;
-        wcfg.switches = SwitchConfig::for_homing(&settings);
-        let world = match settings
-            .servo_config(rate_hz)
-            .ok()
-            .and_then(|cfg| World::new(&wcfg, &cfg).ok())
-        {
-            Some(w) => w,
-            None => {
-                defmt::error!("link rig: the simulated machine is rejected");
-                exit(EXIT_CONFIG)
-            }
+        // no index pulses, as the rig has always run (host-sim's world keeps the machine
+        // file's: the replay still matches while no encoder count is lost)
+        let options = GantryOptions {
+            index_pulses: false,
+            board_amplifier: false,
+        };
+        let Ok(world) = gantry_world(&run.world, &settings, rate_hz, options) else {
+            defmt::error!("link rig: the simulated machine is rejected");
+            exit(EXIT_CONFIG)
         };
         let Ok(machine) = machine_slot::build(
             slot,
