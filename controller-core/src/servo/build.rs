@@ -3,13 +3,17 @@
 //! outputs off ([`Servo::reconfigure`]: what carries over, and when).
 
 use super::brake::BrakeState;
+use super::checks::{EncoderChecks, ARM_CHECK_SPEED_MM_S, ARM_CHECK_WRONG_COUNTS};
 use super::config::{ReconfigureError, ServoConfig, MAX_RATE_HZ, MIN_RATE_HZ};
 use super::faults::FaultLog;
+use super::identify::Identification;
 use super::index_check::IndexCheck;
+use super::manual::ManualState;
 use super::monitor::Monitor;
 use super::snapshot::Snapshot;
 use super::state::ServoState;
-use super::step::{Servo, ARM_CHECK_SPEED_MM_S, ARM_CHECK_WRONG_COUNTS};
+use super::step::Servo;
+use super::stop::StopState;
 use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3};
@@ -110,59 +114,67 @@ impl<R: Real> Servo<R> {
             )?,
             faults: FaultLog::new(),
             state: ServoState::Disabled,
-            stop_then: ServoState::Fault,
             path,
             path_start,
             motion: ReferenceMode::Hold(Vec3::zero()),
             travel: cfg.travel,
-            homing_cfg: cfg.homing,
-            jog_cfg: cfg.jog,
-            jog_timeout_periods: super::monitor::periods(cfg.jog.timeout_s, period_s),
-            identify_cfg: cfg.identify,
-            identify: None,
-            identify_outcome: None,
-            homed: 0,
-            no_homing: super::commands::axis_mask(cfg.homing.axes.map(|a| !a.enabled)),
-            link_down: false,
-            rest_periods: 0,
-            settle_periods: super::monitor::periods(
-                positive(s.stop_settle_s, "safety.stop_settle_s")?,
-                period_s,
-            ),
-            estop_controlled: match s.estop_category {
-                0 => false,
-                1 => true,
-                _ => return Err(ConfigError::OutOfRange("safety.estop_category (0 or 1)")),
+            manual: ManualState {
+                homing: cfg.homing,
+                jog: cfg.jog,
+                jog_timeout_periods: super::monitor::periods(cfg.jog.timeout_s, period_s),
+                homed: 0,
+                no_homing: super::commands::axis_mask(cfg.homing.axes.map(|a| !a.enabled)),
             },
-            estop_stop_periods: super::monitor::periods(
-                positive(s.estop_stop_time_s, "safety.estop_stop_time_s")?,
-                period_s,
-            ),
-            estop_left: None,
-            stop_timeout_periods: super::monitor::periods(
-                positive(s.stop_timeout_s, "safety.stop_timeout_s")?,
-                period_s,
-            ),
-            stop_decel: s.axes.map(|a| a.stop_decel_mm_s2),
-            check: None,
-            check_periods: super::monitor::periods(
-                positive(s.encoder_check_time_s, "safety.encoder_check_time_s")?,
-                period_s,
-            ),
-            check_counts: i64::from(s.encoder_check_counts.max(1)),
-            check_effort: s.axes.map(|a| a.stuck_effort_change),
-            arm_check: None,
-            arm_check_on: s.arm_encoder_check,
-            arm_check_step: core::array::from_fn(|i| {
-                (f64::from(ARM_CHECK_SPEED_MM_S)
-                    * f64::from(cfg.encoders[i].counts_per_mm)
-                    * period_s) as f32
-            }),
-            arm_check_wrong: s.encoder_noise_counts + ARM_CHECK_WRONG_COUNTS,
+            ident: Identification {
+                cfg: cfg.identify,
+                run: None,
+                outcome: None,
+            },
+            link_down: false,
+            stopping: StopState {
+                then: ServoState::Fault,
+                rest_periods: 0,
+                settle_periods: super::monitor::periods(
+                    positive(s.stop_settle_s, "safety.stop_settle_s")?,
+                    period_s,
+                ),
+                estop_controlled: match s.estop_category {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(ConfigError::OutOfRange("safety.estop_category (0 or 1)")),
+                },
+                estop_periods: super::monitor::periods(
+                    positive(s.estop_stop_time_s, "safety.estop_stop_time_s")?,
+                    period_s,
+                ),
+                estop_left: None,
+                timeout_periods: super::monitor::periods(
+                    positive(s.stop_timeout_s, "safety.stop_timeout_s")?,
+                    period_s,
+                ),
+                decel: s.axes.map(|a| a.stop_decel_mm_s2),
+                braking: false,
+            },
+            checks: EncoderChecks {
+                check: None,
+                periods: super::monitor::periods(
+                    positive(s.encoder_check_time_s, "safety.encoder_check_time_s")?,
+                    period_s,
+                ),
+                counts: i64::from(s.encoder_check_counts.max(1)),
+                effort: s.axes.map(|a| a.stuck_effort_change),
+                arm: None,
+                arm_on: s.arm_encoder_check,
+                arm_step: core::array::from_fn(|i| {
+                    (f64::from(ARM_CHECK_SPEED_MM_S)
+                        * f64::from(cfg.encoders[i].counts_per_mm)
+                        * period_s) as f32
+                }),
+                arm_wrong: s.encoder_noise_counts + ARM_CHECK_WRONG_COUNTS,
+            },
             applied: Vec3::zero(),
             brakes: cfg.brakes.map(|b| BrakeState::new(&b, period_s)),
             prev_driven: 0,
-            braking: false,
             out: ControlOutput::default(),
             snapshot,
         })
@@ -190,12 +202,12 @@ impl<R: Real> Servo<R> {
             c
         });
         if next.counts_per_mm == self.counts_per_mm
-            && next.homing_cfg == self.homing_cfg
+            && next.manual.homing == self.manual.homing
             && same_direction.iter().all(|s| *s)
             && next.motor_inverted == self.motor_inverted
         {
             // the same encoders and switches: the origins still hold
-            next.homed = self.homed;
+            next.manual.homed = self.manual.homed;
         }
         if next.counts_per_mm == self.counts_per_mm && same_direction.iter().all(|s| *s) {
             // the same count frame: the index references still hold
@@ -204,7 +216,7 @@ impl<R: Real> Servo<R> {
         next.faults = self.faults;
         next.link_down = self.link_down;
         next.state = self.state;
-        next.identify_outcome = self.identify_outcome;
+        next.ident.outcome = self.ident.outcome;
         let mut snap = self.snapshot;
         snap.model_missing = next.snapshot.model_missing;
         next.snapshot = snap;

@@ -2,10 +2,11 @@
 //! on each faulted axis must move it both ways) and the closed-loop check at arming (every
 //! axis' hold reference moves out and back each way; each reading must follow).
 
+use super::checks::{ArmPhase, Check, ARM_CHECK_SETTLE_COUNTS};
 use super::faults::{Fault, FaultKind};
 use super::io::ServoIo;
 use super::state::ServoState;
-use super::step::{ArmPhase, Check, Sensed, Servo, ARM_CHECK_SETTLE_COUNTS};
+use super::step::{Sensed, Servo};
 use crate::axes::{Axis, AXES};
 use crate::motion::reference::ReferenceMode;
 use crate::{Real, Vec3};
@@ -54,10 +55,10 @@ impl<R: Real> Servo<R> {
     #[cold]
     #[inline(never)]
     pub(super) fn step_arm_check(&mut self, counts: &[i64; AXES]) {
-        let Some(mut c) = self.arm_check else {
+        let Some(mut c) = self.checks.arm else {
             return;
         };
-        let full = self.check_counts as f32;
+        let full = self.checks.counts as f32;
         let half = 0.5 * full;
         let mut hold = c.hold;
         let mut done = true;
@@ -72,32 +73,35 @@ impl<R: Real> Servo<R> {
                 // its brake lets go; a swapped A/B turns the hold into positive feedback
                 // and runs away from it (Z under gravity)
                 ArmPhase::Settle
-                    if moved.abs() > ARM_CHECK_SETTLE_COUNTS + self.arm_check_wrong =>
+                    if moved.abs() > ARM_CHECK_SETTLE_COUNTS + self.checks.arm_wrong =>
                 {
                     (phase, Some(FaultKind::EncoderJump))
                 }
-                ArmPhase::Settle if k >= self.settle_periods => {
+                ArmPhase::Settle if k >= self.stopping.settle_periods => {
                     // from here the reading must follow the reference
                     c.base[i] = counts[i];
                     (ArmPhase::Out, None)
                 }
-                ArmPhase::Out if moved <= -self.arm_check_wrong => {
+                ArmPhase::Out if moved <= -self.checks.arm_wrong => {
                     // counts the wrong way while the law pushes the axis out: swapped A/B
                     (phase, Some(FaultKind::EncoderJump))
                 }
                 ArmPhase::Out if moved >= half => (ArmPhase::Back, None),
                 // (from the positive end, where the law may overshoot by part of the step:
                 // twice the way out is no overshoot but the wrong way)
-                ArmPhase::Back if moved >= 2.0 * full + self.arm_check_wrong => {
+                ArmPhase::Back if moved >= 2.0 * full + self.checks.arm_wrong => {
                     (phase, Some(FaultKind::EncoderJump))
                 }
                 ArmPhase::Back if moved <= -half => (ArmPhase::Home, None),
                 // back at the hold point, settled for the stop's settle time
-                ArmPhase::Home if c.offset[i] == 0.0 && k >= self.settle_periods => {
+                ArmPhase::Home if c.offset[i] == 0.0 && k >= self.stopping.settle_periods => {
                     (ArmPhase::Done, None)
                 }
                 ArmPhase::Out | ArmPhase::Back
-                    if k >= self.check_periods.saturating_add(self.settle_periods) =>
+                    if k >= self
+                        .checks
+                        .periods
+                        .saturating_add(self.stopping.settle_periods) =>
                 {
                     // the reference moved and the reading did not follow
                     (phase, Some(FaultKind::EncoderStuck))
@@ -105,7 +109,7 @@ impl<R: Real> Servo<R> {
                 _ => (phase, None),
             };
             if let Some(kind) = fault {
-                self.arm_check = None;
+                self.checks.arm = None;
                 self.trip(Fault::on(kind, axis), moved, None);
                 return;
             }
@@ -116,7 +120,7 @@ impl<R: Real> Servo<R> {
                 ArmPhase::Back => -full,
                 ArmPhase::Settle | ArmPhase::Home | ArmPhase::Done => 0.0,
             };
-            let (o, step) = (c.offset[i], self.arm_check_step[i]);
+            let (o, step) = (c.offset[i], self.checks.arm_step[i]);
             c.offset[i] = if o < target {
                 (o + step).min(target)
             } else {
@@ -127,32 +131,32 @@ impl<R: Real> Servo<R> {
         }
         if done {
             // every axis followed both ways: armed, holding where it armed
-            self.arm_check = None;
+            self.checks.arm = None;
             self.motion = ReferenceMode::Hold(c.hold);
             self.state = ServoState::Idle;
             return;
         }
         self.motion = ReferenceMode::Hold(hold);
-        self.arm_check = Some(c);
+        self.checks.arm = Some(c);
     }
 
     /// One period of the encoder check: the effort on the checked axis (others zero).
     pub(super) fn encoder_check(&mut self, counts: &[i64; AXES]) -> Vec3<R> {
         let mut u = Vec3::zero();
-        let Some(mut c) = self.check else {
+        let Some(mut c) = self.checks.check else {
             self.state = ServoState::Fault;
             return u;
         };
         // (`get`: the axis always comes from `next_check`, but an index the optimiser
         // cannot bound would leave a panic path in the control interrupt)
         let Some(&now) = counts.get(c.axis) else {
-            self.check = None;
+            self.checks.check = None;
             self.state = ServoState::Fault;
             return u;
         };
         let moved = now.saturating_sub(c.n0);
         let sign: i64 = if c.positive { 1 } else { -1 };
-        if moved * sign >= self.check_counts {
+        if moved * sign >= self.checks.counts {
             // followed: the other direction, or the next axis, or done
             if c.positive {
                 c = Check {
@@ -172,7 +176,7 @@ impl<R: Real> Servo<R> {
                         }
                     }
                     None => {
-                        self.check = None;
+                        self.checks.check = None;
                         self.faults.clear();
                         self.publish_faults();
                         self.state = ServoState::Disabled;
@@ -180,19 +184,19 @@ impl<R: Real> Servo<R> {
                     }
                 }
             }
-        } else if moved * sign <= -self.check_counts || c.k >= self.check_periods {
+        } else if moved * sign <= -self.checks.counts || c.k >= self.checks.periods {
             // moved the wrong way, or not at all: the encoder is still faulty
-            self.check = None;
+            self.checks.check = None;
             self.state = ServoState::Fault;
             return u;
         }
         // ramp from 0 to the check effort over the check: breakaway is reached late, so a
         // still-stuck encoder lets the axis move little
-        let ramp = c.k.min(self.check_periods) as f32 / self.check_periods.max(1) as f32;
-        let effort = ramp * self.check_effort[c.axis] * sign as f32;
+        let ramp = c.k.min(self.checks.periods) as f32 / self.checks.periods.max(1) as f32;
+        let effort = ramp * self.checks.effort[c.axis] * sign as f32;
         u[c.axis] = R::from_f32(effort).clamp_sym(self.full_scale[c.axis]);
         c.k += 1;
-        self.check = Some(c);
+        self.checks.check = Some(c);
         u
     }
 }

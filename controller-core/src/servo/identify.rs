@@ -14,6 +14,14 @@ use crate::sysid::{
     AxisSample, Identifier, IdentifyConfig, IdentifyOutput, IdentifyResult, IdentifyStatus,
 };
 
+/// Identification as the servo keeps it: the configuration a run starts from, the run
+/// under way and how the last one ended.
+pub(super) struct Identification {
+    pub(super) cfg: IdentifyConfig,
+    pub(super) run: Option<IdentifyRun>,
+    pub(super) outcome: Option<IdentifyOutcome>,
+}
+
 /// An identification in progress.
 pub struct IdentifyRun {
     pub axis: usize,

@@ -31,8 +31,10 @@
 //! `Stopping`. `Fault` → reset → `Disabled` only once every cause is gone; an encoder fault
 //! first runs the encoder check (`EncoderCheck`): the axis must follow a small effort in
 //! both directions, or the reset is refused. Which command is valid when:
-//! [`modes::check`]; the transitions: [`modes`]; the encoder checks' periods:
-//! `encoder_check`.
+//! [`modes::check`]; the transitions: [`modes`]; the encoder checks' state: `checks`, their
+//! periods: `encoder_check`; the controlled stop's state: `stop`; homing's and jogging's:
+//! `manual` (their periods: `manual_period`); identification's: [`identify`] (its periods:
+//! `identify_period`).
 //!
 //! Holding brakes ([`brake`]): motion commanded while a brake still opens is accepted and
 //! held at rest until it is open ([`Servo::motion_held`]); a controlled stop ends with the
@@ -52,18 +54,23 @@
 
 pub mod brake;
 mod build;
+mod checks;
 pub mod commands;
 pub mod config;
 mod encoder_check;
 pub mod faults;
 pub mod identify;
+mod identify_period;
 pub mod index_check;
 pub mod io;
+mod manual;
+mod manual_period;
 pub mod modes;
 pub mod monitor;
 pub mod snapshot;
 pub mod state;
 pub mod step;
+mod stop;
 pub mod travel;
 
 pub use commands::{Command, CommandRefusal};

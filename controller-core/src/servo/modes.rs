@@ -3,13 +3,14 @@
 //! its category asks for ([`Servo::trip`]), and the ends of stops, jogs and
 //! identifications.
 
+use super::checks::{ArmCheck, ArmPhase, Check};
 use super::commands::{Command, CommandRefusal};
 use super::faults::{Fault, FaultKind, FaultRecord, StopCategory};
 use super::identify::IdentifyRun;
 use super::io::Inputs;
 use super::snapshot::Snapshot;
 use super::state::ServoState;
-use super::step::{ArmCheck, ArmPhase, Check, Servo};
+use super::step::Servo;
 use crate::axes::{Axis, AXES};
 use crate::motion::homing::Homing;
 use crate::motion::jog::Jog;
@@ -82,10 +83,10 @@ impl<R: Real> Servo<R> {
     #[cold]
     #[inline(never)]
     pub(super) fn begin_stop(&mut self, from: &RefSample<R>, then: ServoState) {
-        self.motion = ReferenceMode::stop_from(from, &self.stop_decel);
-        self.rest_periods = 0;
-        self.braking = false;
-        self.stop_then = then;
+        self.motion = ReferenceMode::stop_from(from, &self.stopping.decel);
+        self.stopping.rest_periods = 0;
+        self.stopping.braking = false;
+        self.stopping.then = then;
         self.state = ServoState::Stopping;
     }
 
@@ -102,7 +103,7 @@ impl<R: Real> Servo<R> {
         if f.kind.is_encoder() {
             // the position is no longer known for sure: home again
             if let Some(a) = f.axis {
-                self.homed &= !(1 << a.index());
+                self.manual.homed &= !(1 << a.index());
             }
         }
         self.publish_faults();
@@ -110,13 +111,16 @@ impl<R: Real> Servo<R> {
             self.state,
             ServoState::Idle | ServoState::Run | ServoState::Jog | ServoState::Homing
         );
-        let category = if f.kind == FaultKind::EStop && self.estop_controlled {
+        let category = if f.kind == FaultKind::EStop && self.stopping.estop_controlled {
             StopCategory::Controlled
         } else {
             f.kind.stop()
         };
-        if f.kind == FaultKind::EStop && self.estop_controlled && self.estop_left.is_none() {
-            self.estop_left = Some(self.estop_stop_periods);
+        if f.kind == FaultKind::EStop
+            && self.stopping.estop_controlled
+            && self.stopping.estop_left.is_none()
+        {
+            self.stopping.estop_left = Some(self.stopping.estop_periods);
         }
         match (category, self.state) {
             (_, ServoState::Fault) => {}
@@ -137,12 +141,12 @@ impl<R: Real> Servo<R> {
                 self.begin_stop(from, ServoState::Fault);
             }
             (StopCategory::Controlled, ServoState::Stopping) => {
-                self.stop_then = ServoState::Fault;
+                self.stopping.then = ServoState::Fault;
             }
             _ => {
                 self.state = ServoState::Fault;
-                self.check = None;
-                self.identify = None;
+                self.checks.check = None;
+                self.ident.run = None;
             }
         }
     }
@@ -230,11 +234,11 @@ impl<R: Real> Servo<R> {
     fn arm(&mut self, counts: &[i64; AXES]) {
         self.state = ServoState::Idle;
         self.hold_here(counts);
-        if self.arm_check_on {
+        if self.checks.arm_on {
             // the encoders proven before anything may move (a swapped A/B is a
             // wiring change made with the power off; holding still shows nothing)
             let brake = |i: usize| self.brakes[i].present();
-            self.arm_check = Some(ArmCheck {
+            self.checks.arm = Some(ArmCheck {
                 phase: core::array::from_fn(|i| {
                     if brake(i) {
                         ArmPhase::Settle
@@ -264,8 +268,8 @@ impl<R: Real> Servo<R> {
                     // rest, so no settling), engage, then outputs off
                     let r = self.here();
                     self.begin_stop(&r, ServoState::Disabled);
-                    self.rest_periods = self.settle_periods;
-                    self.braking = true;
+                    self.stopping.rest_periods = self.stopping.settle_periods;
+                    self.stopping.braking = true;
                 }
             }
             ServoState::Identify => {
@@ -276,20 +280,20 @@ impl<R: Real> Servo<R> {
                 let r = self.here();
                 self.begin_stop(&r, ServoState::Disabled);
             }
-            ServoState::EncoderCheck if self.arm_check.is_some() => {
+            ServoState::EncoderCheck if self.checks.arm.is_some() => {
                 // an arm check given up: nothing was proven, nothing is latched
                 let r = self.here();
-                self.arm_check = None;
+                self.checks.arm = None;
                 if self.brakes_gripping() {
                     self.state = ServoState::Disabled;
                 } else {
                     self.begin_stop(&r, ServoState::Disabled);
-                    self.rest_periods = self.settle_periods;
-                    self.braking = true;
+                    self.stopping.rest_periods = self.stopping.settle_periods;
+                    self.stopping.braking = true;
                 }
             }
             ServoState::EncoderCheck => {
-                self.check = None;
+                self.checks.check = None;
                 self.state = ServoState::Fault;
             }
             _ => {}
@@ -305,7 +309,7 @@ impl<R: Real> Servo<R> {
         }
         match self.next_check(None) {
             Some(axis) => {
-                self.check = Some(Check {
+                self.checks.check = Some(Check {
                     axis,
                     positive: true,
                     k: 0,
@@ -343,12 +347,12 @@ impl<R: Real> Servo<R> {
     #[inline(always)]
     fn home(&mut self, counts: &[i64; AXES]) -> Result<(), CommandRefusal> {
         let pos = self.position_of(counts).to_array().map(Real::to_f32);
-        let Some(run) = Homing::start(&self.homing_cfg, &pos) else {
+        let Some(run) = Homing::start(&self.manual.homing, &pos) else {
             return Err(CommandRefusal::NoHoming);
         };
         // homing again: every homing axis must find its switch anew
-        self.homed = 0;
-        self.snapshot.homed = self.no_homing;
+        self.manual.homed = 0;
+        self.snapshot.homed = self.manual.no_homing;
         self.motion = ReferenceMode::Homing {
             hold: self.here().pos,
             run,
@@ -369,8 +373,8 @@ impl<R: Real> Servo<R> {
             j.command(
                 axis.index(),
                 vel_mm_s,
-                &self.jog_cfg,
-                self.jog_timeout_periods,
+                &self.manual.jog,
+                self.manual.jog_timeout_periods,
             );
         }
     }
@@ -393,7 +397,7 @@ impl<R: Real> Servo<R> {
             super::travel::AxisTravel::UNLIMITED
         };
         let run = IdentifyRun::start(
-            &self.identify_cfg,
+            &self.ident.cfg,
             axis,
             pos,
             &travel,
@@ -405,8 +409,8 @@ impl<R: Real> Servo<R> {
         if st == ServoState::Disabled {
             self.hold_here(counts);
         }
-        self.identify = Some(run);
-        self.identify_outcome = None;
+        self.ident.run = Some(run);
+        self.ident.outcome = None;
         self.state = ServoState::Identify;
         Ok(())
     }
@@ -428,7 +432,7 @@ impl<R: Real> Servo<R> {
     fn stop(&mut self, counts: &[i64; AXES]) {
         match self.state {
             ServoState::Identify => {
-                let hold = self.identify.as_ref().is_some_and(|r| r.hold_others);
+                let hold = self.ident.run.as_ref().is_some_and(|r| r.hold_others);
                 self.end_identify(true);
                 if hold {
                     self.hold_here(counts);
@@ -449,7 +453,7 @@ impl<R: Real> Servo<R> {
     #[cold]
     #[inline(never)]
     pub(super) fn end_identify(&mut self, aborted: bool) {
-        if let Some(mut run) = self.identify.take() {
+        if let Some(mut run) = self.ident.run.take() {
             if aborted && !run.finished() {
                 // a fault sample makes the identifier stop at once with zero effort
                 let _ = run.step(&AxisSample {
@@ -457,7 +461,7 @@ impl<R: Real> Servo<R> {
                     ..AxisSample::default()
                 });
             }
-            self.identify_outcome = Some(run.outcome());
+            self.ident.outcome = Some(run.outcome());
         }
     }
 
@@ -468,23 +472,23 @@ impl<R: Real> Servo<R> {
     pub(super) fn finish_motion(&mut self, reference: &RefSample<R>, vel: &[f32; AXES]) {
         match self.state {
             ServoState::Stopping => {
-                if self.stop_then != ServoState::Idle {
+                if self.stopping.then != ServoState::Idle {
                     // the reference is at rest: the brakes engage while the axes settle
-                    self.braking = true;
+                    self.stopping.braking = true;
                 }
-                self.rest_periods = self.rest_periods.saturating_add(1);
-                let settled = self.rest_periods >= self.settle_periods
+                self.stopping.rest_periods = self.stopping.rest_periods.saturating_add(1);
+                let settled = self.stopping.rest_periods >= self.stopping.settle_periods
                     && vel
                         .iter()
                         .zip(0..AXES)
                         .all(|(v, i)| v.abs() <= 0.02 * self.monitor.vel_max(i));
-                if settled || self.rest_periods >= self.stop_timeout_periods {
-                    if self.stop_then == ServoState::Idle {
+                if settled || self.stopping.rest_periods >= self.stopping.timeout_periods {
+                    if self.stopping.then == ServoState::Idle {
                         self.state = ServoState::Idle;
                         self.motion = ReferenceMode::Hold(reference.pos);
                     } else if self.brakes_gripping() {
                         // the outputs go off only once every brake holds its axis
-                        self.state = self.stop_then;
+                        self.state = self.stopping.then;
                     }
                 }
             }

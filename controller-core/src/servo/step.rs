@@ -2,88 +2,39 @@
 //! sequence of the module documentation of [`super`], as named steps), and what it tells
 //! its callers. Its construction and reconfiguration from a
 //! [`ServoConfig`](super::ServoConfig) are in `build`, the mode transitions in
-//! [`super::modes`], the encoder checks' periods in `encoder_check`.
+//! [`super::modes`]; the state of one concern is grouped with its parameters: the
+//! controlled stop (`stop`), homing and jogging (`manual`, their periods in
+//! `manual_period`), identification ([`super::identify`], its periods in
+//! `identify_period`) and the encoder checks (`checks`, their periods in
+//! `encoder_check`).
 
 use super::brake::BrakeState;
+use super::checks::EncoderChecks;
 use super::commands::Command;
 use super::faults::{Fault, FaultKind, FaultLog, FaultRecord};
-use super::identify::{IdentifyOutcome, IdentifyRun};
+use super::identify::{Identification, IdentifyOutcome};
 use super::index_check::{IndexCheck, IndexVerdict};
 use super::io::{Inputs, ServoIo};
+use super::manual::ManualState;
 use super::monitor::Monitor;
 use super::snapshot::Snapshot;
 use super::state::ServoState;
+use super::stop::StopState;
 use super::travel::TravelConfig;
 use crate::axes::{Axis, AXES};
 use crate::controller::{ControlOutput, Controller3, Measured};
 use crate::estimator::{EstimatorBank, WideCounter};
-use crate::motion::homing::{HomingConfig, HomingEvent, HomingInputs};
-use crate::motion::jog::JogConfig;
 use crate::motion::path::PathStart;
 use crate::motion::planner::PathSample;
 use crate::motion::reference::{Clock, ReferenceMode};
 use crate::motion::trajectory::{RefSample, Trajectory};
-use crate::sysid::{AxisSample, IdentifyConfig};
 use crate::{Real, Vec3};
 
 /// During a controlled stop the following-error limit is this many times the normal one;
 /// beyond it the stop becomes immediate.
 pub const STOPPING_FERROR_SCALE: f32 = 2.0;
 
-/// Progress of an encoder check.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Check {
-    pub(super) axis: usize,
-    pub(super) positive: bool,
-    pub(super) k: u32,
-    pub(super) n0: i64,
-}
-
-/// The closed-loop encoder check at arming ([`SafetyConfig::arm_encoder_check`]): every
-/// axis' hold reference moves `encoder_check_counts` out and back each way at
-/// [`ARM_CHECK_SPEED_MM_S`], all at once, under the laws; each reading must follow.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct ArmCheck<R> {
-    /// Each axis' phase, and the periods it has been in it.
-    pub(super) phase: [ArmPhase; AXES],
-    pub(super) k: [u32; AXES],
-    /// Every axis' counts where the check began (its hold point).
-    pub(super) base: [i64; AXES],
-    /// The hold point of every axis, mm.
-    pub(super) hold: Vec3<R>,
-    /// The reference's offset from the hold point, counts.
-    pub(super) offset: [f32; AXES],
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) enum ArmPhase {
-    /// An axis with a brake holds for the stop's settle time once the brakes are open
-    /// (the load the brake held settles onto the law), then its hold point is taken.
-    Settle,
-    /// Out the positive way: the axis must reach half the check counts.
-    Out,
-    /// Back and out the negative way: the axis must reach minus half the check counts.
-    Back,
-    /// Back to the hold point.
-    Home,
-    /// Followed both ways, holding.
-    Done,
-}
-
-/// Speed of the arm check's reference, mm/s: 5 mm/s moves the 16 check counts (10 µm on
-/// the gantry) in 2 ms, slow enough that the law follows with about a count of lag.
-pub const ARM_CHECK_SPEED_MM_S: f32 = 5.0;
-
-/// Counts a healthy axis may stray the wrong way while the arm check's reference moves
-/// out, beyond the configured edge noise: one count of holding dither and one of a
-/// settling load. A swapped A/B moves the reading the wrong way from the first push on.
-pub(super) const ARM_CHECK_WRONG_COUNTS: f32 = 2.0;
-
-/// Counts an axis may stray from where it armed while the arm check lets it settle,
-/// beyond the wrong-way margin: a braked axis' load sags the law's hold when the brake
-/// lets go (6 counts, 3.8 µm, on the gantry's Z, whose law starts from zero effort); 10
-/// counts is a runaway, not a sag.
-pub(super) const ARM_CHECK_SETTLE_COUNTS: f32 = 8.0;
+pub use super::checks::ARM_CHECK_SPEED_MM_S;
 
 /// What the period sensed, for its control and telemetry steps: the inputs, the counts
 /// and their steps, the estimates, and whether the motion waits for the brakes or its
@@ -122,54 +73,27 @@ pub struct Servo<R> {
     pub(super) state: ServoState,
     /// The state a controlled stop ends in (Fault, Disabled after a disarm, Idle after a
     /// stop command).
-    pub(super) stop_then: ServoState,
     /// The configured path and the period after which its end point is held.
     pub(super) path: Option<(Trajectory<R>, Option<u32>)>,
     pub(super) path_start: PathStart,
     pub(super) motion: ReferenceMode<R>,
     pub(super) travel: TravelConfig,
-    pub(super) homing_cfg: HomingConfig,
-    pub(super) jog_cfg: JogConfig,
-    pub(super) jog_timeout_periods: u32,
-    pub(super) identify_cfg: IdentifyConfig,
-    pub(super) identify: Option<IdentifyRun>,
-    pub(super) identify_outcome: Option<IdentifyOutcome>,
-    /// Axes homed since power-up (bit i = axis i); lost with an encoder fault.
-    pub(super) homed: u8,
-    /// Axes that take no part in homing: referenced where they stand.
-    pub(super) no_homing: u8,
+    /// Homing and jogging: their configuration and the axes referenced.
+    pub(super) manual: ManualState,
+    /// Identification: its configuration, the run under way and how the last one ended.
+    pub(super) ident: Identification,
     /// The host link is lost (a `LinkLost` fault's cause).
     pub(super) link_down: bool,
-    /// Periods the stop reference has been at rest.
-    pub(super) rest_periods: u32,
-    pub(super) settle_periods: u32,
-    pub(super) stop_timeout_periods: u32,
-    /// The e-stop is a controlled stop (category 1).
-    pub(super) estop_controlled: bool,
-    pub(super) estop_stop_periods: u32,
-    /// Periods a category-1 e-stop's stop may still take before the outputs go off.
-    pub(super) estop_left: Option<u32>,
-    pub(super) stop_decel: [f32; AXES],
-    pub(super) check: Option<Check>,
-    pub(super) check_periods: u32,
-    pub(super) check_counts: i64,
-    pub(super) check_effort: [f32; AXES],
-    /// The arm check under way (state `EncoderCheck` after an arm), and whether arming
-    /// runs it.
-    pub(super) arm_check: Option<ArmCheck<R>>,
-    pub(super) arm_check_on: bool,
-    /// The arm check's reference step per period (counts) and wrong-way limit (counts).
-    pub(super) arm_check_step: [f32; AXES],
-    pub(super) arm_check_wrong: f32,
+    /// The controlled stop: its parameters and the one under way.
+    pub(super) stopping: StopState,
+    /// The encoder checks (after a reset, at arming): their parameters and progress.
+    pub(super) checks: EncoderChecks<R>,
     pub(super) applied: Vec3<R>,
     /// The holding brakes ([`brake`]).
     pub(super) brakes: [BrakeState; AXES],
     /// Axes the servo drove in the previous period (bit i = axis i): a brake is released
     /// only once its axis' amplifier has held it for a period.
     pub(super) prev_driven: u8,
-    /// The controlled stop under way ends with the brakes engaging: none is released, and
-    /// the outputs go off once every brake grips.
-    pub(super) braking: bool,
     /// The controller's evaluation of the current period (filled in place).
     pub(super) out: ControlOutput<R>,
     pub(super) snapshot: Snapshot,
@@ -202,7 +126,7 @@ impl<R: Real> Servo<R> {
     /// engage, a category-1 e-stop, a fault's controlled stop): they go off within the
     /// stop's bounded time without another command.
     pub fn switching_off(&self) -> bool {
-        self.state == ServoState::Stopping && self.stop_then != ServoState::Idle
+        self.state == ServoState::Stopping && self.stopping.then != ServoState::Idle
     }
 
     /// Latched faults, the first one, and the history.
@@ -258,7 +182,7 @@ impl<R: Real> Servo<R> {
 
     /// How the last identification ended (its result, if it finished).
     pub fn identify_outcome(&self) -> Option<&IdentifyOutcome> {
-        self.identify_outcome.as_ref()
+        self.ident.outcome.as_ref()
     }
 
     /// Per axis: homed (or taking no part in homing), so that its soft limits apply.
@@ -268,7 +192,7 @@ impl<R: Real> Servo<R> {
 
     /// [`Self::referenced`] of every axis as a bit set.
     pub(super) fn referenced_mask(&self) -> u8 {
-        self.homed | self.no_homing
+        self.manual.referenced_mask()
     }
 
     /// Axes whose outputs the servo drives in the current state (bit i = axis i): every
@@ -277,12 +201,12 @@ impl<R: Real> Servo<R> {
     pub(super) fn driven_mask(&self) -> u8 {
         match self.state {
             ServoState::Disabled | ServoState::Fault => 0,
-            ServoState::Identify => match &self.identify {
+            ServoState::Identify => match &self.ident.run {
                 Some(r) if !r.hold_others => 1 << r.axis.min(AXES - 1),
                 _ => 0b111,
             },
-            ServoState::EncoderCheck if self.arm_check.is_some() => 0b111,
-            ServoState::EncoderCheck => self.check.map_or(0, |c| 1 << c.axis.min(AXES - 1)),
+            ServoState::EncoderCheck if self.checks.arm.is_some() => 0b111,
+            ServoState::EncoderCheck => self.checks.check.map_or(0, |c| 1 << c.axis.min(AXES - 1)),
             _ => 0b111,
         }
     }
@@ -324,11 +248,11 @@ impl<R: Real> Servo<R> {
     pub(super) fn write_brakes<IO: ServoIo<R>>(&mut self, io: &mut IO) {
         let driven = self.driven_mask();
         if self.state != ServoState::Stopping {
-            self.braking = false;
+            self.stopping.braking = false;
         }
         for (i, b) in self.brakes.iter_mut().enumerate() {
             let bit = 1 << i;
-            b.update(!self.braking && driven & self.prev_driven & bit != 0);
+            b.update(!self.stopping.braking && driven & self.prev_driven & bit != 0);
         }
         self.prev_driven = driven;
         let released = self.brakes_released();
@@ -352,7 +276,7 @@ impl<R: Real> Servo<R> {
         self.trip(Fault::system(kind), 0.0, None);
         if self.state.drives() {
             self.state = ServoState::Fault;
-            self.identify = None;
+            self.ident.run = None;
         }
         self.publish_faults();
     }
@@ -363,7 +287,7 @@ impl<R: Real> Servo<R> {
     /// runs. An axis that takes no part in homing keeps its (power-up) reference.
     #[cold]
     pub fn forget_home(&mut self, axis: Axis) {
-        self.homed &= !(1 << axis.index());
+        self.manual.homed &= !(1 << axis.index());
         self.publish_faults();
     }
 
@@ -386,88 +310,6 @@ impl<R: Real> Servo<R> {
             p[i] = crate::estimator::counts_to_position(counts[i], self.count_len[i]);
         }
         p
-    }
-
-    /// Soft-limit bounds of each axis for a jog: the travel once referenced, else none.
-    pub(super) fn jog_bounds(&self) -> [(f32, f32); AXES] {
-        [0, 1, 2].map(|i| {
-            if self.referenced(i) {
-                (self.travel.axes[i].min_mm, self.travel.axes[i].max_mm)
-            } else {
-                (f32::NEG_INFINITY, f32::INFINITY)
-            }
-        })
-    }
-
-    /// Advance the jog or homing ramps for this period (before the reference is sampled);
-    /// re-bases an axis when homing latched its switch.
-    #[cold]
-    #[inline(never)]
-    pub(super) fn step_manual(
-        &mut self,
-        inputs: &Inputs,
-        index: [Option<u32>; AXES],
-        counts: &mut [i64; AXES],
-    ) {
-        let dt = self.period_s as f32;
-        let bounds = self.jog_bounds();
-        match &mut self.motion {
-            ReferenceMode::Jog(j) => j.advance(&self.jog_cfg, &bounds, dt),
-            ReferenceMode::Homing { hold, run } => {
-                let axis = run.axis().min(AXES - 1);
-                let side = self.homing_cfg.axes[axis].direction.switch();
-                let inp = HomingInputs {
-                    switch: inputs.limits[axis][side],
-                    counts: counts[axis],
-                    index_counts: index[axis].map(|raw| self.counters[axis].extend(raw)),
-                };
-                match run.step(&self.homing_cfg, &inp, self.count_len_f32[axis], dt) {
-                    HomingEvent::Moving => {
-                        if run.axis() != axis {
-                            // the next axis: hold the finished one at its home point
-                            hold[axis] = R::from_f32(run.ramp.pos_mm);
-                            let next = run.axis().min(AXES - 1);
-                            run.next_axis_at(hold[next].to_f32());
-                        }
-                    }
-                    HomingEvent::Rebase {
-                        axis,
-                        latched_counts,
-                        at_mm,
-                    } => {
-                        let axis = axis.min(AXES - 1);
-                        let target = libm::roundf(at_mm * self.counts_per_mm[axis]) as i64;
-                        let shift = latched_counts - target;
-                        self.counters[axis].rebase(shift);
-                        self.index.rebased(axis, shift);
-                        counts[axis] = self.counters[axis].count();
-                        let delta_mm = -(shift as f32) * self.count_len_f32[axis];
-                        run.rebased(run.ramp.pos_mm + delta_mm);
-                        hold[axis] = R::from_f32(run.ramp.pos_mm);
-                        let mut d = Vec3::zero();
-                        d[axis] = R::from_f32(delta_mm);
-                        self.controller.shift_reference(d);
-                        self.estimators.reset(*counts);
-                        self.homed |= 1 << axis;
-                    }
-                    HomingEvent::Done => {
-                        let i = run.axis().min(AXES - 1);
-                        self.homed |= 1 << i;
-                        hold[i] = R::from_f32(run.ramp.pos_mm);
-                        let h = *hold;
-                        self.motion = ReferenceMode::Hold(h);
-                        self.state = ServoState::Idle;
-                    }
-                    HomingEvent::Failed { axis, .. } => {
-                        let axis = Axis::ALL[axis.min(AXES - 1)];
-                        let r = crate::motion::reference::sample(&self.motion, None, &self.clock).0;
-                        self.trip(Fault::on(FaultKind::HomingFailed, axis), 0.0, Some(&r));
-                    }
-                }
-            }
-            _ => {}
-        }
-        self.publish_faults();
     }
 
     /// The index pulses captured this period: a count off from its index's place is
@@ -512,7 +354,7 @@ impl<R: Real> Servo<R> {
         self.outputs_off_unless_driving(io);
         if self.state != ServoState::EncoderCheck {
             // a fault or a stop ended the arm check
-            self.arm_check = None;
+            self.checks.arm = None;
         }
 
         // 2. Wide and machine counts.
@@ -561,9 +403,9 @@ impl<R: Real> Servo<R> {
         if inputs.estop {
             self.trip(Fault::system(FaultKind::EStop), 0.0, None);
         }
-        if let Some(left) = self.estop_left {
+        if let Some(left) = self.stopping.estop_left {
             // a category-1 e-stop: the stop gets a bounded time, then the outputs go off
-            self.estop_left = match (self.state, left) {
+            self.stopping.estop_left = match (self.state, left) {
                 (ServoState::Stopping, 0) => {
                     self.state = ServoState::Fault;
                     None
@@ -571,7 +413,7 @@ impl<R: Real> Servo<R> {
                 (ServoState::Stopping, n) => {
                     // the brakes engage so that they grip by the deadline
                     if n <= self.engage_periods() {
-                        self.braking = true;
+                        self.stopping.braking = true;
                     }
                     Some(n - 1)
                 }
@@ -682,7 +524,7 @@ impl<R: Real> Servo<R> {
             };
             self.step_manual(inputs, index, counts);
         }
-        let arm_checking = self.state == ServoState::EncoderCheck && self.arm_check.is_some();
+        let arm_checking = self.state == ServoState::EncoderCheck && self.checks.arm.is_some();
         if arm_checking && !held {
             self.step_arm_check(counts);
         }
@@ -912,72 +754,6 @@ impl<R: Real> Servo<R> {
         }
     }
 
-    /// The identified axis' effort this period (the others: their laws' when holding,
-    /// else zero); ends the identification when it is finished.
-    #[cold]
-    #[inline(never)]
-    pub(super) fn identify_effort(
-        &mut self,
-        mut u: Vec3<R>,
-        meas: &Measured<R>,
-        vel: &[f32; AXES],
-    ) -> Vec3<R> {
-        let faulted = self.faults.any();
-        let Some(run) = &mut self.identify else {
-            self.state = ServoState::Fault;
-            return Vec3::zero();
-        };
-        let i = run.axis.min(AXES - 1);
-        let sample = AxisSample {
-            pos_mm: meas.pos[i].to_f32(),
-            vel_mm_s: vel[i],
-            effort_applied_mnm: self.applied[i].to_f32(),
-            fault: faulted,
-        };
-        let out = run.step(&sample);
-        if !run.hold_others {
-            u = Vec3::zero();
-        }
-        u[i] = R::from_f32(out.effort_mnm)
-            .finite_or_zero()
-            .clamp_sym(self.full_scale[i]);
-        if run.finished() {
-            let hold = run.hold_others;
-            self.end_identify(false);
-            self.state = if hold {
-                ServoState::Idle
-            } else {
-                ServoState::Disabled
-            };
-            // holding: from here on the identified axis holds where it came to rest
-            self.motion = ReferenceMode::Hold(meas.pos);
-            self.controller.reset();
-            if !hold {
-                u = Vec3::zero();
-            }
-        }
-        u
-    }
-
-    /// The first active limit switch while homing: the homed axis' switch on its homing
-    /// side is the sensor, not a fault.
-    #[cold]
-    #[inline(never)]
-    pub(super) fn homing_limit(&self, inputs: &Inputs) -> Option<(Axis, bool)> {
-        let ReferenceMode::Homing { run, .. } = &self.motion else {
-            return inputs.first_limit();
-        };
-        Axis::ALL
-            .into_iter()
-            .zip(inputs.limits)
-            .find_map(|(axis, sides)| {
-                (0..2).zip(sides).find_map(|(side, on)| {
-                    let sensor = run.masks_switch(&self.homing_cfg, axis.index(), side);
-                    (on && !sensor).then_some((axis, side == 1))
-                })
-            })
-    }
-
     /// Publish the latched faults and the homed axes in the snapshot (they change only
     /// here and there; copying them every period would cost the control interrupt).
     pub(super) fn publish_faults(&mut self) {
@@ -986,26 +762,14 @@ impl<R: Real> Servo<R> {
         self.snapshot.homed = self.referenced_mask();
     }
 
-    /// The identified axis has no reference: its law sees no error.
-    #[cold]
-    #[inline(never)]
-    pub(super) fn identify_reference(&self, reference: &mut RefSample<R>, meas: &Measured<R>) {
-        if let Some(run) = &self.identify {
-            let i = run.axis.min(AXES - 1);
-            reference.pos[i] = meas.pos[i];
-            reference.vel[i] = meas.vel[i];
-            reference.acc[i] = R::ZERO;
-        }
-    }
-
     /// Progress of homing or identification, 0..=1.
     #[cold]
     #[inline(never)]
     pub(super) fn progress(&self) -> f32 {
-        match (&self.identify, &self.motion) {
+        match (&self.ident.run, &self.motion) {
             (Some(run), _) => run.last().progress,
             (None, ReferenceMode::Homing { run, .. }) => {
-                let total = (!self.no_homing & 0b111).count_ones();
+                let total = (!self.manual.no_homing & 0b111).count_ones();
                 run.axes_done().count_ones() as f32 / total.max(1) as f32
             }
             _ => 0.0,
