@@ -32,9 +32,9 @@ use controller_core::machine::{
 };
 use controller_core::motion::planner::{PlannerChannels, SplitExecutor, SplitPlanner};
 use controller_core::servo::io::{Inputs, ServoIo};
-use controller_core::settings::{Settings, FACTORY, PLACEHOLDER_MODELS};
+use controller_core::sim::gantry::{designed_settings, gantry_world, GantryOptions};
 use controller_core::sim::run::RunConfig;
-use controller_core::sim::world::{SwitchConfig, World};
+use controller_core::sim::world::World;
 
 use crate::plan_task::Program;
 
@@ -146,15 +146,17 @@ impl Rig {
     /// The link rig's machine at boot, built as the firmware builds it.
     fn boot() -> Option<Self> {
         let run: RunConfig = postcard::from_bytes(LINK_RUN).ok()?;
-        let mut settings: Settings = FACTORY;
-        for (a, m) in settings.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
-            a.model = Some(m);
+        let mut settings = designed_settings();
+        for a in &mut settings.axis {
             a.homing.enabled = false;
         }
         let rate_hz = run.servo.rate_hz;
-        let mut wcfg = run.world;
-        wcfg.switches = SwitchConfig::for_homing(&settings);
-        let world = World::new(&wcfg, &settings.servo_config(rate_hz).ok()?).ok()?;
+        // the link rig's world (no index pulses; no switches, homing being off)
+        let options = GantryOptions {
+            index_pulses: false,
+            board_amplifier: false,
+        };
+        let world = gantry_world(&run.world, &settings, rate_hz, options).ok()?;
         // SAFETY: the emulator (or a host test) runs one setup at a time and calls
         // nothing concurrently; every reference to these statics handed out by an
         // earlier setup belongs to a kernel state that is not used again.
