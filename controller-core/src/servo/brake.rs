@@ -9,7 +9,8 @@
 //! defaults take the slow end of engaging's range and the middle of releasing's).
 //!
 //! The servo step ([`super::Servo::period`]) decides every period which brake may be
-//! released ([`BrakeState::update`]) and writes that command out
+//! released ([`Brakes::update`], which keeps the axes it drove the period before, and
+//! each axis' [`BrakeState::update`]) and writes that command out
 //! ([`super::io::ServoIo::write_brakes`]):
 //!
 //! - a brake is released only while the servo drives its axis and has held it for a
@@ -104,6 +105,64 @@ pub fn validate_all(brakes: &[BrakeConfig; AXES]) -> Result<(), ConfigError> {
         .iter()
         .enumerate()
         .try_for_each(|(i, b)| b.validate(i))
+}
+
+/// Every axis' brake as the servo drives it, and the axes it drove in the previous period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Brakes {
+    pub axes: [BrakeState; AXES],
+    /// Axes the servo drove in the previous period (bit i = axis i): a brake is released
+    /// only once its axis' amplifier has held it for a period.
+    prev_driven: u8,
+}
+
+impl Brakes {
+    /// Every axis' brake engaged (the boot state), with the timings of `cfg` in periods
+    /// of `period_s`.
+    pub fn new(cfg: &[BrakeConfig; AXES], period_s: f64) -> Self {
+        Self {
+            axes: cfg.map(|b| BrakeState::new(&b, period_s)),
+            prev_driven: 0,
+        }
+    }
+
+    /// Every brake of the axes in `mask` is open in the coming period (or absent).
+    #[inline]
+    pub fn open(&self, mask: u8) -> bool {
+        (0..AXES).all(|i| mask & (1 << i) == 0 || self.axes[i].open())
+    }
+
+    /// Every brake grips in the coming period (or is absent).
+    #[inline]
+    pub fn gripping(&self) -> bool {
+        self.axes.iter().all(BrakeState::gripping)
+    }
+
+    /// Per axis: the brake is commanded released (coil energised), as written last period.
+    #[inline]
+    pub fn released(&self) -> [bool; AXES] {
+        self.axes.map(|b| b.released())
+    }
+
+    /// The period's commands: released only on an axis in `driven` now and in the
+    /// previous period, and none while `braking` (a stop that ends with them engaging).
+    #[inline]
+    pub fn update(&mut self, driven: u8, braking: bool) {
+        for (i, b) in self.axes.iter_mut().enumerate() {
+            let bit = 1 << i;
+            b.update(!braking && driven & self.prev_driven & bit != 0);
+        }
+        self.prev_driven = driven;
+    }
+
+    /// Longest engage time of the brakes fitted, periods (0 without any).
+    pub fn engage_periods(&self) -> u32 {
+        self.axes
+            .iter()
+            .map(BrakeState::engage_periods)
+            .max()
+            .unwrap_or(0)
+    }
 }
 
 /// One axis' brake as the servo drives it: the command and how long it has stood.

@@ -2,7 +2,7 @@
 //! nothing built when one is rejected) and swapping in a new configuration with the
 //! outputs off ([`Servo::reconfigure`]: what carries over, and when).
 
-use super::brake::BrakeState;
+use super::brake::Brakes;
 use super::checks::{EncoderChecks, ARM_CHECK_SPEED_MM_S, ARM_CHECK_WRONG_COUNTS};
 use super::config::{ReconfigureError, ServoConfig, MAX_RATE_HZ, MIN_RATE_HZ};
 use super::faults::FaultLog;
@@ -173,8 +173,7 @@ impl<R: Real> Servo<R> {
                 arm_wrong: s.encoder_noise_counts + ARM_CHECK_WRONG_COUNTS,
             },
             applied: Vec3::zero(),
-            brakes: cfg.brakes.map(|b| BrakeState::new(&b, period_s)),
-            prev_driven: 0,
+            brakes: Brakes::new(&cfg.brakes, period_s),
             out: ControlOutput::default(),
             snapshot,
         })

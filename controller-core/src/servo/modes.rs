@@ -237,7 +237,7 @@ impl<R: Real> Servo<R> {
         if self.checks.arm_on {
             // the encoders proven before anything may move (a swapped A/B is a
             // wiring change made with the power off; holding still shows nothing)
-            let brake = |i: usize| self.brakes[i].present();
+            let brake = |i: usize| self.brakes.axes[i].present();
             self.checks.arm = Some(ArmCheck {
                 phase: core::array::from_fn(|i| {
                     if brake(i) {

@@ -8,7 +8,7 @@
 //! `identify_period`) and the encoder checks (`checks`, their periods in
 //! `encoder_check`).
 
-use super::brake::BrakeState;
+use super::brake::Brakes;
 use super::checks::EncoderChecks;
 use super::commands::Command;
 use super::faults::{Fault, FaultKind, FaultLog, FaultRecord};
@@ -90,10 +90,7 @@ pub struct Servo<R> {
     pub(super) checks: EncoderChecks<R>,
     pub(super) applied: Vec3<R>,
     /// The holding brakes ([`brake`]).
-    pub(super) brakes: [BrakeState; AXES],
-    /// Axes the servo drove in the previous period (bit i = axis i): a brake is released
-    /// only once its axis' amplifier has held it for a period.
-    pub(super) prev_driven: u8,
+    pub(super) brakes: Brakes,
     /// The controller's evaluation of the current period (filled in place).
     pub(super) out: ControlOutput<R>,
     pub(super) snapshot: Snapshot,
@@ -213,12 +210,12 @@ impl<R: Real> Servo<R> {
 
     /// Every brake of the axes in `mask` is open in the coming period (or absent).
     pub(super) fn brakes_open(&self, mask: u8) -> bool {
-        (0..AXES).all(|i| mask & (1 << i) == 0 || self.brakes[i].open())
+        self.brakes.open(mask)
     }
 
     /// Every brake grips in the coming period (or is absent).
     pub(super) fn brakes_gripping(&self) -> bool {
-        self.brakes.iter().all(BrakeState::gripping)
+        self.brakes.gripping()
     }
 
     /// The motion just started waits for the brakes to open: the reference is held (the
@@ -239,7 +236,7 @@ impl<R: Real> Servo<R> {
 
     /// Per axis: the brake is commanded released (coil energised), as written last period.
     pub fn brakes_released(&self) -> [bool; AXES] {
-        self.brakes.map(|b| b.released())
+        self.brakes.released()
     }
 
     /// The period's brake commands: released only on an axis driven now and in the
@@ -250,11 +247,7 @@ impl<R: Real> Servo<R> {
         if self.state != ServoState::Stopping {
             self.stopping.braking = false;
         }
-        for (i, b) in self.brakes.iter_mut().enumerate() {
-            let bit = 1 << i;
-            b.update(!self.stopping.braking && driven & self.prev_driven & bit != 0);
-        }
-        self.prev_driven = driven;
+        self.brakes.update(driven, self.stopping.braking);
         let released = self.brakes_released();
         io.write_brakes(released);
         self.snapshot.brakes_released = released;
@@ -262,11 +255,7 @@ impl<R: Real> Servo<R> {
 
     /// Longest engage time of the brakes fitted, periods (0 without any).
     pub(super) fn engage_periods(&self) -> u32 {
-        self.brakes
-            .iter()
-            .map(BrakeState::engage_periods)
-            .max()
-            .unwrap_or(0)
+        self.brakes.engage_periods()
     }
 
     /// Latch a fault the board found outside the servo step (a failed crystal, a
