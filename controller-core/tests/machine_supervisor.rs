@@ -28,8 +28,8 @@ fn settings() -> Settings {
     s
 }
 
-fn machine() -> (M, World) {
-    let s = settings();
+/// The simulated gantry for the servo configuration of `s`.
+fn world(s: &Settings) -> World {
     let wcfg = WorldConfig {
         plants: GANTRY_AXES.map(PlantConfig::Physical),
         plant_substeps: 4,
@@ -38,7 +38,12 @@ fn machine() -> (M, World) {
         imperfections: ImperfectionConfig::default(),
         brakes: Default::default(),
     };
-    let world = World::new(&wcfg, &s.servo_config(RATE_HZ).unwrap()).unwrap();
+    World::new(&wcfg, &s.servo_config(RATE_HZ).unwrap()).unwrap()
+}
+
+fn machine() -> (M, World) {
+    let s = settings();
+    let world = world(&s);
     let m = Machine::new(
         &s,
         RATE_HZ,
@@ -819,4 +824,65 @@ mod split {
         assert!((last[1] - 8.0).abs() < 1e-4, "{last:?}");
         assert!(exec.is_idle());
     }
+}
+
+/// Arm, run a short program to its end: the period count it took.
+fn run_program<R: controller_core::Real>(
+    m: &mut Machine<Box<MachineMemory>, MachinePlanner, R>,
+    w: &mut World,
+) -> u32 {
+    m.submit(Request::Arm);
+    m.submit(Request::Run);
+    for k in 1..=4u32 {
+        let x = if k % 2 == 1 { 5.0 } else { 0.0 };
+        m.submit(Request::Segment(Segment::line([x, 0.0, 0.0], 50.0, k)));
+    }
+    m.submit(Request::EndProgram);
+    let mut k = 0;
+    while !(m.status().program_done && m.servo().state() == ServoState::Idle) {
+        m.period(w);
+        w.advance();
+        k += 1;
+        assert!(k < 100_000, "the program did not end");
+    }
+    k
+}
+
+#[test]
+fn a_machine_from_a_servo_configuration_runs_as_the_one_from_its_tree() {
+    let (mut a, mut wa) = machine();
+    let s = settings();
+    let mut wb = world(&s);
+    let mut b: M = Machine::from_config(
+        &s.servo_config(RATE_HZ).unwrap(),
+        &s.planner_config(RATE_HZ),
+        wb.counter_registers(),
+        wb.counts(),
+        Box::new(MachineMemory::BLANK),
+    )
+    .unwrap();
+    assert_eq!(b.rate_hz(), RATE_HZ);
+    assert_eq!(run_program(&mut a, &mut wa), run_program(&mut b, &mut wb));
+    assert_eq!(a.status(), b.status());
+    assert_eq!(a.servo().snapshot(), b.servo().snapshot());
+}
+
+#[test]
+fn a_machine_runs_its_servo_in_f64_too() {
+    let s = settings();
+    let mut w = world(&s);
+    let mut m: Machine<Box<MachineMemory>, MachinePlanner, f64> = Machine::new(
+        &s,
+        RATE_HZ,
+        w.counter_registers(),
+        w.counts(),
+        Box::new(MachineMemory::BLANK),
+    )
+    .unwrap();
+    run_program(&mut m, &mut w);
+    let p = m.servo().snapshot().pos;
+    assert!(
+        p[0].abs() < 0.01,
+        "it ends at the last segment's end, not {p:?}"
+    );
 }

@@ -39,6 +39,7 @@ use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoConfig, ServoState};
 use crate::settings::{Apply, ServoConfigError, Settings};
 use crate::sysid::IdentifyStatus;
+use crate::Real;
 
 /// Segment slots of the machine's planner.
 pub const MACHINE_SEGMENTS: usize = 48;
@@ -90,16 +91,18 @@ pub enum MachineError {
 }
 
 /// The supervisor (see the module docs). Its large parts live where `P` points
-/// ([`MachineMemory`]).
-pub struct Machine<P, M = MachinePlanner>
+/// ([`MachineMemory`]); `R` is the servo's number type (f32 on the board).
+pub struct Machine<P, M = MachinePlanner, R = f32>
 where
     P: DerefMut<Target = MachineMemory<M>>,
     M: PlannerHandle,
 {
-    servo: Servo<f32>,
+    servo: Servo<R>,
     mem: P,
     planner_cfg: PlannerConfig,
     settings: Settings,
+    /// It runs `settings` (false: built from a servo configuration, it takes no change).
+    tree: bool,
     rate_hz: u32,
     queue: Deque<Queued, REQUEST_QUEUE>,
     /// The settings changed in this period (echoed to the link side).
@@ -196,10 +199,11 @@ fn segment_refusal(e: &SegmentError) -> &'static str {
     }
 }
 
-impl<P, M> Machine<P, M>
+impl<P, M, R> Machine<P, M, R>
 where
     P: DerefMut<Target = MachineMemory<M>>,
     M: PlannerHandle,
+    R: Real,
 {
     /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder
     /// registers now, standing for wide counts `start_counts` (0 on a board at boot);
@@ -209,14 +213,46 @@ where
         rate_hz: u32,
         raw: [u32; 3],
         start_counts: [i64; 3],
-        mut mem: P,
+        mem: P,
     ) -> Result<Self, MachineError> {
         let cfg = settings
             .servo_config(rate_hz)
             .map_err(MachineError::Settings)?;
-        let servo = Servo::new(&cfg, raw, start_counts).map_err(MachineError::Servo)?;
         // (validated with the rest of the tree by `servo_config` above)
         let pc = settings.planner_config(rate_hz);
+        Self::build(&cfg, &pc, *settings, true, raw, start_counts, mem)
+    }
+
+    /// A machine that runs `servo` and `planner` as given, without a settings tree: a
+    /// scripted run's (`crate::sim::run::SimRun`), whose configuration is a
+    /// [`ServoConfig`] of its own. Its control rate is `servo.rate_hz`. It refuses every
+    /// settings change (it has no tree to change; [`Self::settings`] answers the factory
+    /// tree, which is not what it runs); everything else it does as [`Self::new`]'s.
+    pub fn from_config(
+        servo: &ServoConfig,
+        planner: &PlannerConfig,
+        raw: [u32; 3],
+        start_counts: [i64; 3],
+        mem: P,
+    ) -> Result<Self, MachineError> {
+        let settings = Settings::default();
+        Self::build(servo, planner, settings, false, raw, start_counts, mem)
+    }
+
+    /// The servo built from `cfg`, the planner in `mem` restarted with `pc`, the scope
+    /// disarmed; `settings` is the tree the machine answers with (`tree`: it runs it).
+    fn build(
+        cfg: &ServoConfig,
+        pc: &PlannerConfig,
+        settings: Settings,
+        tree: bool,
+        raw: [u32; 3],
+        start_counts: [i64; 3],
+        mut mem: P,
+    ) -> Result<Self, MachineError> {
+        let rate_hz = cfg.rate_hz;
+        let servo = Servo::new(cfg, raw, start_counts).map_err(MachineError::Servo)?;
+        let pc = *pc;
         let start = servo.snapshot().pos;
         mem.planner.restart(&pc, start).map_err(|e| match e {
             RestartError::Config(e) => MachineError::Planner(e),
@@ -238,7 +274,8 @@ where
             servo,
             mem,
             planner_cfg: pc,
-            settings: *settings,
+            settings,
+            tree,
             rate_hz,
             queue: Deque::new(),
             settings_changed: false,
@@ -319,10 +356,12 @@ where
         self.servo.forget_home(axis);
     }
 
-    pub fn servo(&self) -> &Servo<f32> {
+    pub fn servo(&self) -> &Servo<R> {
         &self.servo
     }
 
+    /// The settings tree it runs (the factory tree for a machine built
+    /// [`Self::from_config`], which runs no tree).
     pub fn settings(&self) -> &Settings {
         &self.settings
     }
@@ -394,7 +433,7 @@ where
     /// One control period behind the link: the link's events, the period, the replies
     /// and telemetry (see the module docs).
     #[inline(always)]
-    pub fn linked_period<IO: ServoIo<f32>>(&mut self, io: &mut IO, link: &mut ControlSide<'_>) {
+    pub fn linked_period<IO: ServoIo<R>>(&mut self, io: &mut IO, link: &mut ControlSide<'_>) {
         self.linked_period_seen(io, link, |_| {});
     }
 
@@ -403,7 +442,7 @@ where
     /// machine's inputs needs (the QEMU link rig's, `super::record`). The one sequence of
     /// the period: `linked_period` is this with nothing to see.
     #[inline(always)]
-    pub fn linked_period_seen<IO: ServoIo<f32>>(
+    pub fn linked_period_seen<IO: ServoIo<R>>(
         &mut self,
         io: &mut IO,
         link: &mut ControlSide<'_>,
@@ -497,7 +536,7 @@ where
     }
 
     /// One control period: execute what is queued, plan, sample, run the servo step.
-    pub fn period<IO: ServoIo<f32>>(&mut self, io: &mut IO) {
+    pub fn period<IO: ServoIo<R>>(&mut self, io: &mut IO) {
         let mut cmds: heapless::Vec<Command, 4> = heapless::Vec::new();
         // during a save nothing may arm: commands wait (a lost link or a new session
         // ends the save first)
@@ -763,6 +802,9 @@ where
         let Some(cfg) = self.next_servo.take() else {
             return refused("rejected: the settings give no servo configuration");
         };
+        if !self.tree {
+            return refused("rejected: this machine runs a fixed servo configuration");
+        }
         match class {
             None => {
                 self.take(next);
