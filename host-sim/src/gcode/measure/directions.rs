@@ -104,6 +104,12 @@ pub fn max_support_between(lim: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
 /// where both are equal (|tan α| = l2/l1), so the maximum is at an end or at such a peak.
 pub fn max_planar_projected(l1: f64, l2: f64, a: f64, b: f64) -> f64 {
     let g = |x: f64| projected([l1, l2, 0.0], [x.cos(), x.sin(), 0.0]);
+    max_at_ends_and_peaks(g, l1, l2, a, b)
+}
+
+/// Largest value of `g` over `[a, b]` for a `g` that, between multiples of π/2, peaks only
+/// where |tan α| = l2/l1: the larger of the ends and of every such peak inside.
+fn max_at_ends_and_peaks(g: impl Fn(f64) -> f64, l1: f64, l2: f64, a: f64, b: f64) -> f64 {
     let mut best = g(a).max(g(b));
     let peak = l2.atan2(l1);
     for base in [peak, -peak] {
@@ -122,17 +128,7 @@ pub fn max_planar_projected(l1: f64, l2: f64, a: f64, b: f64) -> f64 {
 /// |tan α| = l2/l1.
 pub fn max_planar_support(l1: f64, l2: f64, a: f64, b: f64) -> f64 {
     let g = |x: f64| l1 * x.cos().abs() + l2 * x.sin().abs();
-    let mut best = g(a).max(g(b));
-    let peak = l2.atan2(l1);
-    for base in [peak, -peak] {
-        let pi = std::f64::consts::PI;
-        let mut x = a + (base - a).rem_euclid(pi);
-        while x <= b {
-            best = best.max(g(x));
-            x += pi;
-        }
-    }
-    best
+    max_at_ends_and_peaks(g, l1, l2, a, b)
 }
 
 #[cfg(test)]
