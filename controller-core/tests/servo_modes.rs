@@ -163,7 +163,7 @@ fn a_board_config_fault_is_never_reset_and_keeps_the_outputs_off() {
     // the firmware's boot self-check latches it (firmware/src/board/self_check.rs): the
     // board's registers are not what the table says, nothing a reset can change
     let mut r = run([0.0; 3]);
-    r.servo_mut().latch_board_fault(FaultKind::BoardConfig);
+    r.machine_mut().latch_board_fault(FaultKind::BoardConfig);
     step(&mut r, &[], 10);
     assert_eq!(r.servo().state(), ServoState::Fault);
     for _ in 0..3 {
@@ -189,7 +189,7 @@ fn a_forgotten_home_refuses_programs_until_homed_again() {
     let mut r = run([0.0, 5.0, -3.0]);
     home(&mut r);
     assert_eq!(r.servo().snapshot().homed, 0b111);
-    r.servo_mut().forget_home(Axis::Z);
+    r.machine_mut().forget_home(Axis::Z);
     assert_eq!(r.servo().snapshot().homed, 0b011);
     assert_eq!(
         step(&mut r, &[Command::Run], 1),
@@ -450,7 +450,7 @@ fn reconfigure_only_with_outputs_off_and_keeps_homing_and_counts() {
     let mut cfg = servo_config(RATE_HZ);
     cfg.safety.axes[0].ferror_mm *= 2.0;
     assert_eq!(
-        r.servo_mut().reconfigure(&cfg),
+        r.machine_mut().reconfigure(&cfg),
         Err(ReconfigureError::OutputsOn)
     );
     // the outputs go off once the Z brake grips (engage_s = 300 periods)
@@ -458,10 +458,10 @@ fn reconfigure_only_with_outputs_off_and_keeps_homing_and_counts() {
     let mut bad = cfg;
     bad.rate_hz = 5;
     assert!(matches!(
-        r.servo_mut().reconfigure(&bad),
+        r.machine_mut().reconfigure(&bad),
         Err(ReconfigureError::Config(_))
     ));
-    assert_eq!(r.servo_mut().reconfigure(&cfg), Ok(()));
+    assert_eq!(r.machine_mut().reconfigure(&cfg), Ok(()));
     step(&mut r, &[Command::Arm], 100);
     let s = *r.servo().snapshot();
     assert_eq!(s.homed, 0b111);

@@ -351,6 +351,26 @@ where
         self.last = Outcome::None;
     }
 
+    /// Fault injection for the fault matrix (simulator and QEMU test builds): corrupt the
+    /// state of `axis`' law (`Servo::inject_corrupt_state`).
+    pub fn inject_corrupt_state(&mut self, axis: usize) {
+        self.servo.inject_corrupt_state(axis);
+    }
+
+    /// The reference the servo follows in `Run` this period, planned outside the machine
+    /// (host-sim's G-code runner, which runs a planner of its own, not a program of the
+    /// machine's).
+    pub fn set_planner_reference(&mut self, s: &PathSample) {
+        self.servo.set_planner_reference(s);
+    }
+
+    /// Swap the servo's configuration for `cfg` (`Servo::reconfigure`: only with the
+    /// outputs off), for a machine without a settings tree ([`Self::from_config`]); a
+    /// machine with one changes it through a settings change, which also swaps its tree.
+    pub fn reconfigure(&mut self, cfg: &ServoConfig) -> Result<(), crate::servo::ReconfigureError> {
+        self.servo.reconfigure(cfg)
+    }
+
     /// `axis` must be homed again (`Servo::forget_home`).
     pub fn forget_home(&mut self, axis: crate::axes::Axis) {
         self.servo.forget_home(axis);

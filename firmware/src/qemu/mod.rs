@@ -1,7 +1,8 @@
 //! The QEMU rig (feature `qemu`): the firmware on QEMU's netduinoplus2 (STM32F405) runs a
 //! scenario of host-sim's (`host-sim/scenarios/qemu/*.toml`) with the core's simulated
-//! run ([`controller_core::sim::run::SimRun`]) in the control interrupt: the servo step
-//! against the simulated world instead of encoders and PWM, then the world advances.
+//! run ([`controller_core::sim::run::SimRun`]) in the control interrupt: the machine's
+//! period (its servo step) against the simulated world instead of encoders and PWM, then
+//! the world advances.
 //!
 //! - [`cmdline`]: the scenario name from the semihosting command line;
 //! - [`rig`]: the per-period work of the control interrupt for a scenario;

@@ -1,7 +1,7 @@
-//! The discrete mode: controller-core's [`SimRun`] (the servo step against the simulated
-//! world), one control period at a time, plus the trace. Studies that need more than the
-//! figures (e.g. the adaptive law's estimates over time) watch every period through an
-//! [`Observer`].
+//! The discrete mode: controller-core's [`SimRun`] (the machine's period, its servo step,
+//! against the simulated world), one control period at a time, plus the trace. Studies
+//! that need more than the figures (e.g. the adaptive law's estimates over time) watch
+//! every period through an [`Observer`].
 
 use super::{Decimator, RunResult, Trace, TRACE_EVERY_S};
 use anyhow::{anyhow, Result};

@@ -245,7 +245,7 @@ pub fn run_with_settings(
             PathSample::default()
         } else {
             let s = mp.tick();
-            run.servo_mut().set_planner_reference(&s);
+            run.set_planner_reference(&s);
             s
         };
         let snap = *run.control_with(&[]);
