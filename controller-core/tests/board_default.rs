@@ -33,6 +33,7 @@ fn default_configuration_follows_the_demo_path_without_saturating() {
         periods,
         hold: false,
         inject: None,
+        program: false,
     })
     .unwrap();
     let startup = BOARD_RATE_HZ / 2; // the first 0.5 s

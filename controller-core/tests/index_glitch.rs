@@ -45,6 +45,7 @@ fn run(servo: ServoConfig, index_counts: u32, noise_counts: u8) -> SimRun<f32> {
         periods: u32::MAX,
         hold: true,
         inject: None,
+        program: false,
     };
     SimRun::new(&cfg).expect("the board configuration validates")
 }

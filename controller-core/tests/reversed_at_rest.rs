@@ -56,6 +56,7 @@ fn holding() -> SimRun<f32> {
         periods: u32::MAX,
         hold: true,
         inject: None,
+        program: false,
     };
     let mut r = SimRun::new(&cfg).expect("the board configuration validates");
     r.control_with(&[Command::Arm]);
@@ -160,6 +161,7 @@ fn disarmed_with_arm_check(swapped: Option<Axis>) -> SimRun<f32> {
         periods: u32::MAX,
         hold: true,
         inject: None,
+        program: false,
     };
     let mut r = SimRun::new(&cfg).expect("the board configuration validates");
     for _ in 0..1_000 {

@@ -59,6 +59,7 @@ fn run_with(servo: ServoConfig, start: [f64; 3]) -> SimRun<f32> {
         periods: u32::MAX,
         hold: true,
         inject: None,
+        program: false,
     })
     .expect("valid configuration")
 }
@@ -423,6 +424,7 @@ fn homing_on_the_index_latches_the_pulse_after_the_switch() {
         periods: u32::MAX,
         hold: true,
         inject: None,
+        program: false,
     })
     .unwrap();
     home(&mut r);

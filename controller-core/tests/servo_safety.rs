@@ -28,6 +28,7 @@ fn run(inject: Option<TimedInjection>) -> SimRun<f32> {
         periods: 1_000_000,
         hold: true,
         inject,
+        program: false,
     };
     SimRun::new(&cfg).expect("the board configuration validates")
 }

@@ -18,10 +18,16 @@ use controller_core::settings::Settings;
 use firmware::blank_static;
 
 /// The control interrupt's half of the planner.
-type Executor = SplitExecutor<'static>;
+pub type Executor = SplitExecutor<'static>;
 
 /// The machine as the firmware holds it: the planner's executor in the control interrupt.
 pub type FwMachine = Machine<&'static mut MachineMemory<Executor>, Executor>;
+
+/// QEMU's rig: the machine in a simulated run (controller-core `SimRun`) against the
+/// simulated world, its memory the same statics (the planning half is the `plan` task's).
+#[cfg(feature = "qemu")]
+pub type FwRun =
+    controller_core::sim::run::SimRun<f32, &'static mut MachineMemory<Executor>, Executor>;
 
 /// The planning half, run by the `plan` task after every control period.
 pub type PlanTask = SplitPlanner<'static, MACHINE_SEGMENTS, MACHINE_SPANS>;
@@ -45,16 +51,9 @@ pub enum BuildError {
     Machine(#[allow(dead_code)] MachineError),
 }
 
-/// Build the machine into `slot`: `settings` at `rate_hz`, the encoders' registers now
-/// `raw` standing for wide counts `counts`. Its planning half waits for
-/// [`take_plan_task`].
-pub fn build(
-    slot: &'static mut Option<FwMachine>,
-    settings: &Settings,
-    rate_hz: u32,
-    raw: [u32; 3],
-    counts: [i64; 3],
-) -> Result<&'static mut FwMachine, BuildError> {
+/// The machine's memory (the scope and the executor's half, connected to the planning
+/// half, which waits for [`take_plan_task`]), once.
+pub fn memory() -> Result<&'static mut MachineMemory<Executor>, BuildError> {
     if MEMORY_TAKEN.swap(true, Ordering::AcqRel) {
         return Err(BuildError::Twice);
     }
@@ -71,11 +70,25 @@ pub fn build(
     let (executor_ends, planner_ends) = channels.split();
     memory.planner.attach(executor_ends);
     *task = Some(SplitPlanner::new(planner, planner_ends));
-    let m = Machine::new(settings, rate_hz, raw, counts, memory).map_err(BuildError::Machine)?;
+    Ok(memory)
+}
+
+/// Build the machine into `slot`: `settings` at `rate_hz`, the encoders' registers now
+/// `raw` standing for wide counts `counts`. Its planning half waits for
+/// [`take_plan_task`].
+#[cfg_attr(feature = "qemu", allow(dead_code))]
+pub fn build(
+    slot: &'static mut Option<FwMachine>,
+    settings: &Settings,
+    rate_hz: u32,
+    raw: [u32; 3],
+    counts: [i64; 3],
+) -> Result<&'static mut FwMachine, BuildError> {
+    let m = Machine::new(settings, rate_hz, raw, counts, memory()?).map_err(BuildError::Machine)?;
     Ok(slot.insert(m))
 }
 
-/// The planning half of the machine built by [`build`], once (none before a build).
+/// The planning half of the machine whose [`memory`] was taken, once (none before).
 pub fn take_plan_task() -> Option<PlanTask> {
     if !MEMORY_TAKEN.load(Ordering::Acquire) || TASK_TAKEN.swap(true, Ordering::AcqRel) {
         return None;

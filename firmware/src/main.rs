@@ -79,12 +79,18 @@ mod app {
     #[cfg(not(feature = "qemu"))]
     type Saver = crate::board::flash::BoardSaver;
     #[cfg(feature = "qemu")]
-    type Saver = crate::qemu::link_rig::RamSaver;
-    use crate::machine_slot::{FwMachine, PlanTask};
+    type Saver = crate::qemu::link::RamSaver;
+    use crate::machine_slot::PlanTask;
     #[cfg(not(feature = "qemu"))]
     use crate::period::{BoardPeriod as Period, End};
+    /// Where init builds what the control interrupt drives: the board's machine.
+    #[cfg(not(feature = "qemu"))]
+    type Slot = Option<crate::machine_slot::FwMachine>;
     #[cfg(feature = "qemu")]
-    use crate::qemu::{rig::End, Period};
+    use crate::qemu::{End, Rig as Period};
+    /// Where init builds what the control interrupt drives: QEMU's simulated run.
+    #[cfg(feature = "qemu")]
+    type Slot = Option<crate::qemu::FwRun>;
     use controller_core::machine::Channels;
 
     // (RTIC names the types of every local resource, cfg'd ones too.)
@@ -169,7 +175,7 @@ mod app {
             cortex_m::singleton!(: Channels = Channels::new()),
             cortex_m::singleton!(: RxQueue = RxQueue::new()),
             cortex_m::singleton!(: TxQueue = TxQueue::new()),
-            cortex_m::singleton!(: Option<FwMachine> = None),
+            cortex_m::singleton!(: Slot = None),
         ) else {
             halt("init ran twice")
         };
@@ -216,7 +222,7 @@ mod app {
             (period, host_uart, link_task)
         };
 
-        // the machine's planning half (none in QEMU's scenario rigs, which build no machine)
+        // the machine's planning half
         let plan_task = crate::machine_slot::take_plan_task();
 
         let mut tick = board.tick;
@@ -259,7 +265,7 @@ mod app {
     /// state around it.
     #[cfg(not(feature = "qemu"))]
     fn board_period(
-        slot: &'static mut Option<FwMachine>,
+        slot: &'static mut Slot,
         settings: &controller_core::settings::Settings,
         io: board::io::BoardIo,
         control: controller_core::machine::ControlSide<'static>,
@@ -471,12 +477,12 @@ mod app {
     #[task(priority = 3, local = [plan_task])]
     async fn plan(cx: plan::Context) {
         if let Some(t) = cx.local.plan_task {
-            // (QEMU's link rig records when the planning half ran: qemu::link_rig)
+            // (QEMU's rig watches when the planning half ran: qemu::plan_watch)
             #[cfg(feature = "qemu")]
-            crate::qemu::link_rig::plan_started();
+            crate::qemu::plan_watch::plan_started();
             t.run();
             #[cfg(feature = "qemu")]
-            crate::qemu::link_rig::plan_finished();
+            crate::qemu::plan_watch::plan_finished();
         }
     }
 

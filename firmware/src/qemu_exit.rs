@@ -18,6 +18,9 @@ pub const EXIT_CONFIG: i32 = 2;
 pub const EXIT_FAULT: i32 = 3;
 /// A run with an injected fault ended without a latched fault (the fault went undetected).
 pub const EXIT_UNDETECTED: i32 = 4;
+/// A program run's planning half did not run exactly once between two control periods
+/// (the run is not the one host-sim computes).
+pub const EXIT_PLAN_IRREGULAR: i32 = 5;
 /// Panic.
 pub const EXIT_PANIC: i32 = 101;
 /// HardFault.

@@ -34,7 +34,9 @@ pub fn names() -> impl Iterator<Item = &'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use controller_core::sim::run::SimRun;
+    use controller_core::machine::scope::Scope;
+    use controller_core::machine::{MachineMemory, MachinePlanner};
+    use controller_core::sim::run::{factory_planner, SimRun};
     use std::path::PathBuf;
 
     fn dir() -> PathBuf {
@@ -57,8 +59,14 @@ mod tests {
             let resolved = gantry_scenario::Resolved::new(&file.file, &file.runs[0]).unwrap();
             let decoded = load(name).unwrap();
             assert_eq!(decoded, resolved.run, "{name}");
-            // and it runs: a few hundred periods in f32 stay finite and enabled
-            let mut run = SimRun::<f32>::new(&decoded).unwrap();
+            // and it runs: a few hundred periods in f32 stay finite and enabled (a program
+            // run's machine has a planner, as in the rig)
+            let memory = Box::new(MachineMemory {
+                planner: MachinePlanner::BLANK,
+                scope: Scope::new(),
+            });
+            let planner = factory_planner(decoded.servo.rate_hz);
+            let mut run = SimRun::<f32, _, _>::with_memory(&decoded, &planner, memory).unwrap();
             for _ in 0..300 {
                 run.control();
                 run.finish_period();

@@ -16,7 +16,8 @@ use controller_core::plant::PlantParams;
 use controller_core::presets::gantry::{adaptive_for, dob_smc_for, dsmc_for, pid_for};
 use controller_core::servo::travel::TravelConfig;
 use controller_core::servo::{PathPlan, ServoConfig};
-use controller_core::sim::run::{RunConfig, SimRun};
+use controller_core::sim::run::{factory_planner, RunConfig, SimRun};
+use controller_core::sim::run_memory::RunMemory;
 use controller_core::sim::world::{InitialState, PlantConfig, WorldConfig};
 
 /// Most plant integration steps one run may take (horizon × rate × substeps in discrete
@@ -220,6 +221,7 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
         periods,
         hold: sc.hold,
         inject: sc.fault,
+        program: sc.program,
     };
     validate(&run, sc)?;
     Ok((run, reference))
@@ -244,7 +246,12 @@ fn validate(run: &RunConfig, sc: &Scenario) -> Result<(), String> {
     if !(m.contour_window_s > 0.0 && m.contour_window_s.is_finite()) {
         return Err("`metrics.contour_window_s` must be positive".into());
     }
-    SimRun::<f64>::new(run).map_err(|e| format!("invalid configuration: {e}"))?;
+    // (every part built once; a program run's planner is the caller's, so without one)
+    SimRun::<f64>::with_memory(run, &factory_planner(run.servo.rate_hz), RunMemory::new())
+        .map_err(|e| format!("invalid configuration: {e}"))?;
+    if run.program && !matches!(sc.mode, Mode::Discrete) {
+        return Err("`program = true` runs in discrete mode only (the machine's periods)".into());
+    }
     if let Mode::Continuous { .. } = sc.mode {
         if matches!(sc.controller.coupling, CouplingConfig::VariableGain(_)) {
             return Err("continuous mode supports no variable-gain coupling".into());

@@ -93,6 +93,11 @@ pub struct Scenario {
     /// A fault injected during the run (the fault matrix).
     #[serde(default)]
     pub fault: Option<TimedInjection>,
+    /// Run the path (a square or polyline) as a program through the machine's supervisor
+    /// and planner instead of the servo's own path generator
+    /// (controller-core `sim::run::RunConfig::program`).
+    #[serde(default)]
+    pub program: bool,
     /// Parameters of the study that interprets this file (each study checks its own).
     #[serde(default)]
     pub study: Option<toml::Value>,

@@ -8,9 +8,8 @@
 use controller_core::law::adaptive_smc::{AdaptiveState, EstimateConfig};
 use controller_core::law::dob_smc::DobState;
 use controller_core::presets::gantry::{adaptive_for, CUTTING_LOAD_MNM, GANTRY_X};
-use controller_core::sim::run::SimRun;
 use gantry_tests::{resolve_text, run_builtin, run_observed};
-use host_sim::engine::discrete::Observer;
+use host_sim::engine::discrete::{Observer, PeriodView};
 use host_sim::studies::seeds::{self, SeedsReport};
 use std::sync::OnceLock;
 
@@ -51,8 +50,8 @@ laws.x = {{ dob_smc = {{ a = {a:?}, b = {b:?}, c = {c:?}, k = {k:?}, eta = {eta:
 struct LastDob(DobState<f32>);
 
 impl Observer<f32> for LastDob {
-    fn period(&mut self, run: &SimRun<f32>) {
-        self.0 = run.servo().controller().states()[0].dob;
+    fn period(&mut self, run: &PeriodView<'_, f32>) {
+        self.0 = run.servo.controller().states()[0].dob;
     }
 }
 
@@ -163,8 +162,8 @@ fn adaptive_law_tracks_velocity_reversals_better_than_the_fixed_smc() {
 struct LastAdapt(AdaptiveState<f32>);
 
 impl Observer<f32> for LastAdapt {
-    fn period(&mut self, run: &SimRun<f32>) {
-        self.0 = run.servo().controller().states()[0].adapt;
+    fn period(&mut self, run: &PeriodView<'_, f32>) {
+        self.0 = run.servo.controller().states()[0].adapt;
     }
 }
 

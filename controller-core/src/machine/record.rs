@@ -1,6 +1,6 @@
 //! A recording of everything that enters the machine behind the link, period by period,
 //! and a digest of what it did: the QEMU link rig records them (firmware
-//! `qemu::link_rig`), host-sim replays the records into the same machine and world and
+//! `qemu::link`), host-sim replays the records into the same machine and world and
 //! compares the digests bit for bit (host-sim `studies::machine_replay`).
 //!
 //! What enters the machine ([`Machine::linked_period`]) in a period, all recorded:

@@ -357,11 +357,24 @@ where
         self.servo.inject_corrupt_state(axis);
     }
 
-    /// The reference the servo follows in `Run` this period, planned outside the machine
-    /// (host-sim's G-code runner, which runs a planner of its own, not a program of the
-    /// machine's).
-    pub fn set_planner_reference(&mut self, s: &PathSample) {
-        self.servo.set_planner_reference(s);
+    /// Requests executed (or refused) so far.
+    pub fn executed(&self) -> u32 {
+        self.executed
+    }
+
+    /// The outcome of the latest executed request.
+    pub fn last(&self) -> &Outcome {
+        &self.last
+    }
+
+    /// How the latest program ended, or that it runs.
+    pub fn program_end(&self) -> ProgramEnd {
+        self.program_end
+    }
+
+    /// The planner's reference of the latest period (the start, held, before a program).
+    pub fn path_sample(&self) -> &PathSample {
+        &self.sample
     }
 
     /// Swap the servo's configuration for `cfg` (`Servo::reconfigure`: only with the

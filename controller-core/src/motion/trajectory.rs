@@ -210,6 +210,41 @@ impl<R: Real> Polyline<R> {
         )
     }
 
+    /// Edges of the path: `count` for a closed one (the last returns to the first
+    /// vertex), `count - 1` for an open one.
+    pub fn edges(&self) -> usize {
+        self.segments()
+    }
+
+    /// The end vertex of edge `i` (`None` past the last edge).
+    pub fn edge_end(&self, i: usize) -> Option<Vec3<R>> {
+        (i < self.segments()).then(|| self.segment(i).1)
+    }
+
+    /// The cruise speed along every edge.
+    pub fn speed(&self) -> R {
+        self.speed
+    }
+
+    /// Geometric distance from `p` to the path (the nearest point of any edge, however
+    /// it is timed).
+    pub fn distance(&self, p: Vec3<R>) -> R {
+        let mut best: Option<R> = None;
+        for i in 0..self.segments() {
+            let (a, b) = self.segment(i);
+            let ab = b - a;
+            let s = (p - a)
+                .dot(ab)
+                .div_or(ab.dot(ab), R::ZERO)
+                .max_of(R::ZERO)
+                .min_of(R::ONE);
+            let d = (a + ab * s - p).norm();
+            best = Some(best.map_or(d, |b| b.min_of(d)));
+        }
+        // (a polyline has at least one edge)
+        best.unwrap_or(R::ZERO)
+    }
+
     fn segments(&self) -> usize {
         if self.closed {
             self.count

@@ -7,14 +7,18 @@
 //!   [`crate::servo::io::ServoIo`];
 //! - [`gantry`]: the simulated gantry (designed settings, the world with its homing
 //!   switches) of host-sim's `gantry --sim` and the QEMU link rig;
-//! - [`run`]: a simulated run (servo step + world + figures, scripted commands);
+//! - [`run`]: a simulated run (the machine + world + figures, scripted commands);
+//! - [`run_memory`]: a scripted run's machine memory without a planner;
+//! - [`program`]: a program run's requests (a polyline streamed as segments);
 //! - [`truth`]: tracking and contour figures of the true plant state;
 //! - [`rng`]: the SplitMix64 generator every simulation and study draws from;
 //! - [`random`]: random physical axes from the documented range.
 
 pub mod gantry;
+pub mod program;
 pub mod random;
 pub mod rng;
 pub mod run;
+pub mod run_memory;
 pub mod truth;
 pub mod world;

@@ -5,26 +5,31 @@
 //! interrupt runs) followed by [`SimRun::finish_period`] (figures, then the world advances
 //! one period).
 //!
-//! The operator's commands are scripted and reach the servo through the machine's panel
-//! ([`Machine::local`]): arm (and, unless the run only holds, start the configured path)
-//! in the first period. A fault can be injected at a given time ([`Injection`]): into the
-//! world (sensors, inputs, plant) or, for a corrupted controller state, through the
-//! machine's injection hook.
+//! The operator's commands are scripted. A run that follows the servo's own path gives
+//! them on the machine's panel ([`Machine::local`]): arm (and, unless the run only holds,
+//! start the path) in the first period. A program run ([`RunConfig::program`]) sends
+//! requests as the link does: arm, run, the path's edges as line segments while the
+//! machine's request queue has room, the end of the program; the machine's supervisor
+//! and planner run it ([`super::program::ProgramFeed`]). A fault can be injected at a
+//! given time ([`Injection`]): into the world (sensors, inputs, plant) or, for a corrupted
+//! controller state, through the machine's injection hook.
+//!
+//! The machine's large parts (its planner and scope, [`MachineMemory`]) are where the
+//! caller puts them ([`SimRun::with_memory`]); [`SimRun::new`] holds a scope and no
+//! planner ([`RunMemory`]) in the run, enough for every run but a program run.
 
-use core::ops::{Deref, DerefMut};
+use core::ops::DerefMut;
 
 use crate::axes::AXES;
 use crate::config::ConfigError;
-use crate::machine::scope::Scope;
-use crate::machine::{Machine, MachineError, MachineMemory};
+use crate::machine::{ControlSide, Machine, MachineError, MachineMemory, Seen};
 use crate::motion::path::PathStart;
-use crate::motion::planner::{
-    ExecMode, Offer, PathSample, PlannerConfig, PlannerConfigError, PlannerHandle, RestartError,
-    Segment, SegmentError, GANTRY_PLANNER,
-};
+use crate::motion::planner::{PlannerConfig, PlannerHandle, GANTRY_PLANNER};
 use crate::motion::trajectory::Trajectory;
 use crate::servo::snapshot::Snapshot;
 use crate::servo::{Command, Servo, ServoConfig, ServoState};
+use crate::sim::program::ProgramFeed;
+use crate::sim::run_memory::{NoPlanner, RunMemory};
 use crate::sim::truth::{Truth, TruthFigures, TruthSpec};
 use crate::sim::world::{Injection, World, WorldConfig};
 use crate::{Real, Vec3};
@@ -45,6 +50,13 @@ pub struct RunConfig {
     /// A fault injected during the run.
     #[cfg_attr(feature = "serde", serde(default))]
     pub inject: Option<TimedInjection>,
+    /// Run the path (a square or polyline) as a program through the machine: its edges
+    /// streamed as line segments at the path's speed into the machine's planner (the
+    /// factory planner's limits and blending, [`GANTRY_PLANNER`]), which the servo
+    /// follows. The figures compare the true position with the planner's reference, and
+    /// the contour error is the distance to the programmed path.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub program: bool,
 }
 
 /// A fault and when it is injected.
@@ -57,79 +69,24 @@ pub struct TimedInjection {
     pub fault: Injection,
 }
 
-/// The planner of a scripted run's machine: none. A scripted run follows the servo's own
-/// path ([`Command::StartPath`]) or a reference planned outside the machine
-/// ([`SimRun::set_planner_reference`]); a program it is sent is refused segment by
-/// segment, and it holds its start.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoPlanner {
-    start_mm: [f32; 3],
-}
-
-impl PlannerHandle for NoPlanner {
-    const OFFERS_PER_PERIOD: usize = 1;
-    fn restart(&mut self, _: &PlannerConfig, start_mm: [f32; 3]) -> Result<(), RestartError> {
-        self.start_mm = start_mm;
-        Ok(())
-    }
-    fn offer(&mut self, _: &Segment) -> Offer {
-        Offer::Refused(SegmentError::QueueFull)
-    }
-    fn hold(&mut self) {}
-    fn resume(&mut self) {}
-    fn abort(&mut self) {}
-    fn set_feed_override(&mut self, _: f32) -> Result<(), PlannerConfigError> {
-        Ok(())
-    }
-    fn free_slots(&self) -> usize {
-        0
-    }
-    fn tick(&mut self) -> PathSample {
-        PathSample {
-            pos_mm: Vec3::from_array(self.start_mm),
-            vel_mm_s: Vec3::zero(),
-            acc_mm_s2: Vec3::zero(),
-            tangent: Vec3::zero(),
-            path_speed_mm_s: 0.0,
-            path_acc_mm_s2: 0.0,
-            feed_ratio: 0.0,
-            tag: 0,
-            mode: ExecMode::Idle,
-        }
-    }
-    fn is_idle(&self) -> bool {
-        true
-    }
-}
-
-/// A scripted run's machine memory, held in the run: its scope (no planner).
-pub struct RunMemory(MachineMemory<NoPlanner>);
-
-impl Deref for RunMemory {
-    type Target = MachineMemory<NoPlanner>;
-    fn deref(&self) -> &Self::Target {
-        &self.0
-    }
-}
-
-impl DerefMut for RunMemory {
-    fn deref_mut(&mut self) -> &mut Self::Target {
-        &mut self.0
-    }
-}
-
-/// The machine a scripted run drives.
-pub type RunMachine<R> = Machine<RunMemory, NoPlanner, R>;
+/// The machine a scripted run drives: its memory at `P`, its planner `M`.
+pub type RunMachine<R, P = RunMemory, M = NoPlanner> = Machine<P, M, R>;
 
 /// A run in progress.
-pub struct SimRun<R> {
-    machine: RunMachine<R>,
+pub struct SimRun<R, P = RunMemory, M = NoPlanner>
+where
+    P: DerefMut<Target = MachineMemory<M>>,
+    M: PlannerHandle,
+{
+    machine: RunMachine<R, P, M>,
     world: World,
     truth: Truth,
     reference: Trajectory<f64>,
     periods: u32,
     k: u32,
     hold: bool,
+    /// A program run's segments still to send.
+    program: Option<ProgramFeed>,
     inject: Option<(u32, Injection)>,
     injected_at: Option<u32>,
     /// The run's period in which the servo started the path (it holds the start until the
@@ -138,8 +95,40 @@ pub struct SimRun<R> {
 }
 
 impl<R: Real> SimRun<R> {
-    /// Validates every part of `cfg` (nothing runs when one is rejected).
+    /// Validates every part of `cfg` (nothing runs when one is rejected). A program run
+    /// needs a planner: [`Self::with_memory`].
     pub fn new(cfg: &RunConfig) -> Result<Self, ConfigError> {
+        if cfg.program {
+            return Err(ConfigError::Unsupported(
+                "a program run without a planner (SimRun::with_memory)",
+            ));
+        }
+        Self::with_memory(cfg, &factory_planner(cfg.servo.rate_hz), RunMemory::new())
+    }
+}
+
+/// The factory planner ([`GANTRY_PLANNER`]) at `rate_hz`: a program run's.
+pub fn factory_planner(rate_hz: u32) -> PlannerConfig {
+    PlannerConfig {
+        period_s: 1.0 / rate_hz as f32,
+        ..GANTRY_PLANNER
+    }
+}
+
+impl<R, P, M> SimRun<R, P, M>
+where
+    R: Real,
+    P: DerefMut<Target = MachineMemory<M>>,
+    M: PlannerHandle,
+{
+    /// [`Self::new`] with the machine's memory at `mem` (its planner runs a program run;
+    /// a split planner's halves must be connected) and its planner configured as
+    /// `planner` (a program run's: [`factory_planner`]).
+    pub fn with_memory(
+        cfg: &RunConfig,
+        planner: &PlannerConfig,
+        mem: P,
+    ) -> Result<Self, ConfigError> {
         let world = World::new(&cfg.world, &cfg.servo)?;
         let plan = cfg
             .servo
@@ -156,19 +145,22 @@ impl<R: Real> SimRun<R> {
             }
             reference = shifted(reference, origin)?;
         }
-        let mem = RunMemory(MachineMemory {
-            planner: NoPlanner::default(),
-            scope: Scope::new(),
-        });
-        // (no program runs: the planner's configuration is the gantry's, at the run's rate)
-        let planner = PlannerConfig {
-            period_s: 1.0 / cfg.servo.rate_hz as f32,
-            ..GANTRY_PLANNER
+        let program = match (cfg.program, &reference) {
+            (false, _) => None,
+            (true, Trajectory::Polyline(p)) if !cfg.hold => Some(ProgramFeed::new(p)),
+            (true, _) => {
+                return Err(ConfigError::Unsupported(
+                    "program = true needs a square or polyline path, and no hold",
+                ))
+            }
         };
         let machine =
-            Machine::from_config(&cfg.servo, &planner, world.counter_registers(), counts, mem)
+            Machine::from_config(&cfg.servo, planner, world.counter_registers(), counts, mem)
                 .map_err(|e| match e {
                     MachineError::Servo(e) => e,
+                    MachineError::PlannerDetached => {
+                        ConfigError::Unsupported("a split planner whose halves are not connected")
+                    }
                     _ => ConfigError::Unsupported("a machine for a simulated run"),
                 })?;
         let inject = match cfg.inject {
@@ -188,14 +180,61 @@ impl<R: Real> SimRun<R> {
             periods: cfg.periods,
             k: 0,
             hold: cfg.hold,
+            program,
             inject,
             injected_at: None,
             path_from: None,
         })
     }
 
-    /// The servo step of the current period (arm and start the path in the first one).
+    /// A run of `machine` (built elsewhere, e.g. with its settings tree) in `world`,
+    /// driven by a link ([`Self::linked_period`]; QEMU's link rig): no scripted commands,
+    /// no injection, no end, and no figures ([`Self::advance`]; its reference holds where
+    /// the machine starts).
+    pub fn linked(machine: RunMachine<R, P, M>, world: World) -> Self {
+        let start = machine.servo().snapshot().pos.map(f64::from);
+        Self {
+            machine,
+            world,
+            truth: Truth::new(TruthSpec::default()),
+            reference: Trajectory::Line {
+                start: Vec3::from_array(start),
+                vel: Vec3::zero(),
+            },
+            periods: u32::MAX,
+            k: 0,
+            hold: true,
+            program: None,
+            inject: None,
+            injected_at: None,
+            path_from: None,
+        }
+    }
+
+    /// A linked run's period: the link's events, the machine's period, its replies
+    /// ([`Machine::linked_period_seen`]; `seen` is shown each event it takes).
+    pub fn linked_period(
+        &mut self,
+        link: &mut ControlSide<'_>,
+        seen: impl FnMut(Seen<'_>),
+    ) -> &Snapshot {
+        self.machine.linked_period_seen(&mut self.world, link, seen);
+        self.machine.servo().snapshot()
+    }
+
+    /// The world advances over the period, without figures (a linked run's).
+    pub fn advance(&mut self) {
+        self.world.advance();
+        self.k = self.k.saturating_add(1);
+    }
+
+    /// The machine's period (the scripted commands of the first one: arm and start the
+    /// path; a program run's requests: see the module docs).
     pub fn control(&mut self) -> &Snapshot {
+        if let Some(feed) = self.program.as_mut() {
+            feed.send(&mut self.machine);
+            return self.control_with(&[]);
+        }
         let cmds: &[Command] = match (self.k, self.hold) {
             (0, false) => &[Command::Arm, Command::StartPath],
             (0, true) => &[Command::Arm],
@@ -226,12 +265,6 @@ impl<R: Real> SimRun<R> {
         self.machine.servo().snapshot()
     }
 
-    /// The reference the servo follows in `Run` this period, planned outside the machine
-    /// (host-sim's G-code runner runs a planner of its own).
-    pub fn set_planner_reference(&mut self, s: &PathSample) {
-        self.machine.set_planner_reference(s);
-    }
-
     /// The run's period of the injection, once it happened.
     pub fn injected_at(&self) -> Option<u32> {
         self.injected_at
@@ -254,13 +287,18 @@ impl<R: Real> SimRun<R> {
             None
         } else {
             let from_s = f64::from(self.path_from.unwrap_or(0)) * period_s;
-            self.truth.record(
-                &self.reference,
-                self.world.time_s() - from_s,
-                period_s,
-                pos,
-                self.world.effort(),
-            )
+            let t = self.world.time_s() - from_s;
+            let u = self.world.effort();
+            match &self.reference {
+                // a program: against the planner's reference, the contour error to the
+                // programmed path
+                Trajectory::Polyline(path) if self.program.is_some() => {
+                    let r = self.machine.path_sample().pos_mm.cast::<f64>();
+                    self.truth
+                        .record_at(r, t, period_s, pos, u, || path.distance(pos))
+                }
+                _ => self.truth.record(&self.reference, t, period_s, pos, u),
+            }
         };
         self.world.advance();
         self.k = self.k.saturating_add(1);
@@ -277,6 +315,11 @@ impl<R: Real> SimRun<R> {
         self.k
     }
 
+    /// A program run: every segment was sent and the program has ended.
+    pub fn program_sent(&self) -> Option<bool> {
+        self.program.as_ref().map(ProgramFeed::done)
+    }
+
     pub fn figures(&self) -> TruthFigures {
         self.truth.figures()
     }
@@ -286,13 +329,13 @@ impl<R: Real> SimRun<R> {
     }
 
     /// The machine that drives the servo.
-    pub fn machine(&self) -> &RunMachine<R> {
+    pub fn machine(&self) -> &RunMachine<R, P, M> {
         &self.machine
     }
 
     /// The machine, for what a board does between periods (a latched board fault, a
-    /// forgotten home, a new servo configuration).
-    pub fn machine_mut(&mut self) -> &mut RunMachine<R> {
+    /// forgotten home, a new servo configuration) and for a caller's own requests.
+    pub fn machine_mut(&mut self) -> &mut RunMachine<R, P, M> {
         &mut self.machine
     }
 

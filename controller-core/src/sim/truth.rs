@@ -110,10 +110,28 @@ impl Truth {
         pos: Vec3<f64>,
         u: [f64; AXES],
     ) -> Option<f64> {
-        let r = reference.sample(t);
+        let r = reference.sample(t).pos;
+        let window_s = self.spec.contour_window_s;
+        self.record_at(r, t, dt, pos, u, || {
+            distance_to_path(reference, pos, t, window_s)
+        })
+    }
+
+    /// [`Self::record`] against the reference position `r` of this period (a program's:
+    /// what the machine's planner sampled), with the contour error `contour` (the distance
+    /// to the programmed path) when one is due.
+    pub fn record_at(
+        &mut self,
+        r: Vec3<f64>,
+        t: f64,
+        dt: f64,
+        pos: Vec3<f64>,
+        u: [f64; AXES],
+        contour: impl FnOnce() -> f64,
+    ) -> Option<f64> {
         self.samples += 1;
         for i in 0..AXES {
-            let e = r.pos[i] - pos[i];
+            let e = r[i] - pos[i];
             self.itse[i].add(t, e, dt);
             self.window[i].add(t, e, dt);
             self.iae[i] += e.abs() * dt;
@@ -123,7 +141,7 @@ impl Truth {
         }
         // half a step of slack so float drift in t never skips a sample
         if t + 0.5 * dt >= self.next_contour_t {
-            let d = distance_to_path(reference, pos, t, self.spec.contour_window_s);
+            let d = contour();
             self.contour.add(d);
             self.next_contour_t += self.spec.contour_every_s;
             Some(d)

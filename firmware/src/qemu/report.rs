@@ -20,7 +20,7 @@ use core::fmt::Write as _;
 use controller_core::servo::faults::FaultRecord;
 use firmware::telemetry::Telemetry;
 
-use super::rig::End;
+use super::scenario::End;
 use crate::qemu_exit::{exit, EXIT_COMPLETED, EXIT_FAULT, EXIT_UNDETECTED};
 
 /// `<kind>:<axis or ->:<period>` or `none`.

@@ -1,169 +1,80 @@
-//! What the control interrupt runs in QEMU: one period of the core's simulated run.
-//! [`Rig::control`] is the servo step against the simulated world (the part the board's
-//! interrupt runs, and the part that is measured), [`Rig::finish`] records the period's
-//! true-state figures and advances the world (not measured).
-//!
-//! Faults are injected through the simulated run's own hook (`SimRun`'s scripted
-//! `TimedInjection` of the scenario file, into the simulated world's sensors and inputs),
-//! exactly as host-sim injects them, so the firmware's detection is compared with
-//! host-sim's period for period.
-//!
-//! Besides the scenario table, three self-test names make the real binary take its
-//! fault paths at boot: `selftest_panic` (a panic, exit 101), `selftest_hardfault` (an
-//! undefined instruction, exit 102) and `selftest_exception` (an interrupt without a
-//! handler, exit 103).
+//! The QEMU rig: what the control interrupt runs in QEMU. One simulated run of the
+//! machine ([`FwRun`]: controller-core's `SimRun` around the core's `Machine`, its
+//! planner's executor and scope in the firmware's static memory) against
+//! the simulated world, driven either by a scenario ([`ScenarioDriver`]: scripted
+//! commands or a program's requests, the true-state figures, an end) or by the host link
+//! ([`LinkDriver`]: the link's events, the operator panel, the recording; no end). The
+//! command line names which (`link`, or a scenario).
 
-use controller_core::servo::faults::FaultRecord;
-use controller_core::servo::io::Inputs;
+use controller_core::machine::ControlSide;
 use controller_core::servo::snapshot::Snapshot;
-use controller_core::sim::run::SimRun;
-use controller_core::sim::truth::TruthFigures;
-use firmware::scenarios::{self, ScenarioError};
+use controller_core::settings::Settings;
 
+use super::cmdline;
+use super::link::LinkDriver;
+use super::plan_watch::PlanWatch;
+use super::scenario::{End, ScenarioDriver};
 use crate::board::inputs::SafetyPins;
-use crate::qemu_exit::{exit, EXIT_CONFIG};
+use crate::machine_slot::FwRun;
 
-/// A finished run.
-#[derive(Clone, Copy, Debug)]
-pub struct End {
-    /// Scenario name (the file stem).
-    pub name: &'static str,
-    /// The true-state figures of the whole run.
-    pub figures: TruthFigures,
-    /// Periods run.
-    pub periods: u32,
-    /// The scenario injects a fault.
-    pub injects: bool,
-    /// The run's period of the injection, once it happened.
-    pub injected_at: Option<u32>,
-    /// The first latched fault (the servo's fault log).
-    pub fault: Option<FaultRecord>,
+/// Command-line name of the link rig.
+pub const LINK_RIG: &str = "link";
+
+/// What drives the run.
+// (one of them for the whole boot, in the control task's local resource: 2.3 KB once)
+#[allow(clippy::large_enum_variant)]
+enum Driver {
+    Scenario(ScenarioDriver),
+    Link(LinkDriver),
 }
 
 /// The control interrupt's state in QEMU.
 pub struct Rig {
-    run: SimRun<f32>,
-    /// The board's e-stop, limit and amplifier-fault pins: QEMU reads them as healthy
-    /// (all low), and the servo step sees them through the simulated world as the board's
-    /// servo does.
-    safety: SafetyPins,
-    /// The simulated world's own inputs (its injected faults, which persist), without
-    /// the pins: each period the world reads these merged with the pins.
-    world_inputs: Inputs,
-    injects: bool,
-    name: &'static str,
-}
-
-/// `a` or `b`, per input.
-fn merged(a: Inputs, b: Inputs) -> Inputs {
-    let mut m = a;
-    m.estop |= b.estop;
-    m.overrun |= b.overrun;
-    for i in 0..a.limits.len() {
-        m.limits[i][0] |= b.limits[i][0];
-        m.limits[i][1] |= b.limits[i][1];
-        m.amp_fault[i] |= b.amp_fault[i];
-    }
-    m
-}
-
-/// `a` without what `pins` holds active.
-fn without(a: Inputs, pins: Inputs) -> Inputs {
-    let mut m = a;
-    m.estop &= !pins.estop;
-    m.overrun &= !pins.overrun;
-    for i in 0..a.limits.len() {
-        m.limits[i][0] &= !pins.limits[i][0];
-        m.limits[i][1] &= !pins.limits[i][1];
-        m.amp_fault[i] &= !pins.amp_fault[i];
-    }
-    m
-}
-
-/// The self-tests: the board's fault handlers on the real binary.
-fn self_test(name: &str) {
-    match name {
-        "selftest_panic" => {
-            defmt::info!("self-test: panic");
-            panic!("self-test panic");
-        }
-        "selftest_hardfault" => {
-            defmt::info!("self-test: HardFault (undefined instruction)");
-            cortex_m::asm::udf();
-        }
-        "selftest_exception" => {
-            defmt::info!("self-test: an interrupt without a handler (EXTI0)");
-            let irq = stm32f4xx_hal::pac::Interrupt::EXTI0;
-            cortex_m::peripheral::NVIC::pend(irq);
-            // SAFETY: EXTI0 has no handler of its own: it is meant to reach the default
-            // handler at once (interrupts are enabled inside init for that alone; the
-            // handler never returns).
-            unsafe {
-                cortex_m::peripheral::NVIC::unmask(irq);
-                cortex_m::interrupt::enable();
-            }
-        }
-        _ => {}
-    }
+    run: &'static mut FwRun,
+    driver: Driver,
+    plan: PlanWatch,
 }
 
 impl Rig {
-    /// The scenario named on the semihosting command line, decoded and validated; exits
-    /// QEMU with [`EXIT_CONFIG`] if it is unknown or rejected.
-    pub fn boot(safety: SafetyPins) -> Self {
-        let (name, cfg) = super::cmdline::with_scenario_name(|arg| {
-            self_test(arg);
-            let Some(name) = scenarios::names().find(|n| *n == arg) else {
-                defmt::error!("unknown scenario `{=str}`; this build has:", arg);
-                for n in scenarios::names() {
-                    defmt::error!("  {=str}", n);
-                }
-                exit(EXIT_CONFIG)
-            };
-            match scenarios::load(name) {
-                Ok(cfg) => (name, cfg),
-                Err(ScenarioError::Unknown | ScenarioError::Decode) => {
-                    defmt::error!("scenario `{=str}`: its table entry does not decode", name);
-                    exit(EXIT_CONFIG)
-                }
-            }
-        });
-        let run = match SimRun::<f32>::new(&cfg) {
-            Ok(r) => r,
-            Err(e) => {
-                defmt::error!(
-                    "scenario `{=str}`: invalid configuration: {}",
-                    name,
-                    defmt::Display2Format(&e)
-                );
-                exit(EXIT_CONFIG)
-            }
+    /// The run the command line names, built in `slot` (`link`, or a scenario; only the
+    /// link rig has an operator panel on `panel_usart`).
+    pub fn boot(
+        safety: SafetyPins,
+        slot: &'static mut Option<FwRun>,
+        control: ControlSide<'static>,
+        panel_usart: stm32f4xx_hal::pac::USART1,
+    ) -> Self {
+        let (run, driver) = if cmdline::with_scenario_name(|n| n == LINK_RIG) {
+            let (run, d) = LinkDriver::boot(slot, control, panel_usart);
+            (run, Driver::Link(d))
+        } else {
+            let (run, d) = ScenarioDriver::boot(slot, safety);
+            (run, Driver::Scenario(d))
         };
-        defmt::info!(
-            "scenario {=str}: {=u32} periods at {=u32} Hz",
-            name,
-            cfg.periods,
-            cfg.servo.rate_hz
-        );
         Self {
             run,
-            safety,
-            world_inputs: Inputs::default(),
-            injects: cfg.inject.is_some(),
-            name,
+            driver,
+            plan: PlanWatch::new(),
         }
     }
 
-    /// The servo step of this period against the simulated world (whose inputs are its
-    /// own, injected ones and the board's pins).
+    /// The link rig's machine settings and control rate (what the link task starts
+    /// from); `None` for a scenario.
+    pub fn link_machine(&self) -> Option<(Settings, u32)> {
+        match &self.driver {
+            Driver::Link(d) => Some(d.machine_settings(self.run)),
+            Driver::Scenario(_) => None,
+        }
+    }
+
+    /// The machine's period (the part the board's interrupt runs, and that is measured).
     #[inline]
     pub fn control(&mut self) -> &Snapshot {
-        let pins = self.safety.read();
-        self.run.world_mut().inputs = merged(self.world_inputs, pins);
-        self.run.control();
-        // an injection in this period added to the world's inputs: keep it
-        self.world_inputs = merged(self.world_inputs, without(self.run.world().inputs, pins));
-        self.run.servo().snapshot()
+        let plan = self.plan.since_last();
+        match &mut self.driver {
+            Driver::Scenario(d) => d.control(self.run, plan),
+            Driver::Link(d) => d.control(self.run, plan),
+        }
     }
 
     /// The end of the control interrupt. QEMU's emulated deadline is not the scenario's
@@ -178,21 +89,16 @@ impl Rig {
         self.run.servo().snapshot()
     }
 
-    /// Figures and world advance; the result once every period has run.
+    /// The period's figures (a scenario's) and the world's advance; the result once a
+    /// scenario is over (the link rig runs until QEMU is stopped).
     #[inline]
     pub fn finish(&mut self) -> Option<End> {
-        self.run.finish_period();
-        if self.run.done() {
-            Some(End {
-                name: self.name,
-                figures: self.run.figures(),
-                periods: self.run.periods_run(),
-                injects: self.injects,
-                injected_at: self.run.injected_at(),
-                fault: self.run.servo().faults().first(),
-            })
-        } else {
-            None
+        match &mut self.driver {
+            Driver::Scenario(d) => d.finish(self.run),
+            Driver::Link(d) => {
+                d.finish(self.run);
+                None
+            }
         }
     }
 }

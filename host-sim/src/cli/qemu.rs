@@ -1,5 +1,5 @@
 //! `gantry --qemu`: the real firmware ELF (its QEMU build) booted on QEMU's netduinoplus2
-//! in the link rig (`firmware/src/qemu/link_rig.rs`: the machine's supervisor, planner
+//! in the link rig (`firmware/src/qemu/link.rs`: the machine's supervisor, planner
 //! and servo step against the simulated gantry), its USART2 on a local TCP socket. The
 //! bytes are the firmware's own: its UART interrupt, link task and queues, its control
 //! interrupt.

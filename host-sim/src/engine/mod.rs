@@ -8,6 +8,7 @@
 
 pub mod continuous;
 pub mod discrete;
+pub mod split_memory;
 
 use anyhow::Result;
 use controller_core::num::fixed::{FxQ16, FxQ32};

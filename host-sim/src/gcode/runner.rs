@@ -2,11 +2,13 @@
 //! and the servo step the board runs, measured against the programmed path.
 //!
 //! The program is parsed and checked against the machine's travel first; a rejected
-//! program runs nothing. Then, as on the board: arm, (home if the machine homes), `Run`;
-//! each period the planner plans ahead and its executor samples the reference
-//! ([`MotionPlanner::tick`]), the servo takes it ([`Servo::set_planner_reference`]) and
-//! runs its period against the simulated machine. Segments are streamed into the
-//! planner's fixed queue as slots free up, as the link does.
+//! program runs nothing. Then the machine (controller-core [`Machine`], the board's
+//! supervisor, planner and servo step, in a simulated run) gets the requests a host sends
+//! over the link: arm, home if the machine homes, `Run`, the program's segments while its
+//! request queue has room, the end of the program. The machine executes them, plans,
+//! samples its planner's reference each period, runs the servo step against the simulated
+//! machine, stops at the program's end, and aborts on a fault: this runner only sends
+//! and measures.
 //!
 //! Figures: the executed reference against the programmed path (corner deviation: the
 //! planner's blending) and against the tolerance in force at each move (violations), the
@@ -15,7 +17,7 @@
 //! reached on feed moves over the achievable one, and the machine time over a lower bound
 //! no planner within the limits can beat.
 //!
-//! [`Servo::set_planner_reference`]: controller_core::servo::Servo::set_planner_reference
+//! [`Machine`]: controller_core::machine::Machine
 
 use crate::gcode::measure::{length, MetricSample, PathMetrics};
 use crate::gcode::program::{
@@ -25,17 +27,21 @@ use crate::gcode::report::{limits_of, realtime_ratio, ComputeJson, GcodeReport};
 use crate::gcode::{MoveKind, Program};
 use crate::sim_gantry::machine_and_planner_with;
 use anyhow::{anyhow, bail, Result};
+use controller_core::machine::messages::{Outcome, ProgramEnd, Request};
+use controller_core::machine::scope::Scope;
+use controller_core::machine::{MachineMemory, MachinePlanner};
 use controller_core::motion::planner::PathSample;
-use controller_core::servo::{Command, ServoState};
+use controller_core::servo::ServoState;
 use controller_core::settings::{Settings, FACTORY};
 use controller_core::sim::run::SimRun;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::time::Instant;
 
-/// The planner used here: the machine's (the board's sizes: `MACHINE_SEGMENTS` segment
-/// slots, `MACHINE_SPANS` spans, the split channels' spans and steps between the halves).
-pub type Planner = controller_core::machine::MachinePlanner;
+/// The simulated run of a program: the machine with its planner (the board's sizes:
+/// `MACHINE_SEGMENTS` segment slots, `MACHINE_SPANS` spans, the split channels' spans and
+/// steps between the halves, both halves in the period), boxed.
+type ProgramRun = SimRun<f32, Box<MachineMemory<MachinePlanner>>, MachinePlanner>;
 
 /// Simulated time allowed for homing a machine that homes, s.
 const HOMING_TIMEOUT_S: f64 = 120.0;
@@ -48,7 +54,7 @@ const PROGRESS_PERIODS: u64 = 100_000;
 const PLOT_POINTS: u64 = 20_000;
 
 /// Run until the servo leaves `state` (homing) or `max` periods pass.
-fn run_while(run: &mut SimRun<f32>, state: ServoState, max: u64) -> Result<()> {
+fn run_while(run: &mut ProgramRun, state: ServoState, max: u64) -> Result<()> {
     let mut k = 0u64;
     while run.servo().state() == state {
         if k >= max {
@@ -61,37 +67,40 @@ fn run_while(run: &mut SimRun<f32>, state: ServoState, max: u64) -> Result<()> {
     Ok(())
 }
 
-/// Arm; home when the machine homes (it refuses `Run` before); `Run`: the servo then runs
-/// the planner.
-fn arm_home_and_run(run: &mut SimRun<f32>) -> Result<()> {
-    let s = *run.control_with(&[Command::Arm]);
+/// `r` sent and executed (a servo request's outcome is known after its period); its
+/// refusal is the error.
+fn request(run: &mut ProgramRun, r: Request, what: &str) -> Result<()> {
+    let before = run.machine().executed();
+    run.machine_mut().submit(r);
+    run.control_with(&[]);
     run.finish_period();
-    if let Some((_, why)) = s.refused {
-        bail!("arming refused: {}", why.message());
+    if run.machine().executed() == before {
+        bail!("{what}: the machine did not execute the request");
     }
-    let s = *run.control_with(&[Command::Run]);
+    match run.machine().last() {
+        Outcome::Refused(why) => bail!("{what} refused: {why}"),
+        _ => Ok(()),
+    }
+}
+
+/// Arm; `Run` (a machine that homes refuses it before: home, then `Run`): the machine
+/// then runs its planner.
+fn arm_home_and_run(run: &mut ProgramRun) -> Result<()> {
+    request(run, Request::Arm, "arming")?;
+    if request(run, Request::Run, "running the program").is_ok() {
+        return Ok(());
+    }
+    request(run, Request::Home, "homing")?;
     let dt = run.servo().period_s();
-    if s.refused.is_some() {
-        let s = *run.control_with(&[Command::Home]);
-        run.finish_period();
-        if let Some((_, why)) = s.refused {
-            bail!("homing refused: {}", why.message());
-        }
-        run_while(run, ServoState::Homing, (HOMING_TIMEOUT_S / dt) as u64)?;
-        if run.servo().state() != ServoState::Idle {
-            bail!(
-                "homing failed: state {:?}, fault {:?}",
-                run.servo().state(),
-                run.servo().faults().first()
-            );
-        }
-        let s = *run.control_with(&[Command::Run]);
-        if let Some((_, why)) = s.refused {
-            bail!("running the program refused: {}", why.message());
-        }
+    run_while(run, ServoState::Homing, (HOMING_TIMEOUT_S / dt) as u64)?;
+    if run.servo().state() != ServoState::Idle {
+        bail!(
+            "homing failed: state {:?}, fault {:?}",
+            run.servo().state(),
+            run.servo().faults().first()
+        );
     }
-    run.finish_period();
-    Ok(())
+    request(run, Request::Run, "running the program")
 }
 
 /// The progress bar of a long simulation, over its `segments`.
@@ -104,26 +113,19 @@ fn progress_bar(segments: usize) -> ProgressBar {
     b
 }
 
-/// Segments from `segs[next..]` into the planner's queue while it has free slots, as the
-/// link streams them; the index of the next one to send.
-fn stream(
-    mp: &mut Planner,
-    segs: &[PlanSegment],
-    mut next: usize,
-    program: &Program,
-    name: &str,
-) -> Result<usize> {
-    while next < segs.len() && mp.free_slots() > 0 {
-        mp.push(&segs[next].seg).map_err(|e| {
-            let line = program
-                .moves
-                .get(segs[next].moves.start)
-                .map_or(0, |m| m.line);
-            anyhow!("{name}:{line}: the planner rejected the move: {e:?}")
-        })?;
+/// Segments from `segs[next..]` into the machine's request queue while it has room, as
+/// the link streams them, then the end of the program; the index of the next one to send
+/// (`segs.len() + 1` once the end was sent).
+fn stream(run: &mut ProgramRun, segs: &[PlanSegment], mut next: usize) -> usize {
+    while next <= segs.len() && run.machine().free_slots() > 0 {
+        let r = match segs.get(next) {
+            Some(s) => Request::Segment(s.seg),
+            None => Request::EndProgram,
+        };
+        run.machine_mut().submit(r);
         next += 1;
     }
-    Ok(next)
+    next
 }
 
 /// The periods a program may take at most (a generous bound on its machine time: every
@@ -158,14 +160,24 @@ fn metric_sample(sample: &PathSample, t_s: f64, truth_mm: [f64; 3], along_mm: f6
     }
 }
 
-/// The machine stopped on a fault: the planner aborted, the servo run until it has
-/// stopped; the fault, as the report names it.
-fn stop_on_fault(run: &mut SimRun<f32>, mp: &mut Planner) -> Result<String> {
+/// The machine stopped on a fault (its supervisor aborted the program): run until the
+/// servo has stopped; the fault, as the report names it.
+fn stop_on_fault(run: &mut ProgramRun) -> Result<String> {
     let f = run.servo().faults().first();
     let fault = format!("{f:?}");
-    mp.abort();
     run_while(run, ServoState::Stopping, 1_000_000)?;
     Ok(fault)
+}
+
+/// Why the machine stopped the program before its end, with the G-code line of the
+/// segment it was on.
+fn refusal(run: &ProgramRun, program: &Program, name: &str) -> anyhow::Error {
+    let tag = run.machine().path_sample().tag as usize;
+    let line = program.moves.get(tag).map_or(0, |m| m.line);
+    match run.machine().last() {
+        Outcome::Refused(why) => anyhow!("{name}:{line}: the machine refused the program: {why}"),
+        _ => anyhow!("{name}:{line}: the machine stopped the program"),
+    }
 }
 
 /// Run `program_path` on the built-in gantry or on `machine`; a rejected program is a
@@ -191,7 +203,13 @@ pub fn run_with_settings(
     cfg.hold = true;
     cfg.periods = u32::MAX;
     cfg.inject = None;
-    let mut run = SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    cfg.program = false;
+    let memory = Box::new(MachineMemory {
+        planner: MachinePlanner::BLANK,
+        scope: Scope::new(),
+    });
+    let mut run: ProgramRun =
+        SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
     let start = run.world().state().map(|s| s.pos);
     // rejected before any motion
     if let Err(e) = load_program_with(program_path, &parse_options(settings, start), &travel) {
@@ -215,7 +233,6 @@ pub fn run_with_settings(
     let compress_started = Instant::now();
     let (segs, compression) = segments(&program, tol);
     let compress_s = compress_started.elapsed().as_secs_f64();
-    let mut mp = Box::new(Planner::new(&pcfg, here).map_err(|e| anyhow!("planner: {e:?}"))?);
 
     let (max_periods, estimate) = period_bounds(&program, dt);
     let bar = (progress && estimate > PROGRESS_PERIODS).then(|| progress_bar(segs.len()));
@@ -234,21 +251,15 @@ pub fn run_with_settings(
     // time begins after them (its clock stood still)
     let mut held_periods = 0u64;
     loop {
-        next = stream(&mut mp, &segs, next, &program, &name)?;
+        next = stream(&mut run, &segs, next);
         if let Some(b) = &bar {
-            b.set_position(next as u64);
+            b.set_position(next.min(segs.len()) as u64);
         }
         // the program's clock stands still while the servo holds its start for the brakes
-        // to open (`Servo::motion_held`), as the machine's supervisor does
+        // to open (`Servo::motion_held`): the machine's supervisor does not tick it
         let held = run.servo().motion_held();
-        let sample: PathSample = if held {
-            PathSample::default()
-        } else {
-            let s = mp.tick();
-            run.set_planner_reference(&s);
-            s
-        };
-        let snap = *run.control_with(&[]);
+        run.control_with(&[]);
+        let sample: PathSample = *run.machine().path_sample();
         let truth = run.world().state().map(|s| s.pos);
         run.finish_period();
         k += 1;
@@ -260,12 +271,18 @@ pub fn run_with_settings(
             metrics.add(&m, finished_at.is_none(), k.is_multiple_of(every));
         }
 
-        if snap.state == ServoState::Fault || snap.state == ServoState::Stopping {
-            fault = Some(stop_on_fault(&mut run, &mut mp)?);
-            break;
-        }
-        if !held && finished_at.is_none() && next == segs.len() && mp.is_idle() {
-            finished_at = Some(k - held_periods);
+        match run.machine().program_end() {
+            ProgramEnd::Running => {}
+            ProgramEnd::Completed => {
+                if finished_at.is_none() {
+                    finished_at = Some(k - held_periods);
+                }
+            }
+            ProgramEnd::Fault(_) => {
+                fault = Some(stop_on_fault(&mut run)?);
+                break;
+            }
+            _ => return Err(refusal(&run, &program, &name)),
         }
         if finished_at.is_some() {
             rest += 1;
@@ -282,11 +299,6 @@ pub fn run_with_settings(
     }
     let compute_s = started.elapsed().as_secs_f64();
     let duration_s = finished_at.unwrap_or(k - held_periods) as f64 * dt;
-    if fault.is_none() {
-        // back to Idle, holding the end point
-        run.control_with(&[Command::Stop]);
-        run.finish_period();
-    }
     let realtime = realtime_ratio(k as f64 * dt, compute_s);
     let mut report = metrics.report(&program, segs.len(), duration_s, limits, fault, realtime);
     report.compression = compression;

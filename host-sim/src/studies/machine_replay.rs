@@ -1,7 +1,7 @@
 //! The machine behind the link in the firmware (the QEMU link rig) against the same machine
 //! in host-sim, bit for bit: the rig records every input its machine takes, period by
 //! period, and a digest of what the machine did (controller-core `machine::record`,
-//! firmware `qemu::link_rig`); [`replay`] feeds the same inputs at the same periods into
+//! firmware `qemu::link`); [`replay`] feeds the same inputs at the same periods into
 //! the same machine — the supervisor, the planner split into its executor and planning
 //! half as the firmware splits them (the planning half run when the firmware ran it),
 //! the servo step — against the same simulated gantry as `gantry --sim`
@@ -23,13 +23,12 @@ use std::collections::BTreeMap;
 use anyhow::{anyhow, bail, Context, Result};
 use controller_core::machine::messages::Request;
 use controller_core::machine::record::{records, Digest, Record, BLOCK_PERIODS};
-use controller_core::machine::{
-    Channels, Down, Machine, MachineMemory, MachineTaskPlanner, MACHINE_SEGMENTS, MACHINE_SPANS,
-};
-use controller_core::motion::planner::{PlannerChannels, SplitExecutor, SplitPlanner};
+use controller_core::machine::{Channels, Down, Machine, MachineMemory};
+use controller_core::motion::planner::SplitExecutor;
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::servo::ServoState;
 
+use crate::engine::split_memory::{PlanTask, SplitParts};
 use crate::sim_gantry::{designed_settings, gantry_world};
 
 /// The digest line at the end of a block of [`BLOCK_PERIODS`] periods.
@@ -153,30 +152,23 @@ impl Agreement {
 }
 
 type Exec = SplitExecutor<'static>;
-type Task = SplitPlanner<'static, MACHINE_SEGMENTS, MACHINE_SPANS>;
+type Task = PlanTask<'static>;
 type SplitMachine = Machine<Box<MachineMemory<Exec>>, Exec>;
 
 /// The link rig's machine: factory settings with the designed axis models, the planner
-/// split as the firmware splits it (channels and planning half leaked: they live as long
-/// as the replay's caller), in the world of `gantry --sim`.
+/// split as the firmware splits it (its parts leaked: they live as long as the replay's
+/// caller), in the world of `gantry --sim`.
 fn machine() -> Result<(SplitMachine, Task, controller_core::sim::world::World)> {
     let settings = designed_settings();
     let (world, rate_hz) = gantry_world(&settings, None, false)?;
-    let ch: &'static mut PlannerChannels = Box::leak(Box::new(PlannerChannels::new()));
-    let (ex, pl) = ch.split();
-    let planner: &'static mut MachineTaskPlanner = Box::leak(Box::new(MachineTaskPlanner::BLANK));
-    let mut exec = SplitExecutor::DETACHED;
-    exec.attach(ex);
-    let task = SplitPlanner::new(planner, pl);
+    let parts: &'static mut SplitParts = Box::leak(Box::new(SplitParts::new()));
+    let (memory, task) = parts.split();
     let m = Machine::new(
         &settings,
         rate_hz,
         world.counter_registers(),
         world.counts(),
-        Box::new(MachineMemory {
-            planner: exec,
-            scope: controller_core::machine::scope::Scope::new(),
-        }),
+        memory,
     )
     .map_err(|e| anyhow!("machine: {e:?}"))?;
     Ok((m, task, world))

@@ -26,10 +26,9 @@
 //! host-sim agrees).
 
 use crate::builtin::resolve_all;
-use crate::engine::discrete::{self, Observer};
+use crate::engine::discrete::{self, Observer, PeriodView};
 use anyhow::{bail, Context, Result};
 use controller_core::servo::faults::FaultRecord;
-use controller_core::sim::run::SimRun;
 use gantry_scenario::file::ScenarioFile;
 use gantry_scenario::{Mode, Numeric};
 
@@ -134,9 +133,9 @@ struct Faults {
 }
 
 impl Observer<f32> for Faults {
-    fn period(&mut self, run: &SimRun<f32>) {
-        self.injected = run.injected_at();
-        self.first = run.servo().faults().first();
+    fn period(&mut self, run: &PeriodView<'_, f32>) {
+        self.injected = run.injected_at;
+        self.first = run.servo.faults().first();
     }
 }
 

@@ -8,7 +8,7 @@
 
 use crate::builtin;
 use crate::builtin::resolve_all;
-use crate::engine::discrete::{self, Observer};
+use crate::engine::discrete::{self, Observer, PeriodView};
 use crate::engine::{simulate, RunResult};
 use crate::jobs;
 use anyhow::{anyhow, Context, Result};
@@ -165,12 +165,12 @@ struct EstimateLog {
 }
 
 impl Observer<f32> for EstimateLog {
-    fn period(&mut self, run: &SimRun<f32>) {
-        let st = run.servo().controller().states();
+    fn period(&mut self, run: &PeriodView<'_, f32>) {
+        let st = run.servo.controller().states();
         let axes = [0, 1, 2].map(|i| estimate_row(&st[i].adapt));
         // the servo step already committed this period: the estimates at its end; the
         // sample at period k shows the estimates the law used in period k
-        let k = run.periods_run();
+        let k = run.periods_run;
         if k.is_multiple_of(self.every) {
             self.log.push(EstimateSample {
                 t: f64::from(k) * self.dt_s,

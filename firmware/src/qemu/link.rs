@@ -1,10 +1,12 @@
-//! The link rig (QEMU, command-line name `link`): the machine a host commands over
-//! USART2 — the core's [`Machine`] (supervisor, planner, servo step) with factory
+//! The link rig's driver (QEMU, command-line name `link`): the machine a host commands
+//! over USART2 — the core's [`Machine`] (supervisor, planner, servo step) with factory
 //! settings and the designed axis models, against the simulated physical gantry of
 //! `gantry --sim` (host-sim/scenarios/gcode.toml, with limit switches where homing
 //! expects them, both built by controller-core's `sim::gantry` as host-sim builds them;
-//! the rig's world has no encoder index pulses). The control interrupt runs [`Machine::linked_period`] and advances the
-//! world; the link task (`crate::link`) talks to the host. It runs until QEMU is stopped.
+//! the rig's world has no encoder index pulses), in a linked simulated run
+//! (`SimRun::linked`, the rig's one run, [`super::rig`]). Each period runs
+//! [`Machine::linked_period_seen`] and the world advances; the link task (`crate::link`)
+//! talks to the host. It runs until QEMU is stopped.
 //!
 //! The simulated machine's e-stop is pressed and released on its operator panel, USART1
 //! ([`super::panel`]): each period, before the servo step, what the panel received sets
@@ -20,23 +22,24 @@
 //! each period's 16-bit tag. host-sim replays them into the same machine and world and
 //! compares bit for bit (`host-sim machine-replay`, firmware/README-firmware.md).
 //!
+//! [`Machine`]: controller_core::machine::Machine
 //! [`Machine::linked_period_seen`]: controller_core::machine::Machine::linked_period_seen
+//! [`World::set_estop`]: controller_core::sim::world::World::set_estop
 
-use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use core::sync::atomic::Ordering;
 
 use controller_core::link::LinkClock;
 use controller_core::machine::record::{Digest, RecordRef, Recorder, BLOCK_PERIODS};
-use controller_core::machine::{save_due_into, ControlSide, LinkSide};
+use controller_core::machine::{save_due_into, ControlSide, LinkSide, Machine};
 use controller_core::servo::snapshot::Snapshot;
 use controller_core::settings::store::{BlockingFlash, RamFlash, SettingsStore};
 use controller_core::settings::Settings;
 use controller_core::sim::gantry::{designed_settings, gantry_world, GantryOptions};
-use controller_core::sim::run::RunConfig;
-use controller_core::sim::world::World;
+use controller_core::sim::run::{RunConfig, SimRun};
 
 use super::panel::Panel;
 use crate::link::{SettingsSaver, LINK_CLOCK_MS};
-use crate::machine_slot::{self, FwMachine};
+use crate::machine_slot::{self, FwRun};
 use crate::qemu_exit::{exit, EXIT_CONFIG};
 
 /// The link rig's settings flash: two 4 KiB pages in RAM (QEMU models no flash
@@ -73,29 +76,12 @@ impl SettingsSaver for RamSaver {
     }
 }
 
-/// Runs of the planning half completed (the `plan` task, after each).
-static PLAN_RUNS: AtomicU32 = AtomicU32::new(0);
-/// The planning half is running (a control period that finds it so preempted it).
-static PLAN_BUSY: AtomicBool = AtomicBool::new(false);
-
-/// The `plan` task starts a run of the planning half.
-pub fn plan_started() {
-    PLAN_BUSY.store(true, Ordering::Release);
-}
-
-/// The `plan` task finished a run.
-pub fn plan_finished() {
-    PLAN_RUNS.fetch_add(1, Ordering::AcqRel);
-    PLAN_BUSY.store(false, Ordering::Release);
-}
-
 /// Bytes of one period's records (a settings tree is about 630).
 const RECORD_BYTES: usize = 2048;
 
-/// The control interrupt's state in the link rig.
-pub struct LinkRig {
-    machine: &'static mut FwMachine,
-    world: World,
+/// What the link rig adds to its run: the operator panel, the link's control side and
+/// clock, the recording of the machine's inputs.
+pub struct LinkDriver {
     /// The operator panel: the world's e-stop.
     panel: Panel,
     control: ControlSide<'static>,
@@ -105,22 +91,20 @@ pub struct LinkRig {
     clock: LinkClock,
     /// This period's inputs, for the log.
     recorder: Recorder<RECORD_BYTES>,
-    /// Runs of the planning half seen so far.
-    plan_seen: u32,
     digest: Digest,
     /// The block's per-period tags (u16, little-endian).
     tags: [u8; 2 * BLOCK_PERIODS],
 }
 
-impl LinkRig {
-    /// The machine built in `slot` (in place: it is too large to pass around on the
+impl LinkDriver {
+    /// The linked run built in `slot` (in place: it is too large to pass around on the
     /// stack), its operator panel on `panel_usart`; exits QEMU with [`EXIT_CONFIG`] if
     /// the machine description is rejected.
     pub fn boot(
-        slot: &'static mut Option<FwMachine>,
+        slot: &'static mut Option<FwRun>,
         control: ControlSide<'static>,
         panel_usart: stm32f4xx_hal::pac::USART1,
-    ) -> Self {
+    ) -> (&'static mut FwRun, Self) {
         let run: RunConfig = match postcard::from_bytes(firmware::scenarios::LINK_RUN) {
             Ok(r) => r,
             Err(_) => {
@@ -140,85 +124,71 @@ impl LinkRig {
             defmt::error!("link rig: the simulated machine is rejected");
             exit(EXIT_CONFIG)
         };
-        let Ok(machine) = machine_slot::build(
-            slot,
-            &settings,
-            rate_hz,
-            world.counter_registers(),
-            world.counts(),
-        ) else {
+        let (raw, counts) = (world.counter_registers(), world.counts());
+        let machine = machine_slot::memory()
+            .ok()
+            .and_then(|m| Machine::new(&settings, rate_hz, raw, counts, m).ok());
+        let Some(machine) = machine else {
             defmt::error!("link rig: the machine cannot be built from the factory settings");
             exit(EXIT_CONFIG)
         };
+        let run = slot.insert(SimRun::linked(machine, world));
         defmt::info!(
             "link rig: the simulated gantry at {=u32} Hz, host link on USART2, operator panel on USART1",
             rate_hz
         );
-        Self {
-            machine,
-            world,
+        let driver = Self {
             panel: Panel::new(panel_usart),
             control,
             rate_hz,
             periods: 0,
             clock: LinkClock::new(rate_hz),
             recorder: Recorder::new(),
-            plan_seen: 0,
             digest: Digest::new(),
             tags: [0; 2 * BLOCK_PERIODS],
-        }
+        };
+        (run, driver)
     }
 
     /// The machine's period: the operator panel, then the link's events, supervisor,
-    /// planner, servo step.
+    /// planner, servo step. `plan`: the planning half's runs since the last period and
+    /// whether it is running (recorded when not exactly one run).
     #[inline]
-    pub fn control(&mut self) -> &Snapshot {
+    pub fn control<'r>(&mut self, run: &'r mut FwRun, plan: (u32, bool)) -> &'r Snapshot {
         // (the servo counts the period at the start of its step: this one is the next)
-        let period = self.machine.servo().snapshot().period.wrapping_add(1);
+        let period = run.servo().snapshot().period.wrapping_add(1);
         // (the link's clock as the link task reads it: the periods finished so far)
         let link_ms = LINK_CLOCK_MS.load(Ordering::Acquire);
-        // the planning half's runs since the last period (recorded when not exactly one)
-        let runs = PLAN_RUNS.load(Ordering::Acquire);
-        let busy = PLAN_BUSY.load(Ordering::Acquire);
-        let ran = runs.wrapping_sub(self.plan_seen);
-        self.plan_seen = runs;
+        let (ran, busy) = plan;
         if ran != 1 || busy {
             self.recorder.note(RecordRef::Plan { runs: ran, busy });
         }
         if let Some(pressed) = self.panel.poll(period, link_ms) {
-            self.world.set_estop(pressed);
+            run.world_mut().set_estop(pressed);
             self.recorder.note(RecordRef::Estop(pressed));
         }
         let recorder = &mut self.recorder;
-        self.machine
-            .linked_period_seen(&mut self.world, &mut self.control, |seen| {
-                recorder.note(seen.into())
-            });
-        self.machine.servo().snapshot()
+        run.linked_period(&mut self.control, |seen| recorder.note(seen.into()))
     }
 
     /// The settings the machine runs and its control rate.
-    pub fn machine_settings(&self) -> (Settings, u32) {
-        (*self.machine.settings(), self.rate_hz)
-    }
-
-    pub fn snapshot(&self) -> &Snapshot {
-        self.machine.servo().snapshot()
+    pub fn machine_settings(&self, run: &FwRun) -> (Settings, u32) {
+        (*run.machine().settings(), self.rate_hz)
     }
 
     /// The world advances; the link's clock follows the machine's.
     #[inline]
-    pub fn finish(&mut self) {
-        self.world.advance();
+    pub fn finish(&mut self, run: &mut FwRun) {
+        run.advance();
         self.periods += 1;
-        self.record();
+        self.record(run);
         LINK_CLOCK_MS.store(self.clock.period(), Ordering::Release);
     }
 
     /// The period's records and its tag in the log; the digest every [`BLOCK_PERIODS`].
-    fn record(&mut self) {
+    fn record(&mut self, run: &FwRun) {
         let p = self.periods as u32;
-        let tag = self.digest.fold(self.machine.servo().snapshot());
+        let tag = self.digest.fold(run.servo().snapshot());
         let i = (p as usize + BLOCK_PERIODS - 1) % BLOCK_PERIODS;
         self.tags[2 * i..2 * i + 2].copy_from_slice(&tag.to_le_bytes());
         if !self.recorder.is_empty() {
