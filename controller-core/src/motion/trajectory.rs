@@ -337,6 +337,24 @@ impl<R: Real> Polyline<R> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn polyline_distance_is_to_the_nearest_edge_and_edges_close_the_loop() {
+        let sq = Polyline::<f64>::square(Vec3::zero(), 40.0, 50.0, 1000.0).unwrap();
+        assert_eq!(sq.edges(), 4);
+        assert_eq!(sq.edge_end(3), Some(Vec3::zero()));
+        assert_eq!(sq.edge_end(4), None);
+        // on an edge, inside near one, outside beyond a corner, above the plane
+        assert_eq!(sq.distance(Vec3::new(20.0, 0.0, 0.0)), 0.0);
+        assert!((sq.distance(Vec3::new(20.0, 3.0, 0.0)) - 3.0).abs() < 1e-12);
+        assert!((sq.distance(Vec3::new(43.0, 44.0, 0.0)) - 5.0).abs() < 1e-12);
+        assert!((sq.distance(Vec3::new(0.0, 20.0, 2.0)) - 2.0).abs() < 1e-12);
+        let open =
+            Polyline::<f64>::new(&[Vec3::zero(), Vec3::new(10.0, 0.0, 0.0)], false, 1.0, 1.0)
+                .unwrap();
+        assert_eq!(open.edges(), 1);
+        assert!((open.distance(Vec3::new(-3.0, 4.0, 0.0)) - 5.0).abs() < 1e-12);
+    }
+
     fn check_derivatives(tr: Trajectory<f64>) {
         let h = 1e-5;
         for k in 0..50 {

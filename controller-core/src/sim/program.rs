@@ -77,3 +77,62 @@ impl ProgramFeed {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine::port::REQUEST_QUEUE;
+    use crate::presets::board::servo_config;
+    use crate::sim::run::factory_planner;
+    use crate::sim::run_memory::{NoPlanner, RunMemory};
+    use crate::Vec3;
+
+    fn machine() -> Machine<RunMemory, NoPlanner, f32> {
+        let cfg = servo_config(10_000);
+        Machine::from_config(
+            &cfg,
+            &factory_planner(10_000),
+            [0; 3],
+            [0; 3],
+            RunMemory::new(),
+        )
+        .unwrap()
+    }
+
+    fn square() -> Polyline<f64> {
+        Polyline::square(Vec3::zero(), 40.0, 50.0, 1000.0).unwrap()
+    }
+
+    #[test]
+    fn sends_arm_run_every_edge_and_the_end_when_the_queue_has_room() {
+        let mut m = machine();
+        let mut feed = ProgramFeed::new(&square());
+        feed.send(&mut m);
+        assert!(feed.done());
+        // arm, run, four segments, the end
+        assert_eq!(usize::from(m.free_slots()), REQUEST_QUEUE - 7);
+        // nothing more once done
+        feed.send(&mut m);
+        assert_eq!(usize::from(m.free_slots()), REQUEST_QUEUE - 7);
+    }
+
+    #[test]
+    fn never_sends_beyond_the_queue_and_goes_on_where_it_stopped() {
+        let mut m = machine();
+        for _ in 0..REQUEST_QUEUE - 3 {
+            m.submit(Request::Reset);
+        }
+        let mut feed = ProgramFeed::new(&square());
+        feed.send(&mut m);
+        // arm, run and one segment: the queue is full, nothing was dropped
+        assert_eq!(m.free_slots(), 0);
+        assert!(!feed.done());
+        assert_eq!(feed.sent, 1);
+        // with room again (a machine whose queue drained), it goes on from the second
+        // segment: three more and the end, no second arm or run
+        let mut m = machine();
+        feed.send(&mut m);
+        assert!(feed.done());
+        assert_eq!(usize::from(m.free_slots()), REQUEST_QUEUE - 4);
+    }
+}
