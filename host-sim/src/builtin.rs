@@ -39,12 +39,20 @@ pub const FILES: &[(&str, &str)] = &[
     ("identify.toml", include_str!("../scenarios/identify.toml")),
     ("gcode.toml", include_str!("../scenarios/gcode.toml")),
     (
+        "flexible_frame.toml",
+        include_str!("../scenarios/flexible_frame.toml"),
+    ),
+    (
         "../machines/paper_axis.toml",
         include_str!("../machines/paper_axis.toml"),
     ),
     (
         "../machines/gantry.toml",
         include_str!("../machines/gantry.toml"),
+    ),
+    (
+        "../machines/gantry_flexible.toml",
+        include_str!("../machines/gantry_flexible.toml"),
     ),
 ];
 

@@ -72,6 +72,14 @@ pub const PHYSICAL_RANGES: &[PhysicalRange] = &[
     range("plant.physical.load_const_mnm", -100_000.0, 100_000.0, "mN·m", "a constant load within the largest effort of the machine class (100 N·m)"),
     range("plant.physical.load_step_mnm", -100_000.0, 100_000.0, "mN·m", "a load step within the largest effort of the machine class (100 N·m)"),
     range("plant.physical.torque_max_mnm", 1.0, 100_000.0, "mN·m", "a motor's peak torque, within the settings' effort range (1 mN·m..100 N·m)"),
+    range("plant.physical.frame.mode_hz", 1.0, 2_000.0, "Hz", "a machine's structural modes: a slender beam's few Hz to a stiff spindle head's kHz (and the plant step must resolve it)"),
+    range("plant.physical.frame.damping_ratio", 0.0, 1.0, "", "structures are lightly damped (0.01-0.1); 1 is critical"),
+    range("plant.physical.frame.tool_inertia_ratio", 0.01, 0.99, "", "the tool side's share of the axis' inertia: both sides have mass"),
+    range("plant.physical.frame.tool_friction_ratio", 0.0, 1.0, "", "the guides' share of the axis' friction: none to all"),
+    range("plant.physical.frame.backlash_mm", 0.0, 1.0, "mm", "from none (preloaded nut) to 1 mm (a worn lead screw)"),
+    range("plant.physical.frame.pitch_error.cumulative_um_per_m", -1_000.0, 1_000.0, "µm/m", "ISO 3408-3 tolerance classes span 6 to 210 µm per 300 mm; 1 mm/m is far beyond any screw"),
+    range("plant.physical.frame.pitch_error.periodic_um", -1_000.0, 1_000.0, "µm", "the periodic lead variation, at most 1 mm"),
+    range("plant.physical.frame.pitch_error.period_mm", 0.1, 10_000.0, "mm", "a lead (a few mm) to a whole screw's length"),
     range("plant.paper.a", -1e6, 1e6, "1/s", "the paper's normalised axis: any finite coefficient an f32 law can carry"),
     range("plant.paper.b", -1e6, 1e6, "1/s²", "the paper's normalised axis: any finite coefficient an f32 law can carry"),
     range("plant.paper.k", 1e-6, 1e6, "", "input gain: positive (the laws assume it), finite"),
@@ -216,6 +224,22 @@ pub fn check(m: &MachineSpec) -> Result<(), String> {
                     ("torque_max_mnm", p.torque_max_mnm),
                 ] {
                     check_physical(n, &format!("plant.physical.{field}"), f64::from(v))?;
+                }
+                if let Some(f) = &p.frame {
+                    let e = &f.pitch_error;
+                    for (field, v) in [
+                        ("mode_hz", f.mode_hz),
+                        ("damping_ratio", f.damping_ratio),
+                        ("tool_inertia_ratio", f.tool_inertia_ratio),
+                        ("tool_friction_ratio", f.tool_friction_ratio),
+                        ("backlash_mm", f.backlash_mm),
+                        ("pitch_error.cumulative_um_per_m", e.cumulative_um_per_m),
+                        ("pitch_error.periodic_um", e.periodic_um),
+                        ("pitch_error.period_mm", e.period_mm),
+                    ] {
+                        let key = format!("plant.physical.frame.{field}");
+                        check_physical(n, &key, f64::from(v))?;
+                    }
                 }
             }
             PlantConfig::Paper(p) => {

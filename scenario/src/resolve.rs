@@ -249,6 +249,16 @@ fn validate(run: &RunConfig, sc: &Scenario) -> Result<(), String> {
     // (every part built once; a program run's planner is the caller's, so without one)
     SimRun::<f64>::with_memory(run, &factory_planner(run.servo.rate_hz), RunMemory::new())
         .map_err(|e| format!("invalid configuration: {e}"))?;
+    let framed = run
+        .world
+        .plants
+        .iter()
+        .any(|p| matches!(p, PlantConfig::Physical(a) if a.frame.is_some()));
+    if framed && !matches!(sc.mode, Mode::Discrete) {
+        return Err(
+            "an axis with a `frame` runs in discrete mode only (the simulated world's)".into(),
+        );
+    }
     if run.program && !matches!(sc.mode, Mode::Discrete) {
         return Err("`program = true` runs in discrete mode only (the machine's periods)".into());
     }

@@ -43,6 +43,31 @@ fn gantry_machine_file_equals_the_core_presets() {
 }
 
 #[test]
+fn the_flexible_gantry_is_the_gantry_with_frames() {
+    let rigid = machine("gantry.toml");
+    let flexible = machine("gantry_flexible.toml");
+    // everything but the frames is gantry.toml's
+    let mut unframed = flexible.run;
+    for p in &mut unframed.world.plants {
+        let PlantConfig::Physical(a) = p else {
+            panic!("physical plant expected")
+        };
+        assert!(a.frame.is_some());
+        a.frame = None;
+    }
+    assert_eq!(unframed, rigid.run);
+    // the modes the file's header states: Y 35 Hz, Z 55 Hz, X 90 Hz; backlash 20 µm on X
+    // and Y; ±15 µm of periodic lead error on X and Y
+    let frames = flexible.run.world.plants.map(|p| match p {
+        PlantConfig::Physical(a) => a.frame.unwrap(),
+        PlantConfig::Paper(_) => unreachable!(),
+    });
+    assert_eq!(frames.map(|f| f.mode_hz), [90.0, 35.0, 55.0]);
+    assert_eq!(frames.map(|f| f.backlash_mm), [0.02, 0.02, 0.0]);
+    assert_eq!(frames.map(|f| f.pitch_error.periodic_um), [15.0, 15.0, 5.0]);
+}
+
+#[test]
 fn paper_machine_file_is_the_papers_axis() {
     let r = machine("paper_axis.toml");
     for p in r.run.world.plants {

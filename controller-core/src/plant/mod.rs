@@ -9,9 +9,12 @@
 //! - [`state`]: the axis state, the [`state::AxisDynamics`] trait and RK4 over a set of
 //!   axes;
 //! - [`paper`]: the paper's normalised axis as a simulated plant, with a step disturbance;
-//! - [`physical`]: the ball-screw axis with inertia, friction, load and torque limit.
+//! - [`physical`]: the ball-screw axis with inertia, friction, load and torque limit;
+//! - [`frame`]: what lies between an axis' motor and its tool: a compliant mode,
+//!   backlash, the screw's lead error.
 
 pub mod axis_model;
+pub mod frame;
 pub mod paper;
 pub mod params;
 pub mod physical;

@@ -22,6 +22,7 @@
 //! `f_c` over `v_stribeck` with the rational shape `1 / (1 + (x'/v_s)²)` (exp is not part
 //! of [`Real`]; the rational curve has the same peak and width).
 
+use super::frame::FrameConfig;
 use super::state::{AxisDynamics, AxisState};
 use crate::config::{finite, non_negative, positive, ConfigError};
 use crate::Real;
@@ -59,6 +60,11 @@ pub struct PhysicalAxisConfig {
     pub load_step_t_s: f32,
     /// Motor peak torque, mN·m: the input is clamped to `±torque_max_mnm`.
     pub torque_max_mnm: f32,
+    /// What lies between the motor and the tool (default: nothing, a rigid axis): a
+    /// compliant mode, backlash, lead error ([`super::frame`]). The simulated world
+    /// integrates it; this axis' own dynamics ([`PhysicalAxis`]) are the rigid model.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub frame: Option<FrameConfig>,
 }
 
 #[cfg(feature = "serde")]

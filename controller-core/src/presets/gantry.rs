@@ -55,6 +55,7 @@ pub const GANTRY_X: PhysicalAxisConfig = PhysicalAxisConfig {
     load_step_mnm: 0.0,
     load_step_t_s: f32::INFINITY,
     torque_max_mnm: 1000.0,
+    frame: None,
 };
 
 /// Y axis (carries the X beam, 25 kg). Rotor 3e-5, Ø20 × 800 mm screw 9.9e-5, 25 kg

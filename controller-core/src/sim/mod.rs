@@ -5,6 +5,7 @@
 //!
 //! - [`world`]: three plants behind encoders and amplifiers, implementing
 //!   [`crate::servo::io::ServoIo`];
+//! - [`frame_step`]: one period of an axis with a frame (motor and tool side together);
 //! - [`gantry`]: the simulated gantry (designed settings, the world with its homing
 //!   switches) of host-sim's `gantry --sim` and the QEMU link rig;
 //! - [`run`]: a simulated run (the machine + world + figures, scripted commands);
@@ -14,6 +15,7 @@
 //! - [`rng`]: the SplitMix64 generator every simulation and study draws from;
 //! - [`random`]: random physical axes from the documented range.
 
+pub mod frame_step;
 pub mod gantry;
 pub mod program;
 pub mod random;

@@ -273,8 +273,8 @@ where
     /// Record the period's figures, then advance the world over it. Returns the true
     /// contour error when it was sampled this period.
     pub fn finish_period(&mut self) -> Option<f64> {
-        let s = self.world.state();
-        let pos = Vec3::new(s[0].pos, s[1].pos, s[2].pos);
+        // (at the tool: a framed axis' encoder reads its motor side)
+        let pos = Vec3::from_array(self.world.tool_pos());
         let servo = self.machine.servo();
         let (held, period_s) = (servo.motion_held(), servo.period_s());
         if self.path_from.is_none() && !held && servo.state() == ServoState::Run {

@@ -10,12 +10,14 @@
 use crate::axes::AXES;
 use crate::config::{finite, ConfigError};
 use crate::estimator::CounterWidth;
+use crate::plant::frame::{Frame, MAX_MODE_OMEGA_STEP};
 use crate::plant::paper::{DisturbedPaperAxis, PaperAxis};
 use crate::plant::physical::{PhysicalAxis, PhysicalAxisConfig};
 use crate::plant::state::{rk4_step, AxisDynamics, AxisState};
 use crate::servo::brake::{BrakeConfig, DEFAULT_ENGAGE_S, DEFAULT_RELEASE_S};
 use crate::servo::io::{Inputs, ServoIo};
 use crate::servo::ServoConfig;
+use crate::sim::frame_step::{self, FramedPush, FramedState};
 use crate::sim::rng::SplitMix64;
 use crate::Real;
 
@@ -228,7 +230,16 @@ impl AxisDynamics<f64> for Plant {
 #[derive(Clone, Copy, Debug)]
 pub struct World {
     plants: [Plant; AXES],
+    /// The motor side: what the encoders, switches and brakes see (the whole axis when it
+    /// has no frame).
     state: [AxisState<f64>; AXES],
+    /// A framed axis' frame ([`crate::plant::frame`]); `None`: rigid.
+    frames: [Option<Frame>; AXES],
+    /// The tool side: where the tool is (the motor side's state on a rigid axis).
+    tool: [AxisState<f64>; AXES],
+    /// A framed axis' deflection under its constant load at rest, mm: what a tool
+    /// set-up takes out ([`World::tool_pos`]).
+    tool_set_mm: [f64; AXES],
     substeps: u32,
     period_s: f64,
     count_len: [f64; AXES],
@@ -395,6 +406,9 @@ impl World {
                 Plant::new(&cfg.plants[2])?,
             ],
             state: [AxisState::default(); AXES],
+            frames: [None; AXES],
+            tool: [AxisState::default(); AXES],
+            tool_set_mm: [0.0; AXES],
             substeps: cfg.plant_substeps,
             period_s: 1.0 / f64::from(servo.rate_hz),
             count_len: [0.0; AXES],
@@ -437,6 +451,26 @@ impl World {
                 pos: init.pos_mm,
                 vel: init.vel_mm_s,
             };
+            w.tool[i] = w.state[i];
+            if let PlantConfig::Physical(PhysicalAxisConfig {
+                frame: Some(fc),
+                inertia,
+                load_const_mnm,
+                ..
+            }) = &cfg.plants[i]
+            {
+                let frame = Frame::new(fc, *inertia)?;
+                let h = w.period_s / f64::from(w.substeps);
+                if frame.omega() * h > MAX_MODE_OMEGA_STEP {
+                    return Err(ConfigError::OutOfRange(
+                        "frame.mode_hz (2π · mode_hz · plant step ≤ 0.5: more plant_substeps)",
+                    ));
+                }
+                let load = f64::from(*load_const_mnm);
+                w.tool[i].pos = frame.tool_at_rest(init.pos_mm, load);
+                w.tool_set_mm[i] = frame.load_deflection_mm(load);
+                w.frames[i] = Some(frame);
+            }
             w.count_len[i] = servo.encoders[i].count_len()?;
             w.counter_mask[i] = match servo.encoders[i].counter {
                 CounterWidth::Bits16 => 0xFFFF,
@@ -507,9 +541,26 @@ impl World {
         inp
     }
 
-    /// True plant states.
+    /// True plant states: the motor side of a framed axis (what its encoder reads).
     pub fn state(&self) -> &[AxisState<f64>; AXES] {
         &self.state
+    }
+
+    /// True tool positions, mm: where the contour is judged (a framed axis' tool side,
+    /// a rigid axis' position). As a tool set-up (touch-off at rest) measures them: the
+    /// static deflection under the axis' constant load (gravity on Z) is taken out, as it
+    /// is on a machine; what moves with the motion (the mode, backlash at reversals, the
+    /// lead error along the travel) stays.
+    pub fn tool_pos(&self) -> [f64; AXES] {
+        [0, 1, 2].map(|i| match self.frames[i] {
+            Some(_) => self.tool[i].pos + self.tool_set_mm[i],
+            None => self.tool[i].pos,
+        })
+    }
+
+    /// The axes with a frame (a compliant mode, backlash, lead error).
+    pub fn framed(&self) -> [bool; AXES] {
+        self.frames.map(|f| f.is_some())
     }
 
     /// The effort commanded for the current period (what the amplifiers were told, within
@@ -690,6 +741,7 @@ impl World {
             }
         }
         let gripping = [0, 1, 2].map(|i| self.gripping_at(i, t));
+        let before = self.state;
         if gripping.iter().any(|g| *g) {
             self.advance_braked(t, h, u, gripping);
         } else if self.faults.ext_accel == [0.0; AXES] && self.faults.drag == [0.0; AXES] {
@@ -715,6 +767,7 @@ impl World {
                 rk4_step(&axes, &mut self.state, t + f64::from(j) * h, h, |_, _| u);
             }
         }
+        self.advance_frames(before, t, h, u, gripping);
         self.periods += 1;
         let n = f64::from(self.imperfect.noise_counts);
         if n > 0.0 {
@@ -727,6 +780,37 @@ impl World {
 }
 
 impl World {
+    /// The framed axes over the period (their motor and tool sides together, from the
+    /// motor side's state `before` it), in place of the rigid step taken for every axis;
+    /// a rigid axis' tool is where its motor side is.
+    fn advance_frames(
+        &mut self,
+        before: [AxisState<f64>; AXES],
+        t: f64,
+        h: f64,
+        u: [f64; AXES],
+        gripping: [bool; AXES],
+    ) {
+        for i in 0..AXES {
+            let (Some(frame), Plant::Physical(plant)) = (&self.frames[i], &self.plants[i]) else {
+                self.tool[i] = self.state[i];
+                continue;
+            };
+            let push = FramedPush {
+                ext_mm_s2: self.faults.ext_accel[i],
+                drag_mm_s2: self.faults.drag[i],
+                gripping: gripping[i],
+            };
+            let s = FramedState {
+                motor: before[i],
+                tool: self.tool[i],
+            };
+            let s = frame_step::advance(plant, frame, &push, s, t, h, self.substeps, u[i]);
+            self.state[i] = s.motor;
+            self.tool[i] = s.tool;
+        }
+    }
+
     /// One period's substeps with at least one brake gripping. A gripping brake is static
     /// friction of `hold` (as an acceleration): a stuck axis stays stuck while the other
     /// accelerations at rest sum to at most `hold`; otherwise the brake's friction opposes

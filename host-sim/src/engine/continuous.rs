@@ -4,7 +4,7 @@
 //! controller sees the exact plant state (no encoder, no amplifier).
 
 use super::{Decimator, RunResult, Trace, TRACE_EVERY_S};
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, bail, Result};
 use controller_core::controller::{ControlOutput, Controller3, Measured};
 use controller_core::coupling::variable_gain::VariableGainState;
 use controller_core::law::LawState;
@@ -12,7 +12,7 @@ use controller_core::motion::trajectory::Trajectory;
 use controller_core::num::ode::{rk4, OdeState};
 use controller_core::plant::state::{axis_derivative, AxisDynamics, AxisState};
 use controller_core::sim::truth::Truth;
-use controller_core::sim::world::Plant;
+use controller_core::sim::world::{Plant, PlantConfig};
 use controller_core::{Real, Vec3};
 use gantry_scenario::Resolved;
 
@@ -47,6 +47,17 @@ pub fn run<R: Real>(r: &Resolved, dt_s: f64) -> Result<RunResult> {
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow!("run `{}`: invalid plant: {e}", r.name))?;
     let plants: [Plant; 3] = [plants[0], plants[1], plants[2]];
+    if cfg
+        .world
+        .plants
+        .iter()
+        .any(|p| matches!(p, PlantConfig::Physical(a) if a.frame.is_some()))
+    {
+        bail!(
+            "run `{}`: an axis with a frame runs in discrete mode only",
+            r.name
+        );
+    }
     let traj: Trajectory<R> = r.reference.cast();
     let n = (r.horizon_s / dt_s).round() as usize;
     let init = cfg.world.initial;

@@ -74,12 +74,11 @@ where
         });
         let t = run.world().time_s();
         if dec.due(t, dt) {
-            let st = run.world().state();
             trace.t.push(t);
             trace
                 .reference
                 .push(run.reference().sample(t).pos.to_array());
-            trace.position.push([st[0].pos, st[1].pos, st[2].pos]);
+            trace.position.push(run.world().tool_pos());
             trace.u.push(run.world().effort());
             trace.s.push(snap.s.map(f64::from));
             trace.contour_model.push(snap.contour.map(f64::from));

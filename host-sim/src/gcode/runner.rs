@@ -260,7 +260,7 @@ pub fn run_with_settings(
         let held = run.servo().motion_held();
         run.control_with(&[]);
         let sample: PathSample = *run.machine().path_sample();
-        let truth = run.world().state().map(|s| s.pos);
+        let truth = run.world().tool_pos();
         run.finish_period();
         k += 1;
         if held {

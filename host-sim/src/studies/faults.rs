@@ -131,9 +131,9 @@ pub struct Matrix {
     pub passed: bool,
 }
 
+/// The tool's true position (a framed axis' tool side).
 fn position(run: &SimRun<f32>) -> Vec3<f64> {
-    let s = run.world().state();
-    Vec3::new(s[0].pos, s[1].pos, s[2].pos)
+    Vec3::from_array(run.world().tool_pos())
 }
 
 /// What one case's run showed.
