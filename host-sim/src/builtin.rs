@@ -38,6 +38,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("faults.toml", include_str!("../scenarios/faults.toml")),
     ("identify.toml", include_str!("../scenarios/identify.toml")),
     ("gcode.toml", include_str!("../scenarios/gcode.toml")),
+    ("circle.toml", include_str!("../scenarios/circle.toml")),
     (
         "flexible_frame.toml",
         include_str!("../scenarios/flexible_frame.toml"),

@@ -129,6 +129,18 @@ enum Command {
         #[arg(long)]
         no_plots: bool,
     },
+    /// The ISO 230-4 circular test: circles of R 50 mm at 3000 mm/min and R 10 mm at
+    /// 1000 mm/min, both directions, at the tool; circular deviation G, radius deviation D,
+    /// reversal spikes (host-sim/scenarios/circle.toml, docs/precision.md).
+    Circle {
+        /// Machine file (default: the built-in physical gantry; e.g.
+        /// host-sim/machines/gantry_flexible.toml).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run a G-code program on a simulated machine through the planner and the servo step
     /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
     /// completed, 2 when it was rejected (nothing ran), 1 on a fault or an error.
@@ -219,6 +231,7 @@ fn main() -> ExitCode {
             out,
             no_plots,
         }) => run_identify(machine.as_deref(), seed, json.as_deref(), &out, no_plots),
+        Some(Command::Circle { machine, json }) => run_circle(machine.as_deref(), json.as_deref()),
         Some(Command::Gcode {
             file,
             machine,
@@ -413,6 +426,18 @@ fn run_identify(
     if !r.all_done() {
         bail!("not every axis was identified");
     }
+    Ok(())
+}
+
+fn run_circle(machine: Option<&Path>, json: Option<&Path>) -> Result<()> {
+    let started = Instant::now();
+    let r = host_sim::studies::circle::run(machine)?;
+    print!("{}", host_sim::studies::circle::table(&r));
+    if let Some(j) = json {
+        write_json(j, &r)?;
+        println!("JSON: {}", j.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
 }
 
