@@ -41,8 +41,9 @@ pub struct FramedPush {
     pub gripping: bool,
 }
 
-/// Regularisation velocity of the injected drag's sign, mm/s (the world's).
-const DRAG_V_REG: f64 = 0.5;
+/// Regularisation velocity of the injected drag's sign, units/s: the framed step's and
+/// the world's rigid step's (`crate::sim::world`), like the plant's own friction sign.
+pub(crate) const DRAG_V_REG: f64 = 0.5;
 
 /// `d/dt` of `s` under effort `u` at time `t`.
 fn derivative(

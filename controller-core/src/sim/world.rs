@@ -17,7 +17,7 @@ use crate::plant::state::{rk4_step, AxisDynamics, AxisState};
 use crate::servo::brake::{BrakeConfig, DEFAULT_ENGAGE_S, DEFAULT_RELEASE_S};
 use crate::servo::io::{Inputs, ServoIo};
 use crate::servo::ServoConfig;
-use crate::sim::frame_step::{self, FramedPush, FramedState};
+use crate::sim::frame_step::{self, FramedPush, FramedState, DRAG_V_REG};
 use crate::sim::rng::SplitMix64;
 use crate::Real;
 
@@ -379,9 +379,6 @@ struct Pushed<'a> {
     ext: f64,
     drag: f64,
 }
-
-/// Regularisation velocity of the injected drag's sign, units/s.
-const DRAG_V_REG: f64 = 0.5;
 
 impl AxisDynamics<f64> for Pushed<'_> {
     fn accel(&self, s: AxisState<f64>, u: f64, t: f64) -> f64 {
