@@ -29,6 +29,7 @@ pub mod bench_programs;
 pub mod builtin;
 pub mod cli;
 pub mod closed_stdout;
+pub mod comp_file;
 pub mod engine;
 pub mod gcode;
 pub mod jobs;

@@ -140,6 +140,25 @@ enum Command {
         /// Also write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Enter the compensation tables of this folder (comp_x.txt, comp_y.txt,
+        /// comp_z.txt: LinuxCNC COMP_FILEs of type 0, as `compensation --write` writes them).
+        #[arg(long)]
+        comp: Option<PathBuf>,
+    },
+    /// Backlash and lead-screw compensation: ISO 230-2's bidirectional positioning test at
+    /// the tool (a simulated laser) on every axis, the readings written as LinuxCNC
+    /// COMP_FILEs (type 0), read back as the machine's tables, and the test run again
+    /// without and with them (docs/precision.md).
+    Compensation {
+        /// Machine file (default: host-sim/machines/gantry_flexible.toml).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Write the COMP_FILEs (comp_x.txt, comp_y.txt, comp_z.txt) to this folder.
+        #[arg(long)]
+        write: Option<PathBuf>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
     /// Run a G-code program on a simulated machine through the planner and the servo step
     /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
@@ -231,7 +250,16 @@ fn main() -> ExitCode {
             out,
             no_plots,
         }) => run_identify(machine.as_deref(), seed, json.as_deref(), &out, no_plots),
-        Some(Command::Circle { machine, json }) => run_circle(machine.as_deref(), json.as_deref()),
+        Some(Command::Circle {
+            machine,
+            json,
+            comp,
+        }) => run_circle(machine.as_deref(), json.as_deref(), comp.as_deref()),
+        Some(Command::Compensation {
+            machine,
+            write,
+            json,
+        }) => run_compensation(machine.as_deref(), write.as_deref(), json.as_deref()),
         Some(Command::Gcode {
             file,
             machine,
@@ -429,10 +457,29 @@ fn run_identify(
     Ok(())
 }
 
-fn run_circle(machine: Option<&Path>, json: Option<&Path>) -> Result<()> {
+fn run_circle(machine: Option<&Path>, json: Option<&Path>, comp: Option<&Path>) -> Result<()> {
     let started = Instant::now();
-    let r = host_sim::studies::circle::run(machine)?;
+    let r = host_sim::studies::circle::run_compensated(machine, comp)?;
     print!("{}", host_sim::studies::circle::table(&r));
+    if let Some(j) = json {
+        write_json(j, &r)?;
+        println!("JSON: {}", j.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn run_compensation(
+    machine: Option<&Path>,
+    write: Option<&Path>,
+    json: Option<&Path>,
+) -> Result<()> {
+    let started = Instant::now();
+    let r = host_sim::studies::compensation::run(machine, write)?;
+    print!("{}", host_sim::studies::compensation::table(&r));
+    if let Some(w) = write {
+        println!("COMP_FILEs: {}", w.display());
+    }
     if let Some(j) = json {
         write_json(j, &r)?;
         println!("JSON: {}", j.display());

@@ -9,6 +9,7 @@ use controller_core::controller::ControllerConfig;
 use controller_core::coupling::CouplingConfig;
 use controller_core::estimator::{AccelInput, EstimatorBankConfig};
 use controller_core::law::LawConfig;
+use controller_core::motion::compensation::AxisCompensation;
 use controller_core::motion::homing::HomingConfig;
 use controller_core::motion::jog::JogConfig;
 use controller_core::motion::trajectory::Trajectory;
@@ -38,6 +39,9 @@ pub struct Resolved {
     /// The path in absolute coordinates, as the figures see it.
     pub reference: Trajectory<f64>,
     pub study: Option<toml::Value>,
+    /// The machine's backlash and lead-screw compensation tables entered for the run
+    /// (none from a scenario file; a study sets them, e.g. `host-sim circle --comp DIR`).
+    pub compensation: Option<Box<[AxisCompensation; 3]>>,
 }
 
 impl Resolved {
@@ -63,6 +67,7 @@ impl Resolved {
                 run: cfg,
                 reference,
                 study: run.scenario.study.clone(),
+                compensation: None,
             })
     }
 }

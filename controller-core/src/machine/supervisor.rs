@@ -393,6 +393,16 @@ where
         &self.servo
     }
 
+    /// Set `axis`' backlash and lead-screw compensation (the servo's
+    /// [`Servo::set_compensation`]): refused while the outputs are on.
+    pub fn set_compensation(
+        &mut self,
+        axis: crate::axes::Axis,
+        c: crate::motion::compensation::AxisCompensation,
+    ) -> Result<(), crate::servo::ReconfigureError> {
+        self.servo.set_compensation(axis, c)
+    }
+
     /// The settings tree it runs (the factory tree for a machine built
     /// [`Self::from_config`], which runs no tree).
     pub fn settings(&self) -> &Settings {

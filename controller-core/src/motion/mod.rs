@@ -10,8 +10,11 @@
 //!   configured path, a controlled stop, a jog, homing, the planner's sample), with the
 //!   reference generators it steps: [`jog`], [`homing`] and their one-axis [`ramp`].
 //!
+//! - [`compensation`]: backlash and lead-screw error tables added to the reference.
+//!
 //! Nothing here knows the servo: the servo step ([`crate::servo`]) drives these.
 
+pub mod compensation;
 pub mod homing;
 pub mod jog;
 pub mod path;

@@ -132,7 +132,7 @@ impl<R: Real> Servo<R> {
         if done {
             // every axis followed both ways: armed, holding where it armed
             self.checks.arm = None;
-            self.motion = ReferenceMode::Hold(c.hold);
+            self.hold_motor(c.hold);
             self.state = ServoState::Idle;
             return;
         }

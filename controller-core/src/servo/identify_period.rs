@@ -6,7 +6,6 @@ use super::state::ServoState;
 use super::step::Servo;
 use crate::axes::AXES;
 use crate::controller::Measured;
-use crate::motion::reference::ReferenceMode;
 use crate::motion::trajectory::RefSample;
 use crate::sysid::AxisSample;
 use crate::{Real, Vec3};
@@ -50,7 +49,7 @@ impl<R: Real> Servo<R> {
                 ServoState::Disabled
             };
             // holding: from here on the identified axis holds where it came to rest
-            self.motion = ReferenceMode::Hold(meas.pos);
+            self.hold_motor(meas.pos);
             self.controller.reset();
             if !hold {
                 u = Vec3::zero();

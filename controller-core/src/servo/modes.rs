@@ -183,7 +183,7 @@ impl<R: Real> Servo<R> {
         self.estimators.reset(*counts);
         self.controller.reset();
         self.monitor.reset();
-        self.motion = ReferenceMode::Hold(self.position_of(counts));
+        self.hold_motor(self.position_of(counts));
     }
 
     /// Apply one operator command at the start of the period: refused when [`check`]

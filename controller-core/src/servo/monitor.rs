@@ -643,6 +643,22 @@ impl Monitor {
     /// the axis cannot make (reported as a jump: swapped A/B). `steps` as in
     /// [`Self::check_encoders`]; reference velocity (mm/s) and
     /// acceleration (mm/s²); the efforts applied during the period that just ended.
+    /// Forget what the counts-due check claims of the axes in `mask` (bit i: axis i): the
+    /// compensation is taking up a nut's play there, and a motor side that crosses the
+    /// gap alone and knocks into the spring of the frame behind it moves as no rigid
+    /// model bounds (the check's claims are the rigid model's). The following-error,
+    /// jump and runaway checks still watch it.
+    #[cold]
+    #[inline(never)]
+    pub fn release_due_claims(&mut self, mask: u8) {
+        for (i, w) in self.watch.iter_mut().enumerate() {
+            if mask & (1 << i) != 0 {
+                w.due.dir = 0;
+                w.due.v_lb = 0.0;
+            }
+        }
+    }
+
     pub fn check_counts_due(
         &mut self,
         steps: &[i32; AXES],

@@ -24,6 +24,7 @@ use super::travel::TravelConfig;
 use crate::axes::{Axis, AXES};
 use crate::controller::{ControlOutput, Controller3, Measured};
 use crate::estimator::{EstimatorBank, WideCounter};
+use crate::motion::compensation::{AxisCompensation, Compensation};
 use crate::motion::path::PathStart;
 use crate::motion::planner::PathSample;
 use crate::motion::reference::{Clock, ReferenceMode};
@@ -77,6 +78,9 @@ pub struct Servo<R> {
     pub(super) path: Option<(Trajectory<R>, Option<u32>)>,
     pub(super) path_start: PathStart,
     pub(super) motion: ReferenceMode<R>,
+    /// Backlash and lead-screw compensation added to the reference the laws track
+    /// ([`crate::motion::compensation`]).
+    pub(super) comp: Compensation,
     pub(super) travel: TravelConfig,
     /// Homing and jogging: their configuration and the axes referenced.
     pub(super) manual: ManualState,
@@ -291,6 +295,48 @@ impl<R: Real> Servo<R> {
         self.period_s
     }
 
+    /// Set `axis`' backlash and lead-screw compensation
+    /// ([`crate::motion::compensation`]); refused while the outputs are on. The tables
+    /// are the machine's: a reconfiguration keeps them.
+    pub fn set_compensation(
+        &mut self,
+        axis: Axis,
+        c: AxisCompensation,
+    ) -> Result<(), super::ReconfigureError> {
+        if self.state.drives() {
+            return Err(super::ReconfigureError::OutputsOn);
+        }
+        self.comp.set(axis.index(), c);
+        Ok(())
+    }
+
+    /// The compensation in use.
+    pub fn compensation(&self) -> &Compensation {
+        &self.comp
+    }
+
+    /// Axes whose compensation applies this period: the referenced ones (the tables are
+    /// in machine coordinates) while the laws track a reference; none while identifying
+    /// or checking the encoders (their references are the motor's own).
+    #[inline(always)]
+    fn compensated_mask(&self) -> u8 {
+        match self.state {
+            ServoState::Idle
+            | ServoState::Run
+            | ServoState::Jog
+            | ServoState::Homing
+            | ServoState::Stopping => self.referenced_mask(),
+            _ => 0,
+        }
+    }
+
+    /// Hold the axes where the motor positions `motor` are: at the nominal position
+    /// that compensates to them, so that holding there moves nothing.
+    pub(super) fn hold_motor(&mut self, motor: Vec3<R>) {
+        let n = self.comp.nominal_of(motor, self.referenced_mask());
+        self.motion = ReferenceMode::Hold(n);
+    }
+
     /// The measured position of `counts` (the estimators' formula: what the controller
     /// sees).
     pub(super) fn position_of(&self, counts: &[i64; AXES]) -> Vec3<R> {
@@ -356,7 +402,19 @@ impl<R: Real> Servo<R> {
 
         // 3. Reference.
         let arm_checking = self.step_reference(io, &inputs, index, held, &mut counts);
-        let (reference, motion_t, at_rest) = self.sample_reference(held);
+        let (mut reference, motion_t, at_rest) = self.sample_reference(held);
+        // the programmed position, before compensation (what stops hold and telemetry
+        // shows)
+        let nominal = reference.pos;
+        if self.comp.any() {
+            let active = self.compensated_mask();
+            self.comp
+                .apply(&mut reference, active, self.period_s as f32);
+            let crossing = self.comp.crossing_mask();
+            if crossing != 0 {
+                self.monitor.release_due_claims(crossing);
+            }
+        }
 
         // 4. Positions and velocities.
         let meas: Measured<R> = self
@@ -374,13 +432,14 @@ impl<R: Real> Servo<R> {
             held,
             at_rest,
         };
-        let (applied, evaluated) = self.control(io, &sensed, &reference, index_fault, arm_checking);
+        let (applied, evaluated) =
+            self.control(io, &sensed, &reference, nominal, index_fault, arm_checking);
         self.applied = applied;
         self.estimators.applied(applied);
         self.write_brakes(io);
 
         // 6. Telemetry (plain copies).
-        self.publish(&sensed, &reference, applied, motion_t, evaluated);
+        self.publish(&sensed, nominal, applied, motion_t, evaluated);
         &self.snapshot
     }
 
@@ -542,6 +601,7 @@ impl<R: Real> Servo<R> {
         io: &mut IO,
         s: &Sensed<'_, R>,
         reference: &RefSample<R>,
+        nominal: Vec3<R>,
         index_fault: Option<(Fault, f32)>,
         arm_checking: bool,
     ) -> (Vec3<R>, bool) {
@@ -556,7 +616,10 @@ impl<R: Real> Servo<R> {
                     | ServoState::Stopping
             );
         match self.state {
-            _ if law => (self.closed_loop(io, s, reference, index_fault), true),
+            _ if law => (
+                self.closed_loop(io, s, reference, nominal, index_fault),
+                true,
+            ),
             ServoState::EncoderCheck => (self.encoder_check_period(io, s, index_fault), false),
             ServoState::Disabled | ServoState::Fault => {
                 if let Some((f, v)) = index_fault {
@@ -577,6 +640,7 @@ impl<R: Real> Servo<R> {
         io: &mut IO,
         s: &Sensed<'_, R>,
         reference: &RefSample<R>,
+        nominal: Vec3<R>,
         index_fault: Option<(Fault, f32)>,
     ) -> Vec3<R> {
         let mut applied = Vec3::zero();
@@ -586,7 +650,12 @@ impl<R: Real> Servo<R> {
         let u = self.law_effort(s, &mut reference, identifying);
         self.check_motion_limits(s, &reference, identifying);
         if s.at_rest && matches!(self.state, ServoState::Stopping | ServoState::Jog) {
-            self.finish_motion(&reference, s.vel);
+            // a stop holds the programmed position (the compensation is added again)
+            let at = RefSample {
+                pos: nominal,
+                ..reference
+            };
+            self.finish_motion(&at, s.vel);
         }
         if self.state.drives() {
             io.write_outputs(&self.drive(u));
@@ -713,7 +782,7 @@ impl<R: Real> Servo<R> {
     fn publish(
         &mut self,
         sensed: &Sensed<'_, R>,
-        reference: &RefSample<R>,
+        nominal: Vec3<R>,
         applied: Vec3<R>,
         motion_t: R,
         evaluated: bool,
@@ -732,7 +801,7 @@ impl<R: Real> Servo<R> {
         s.outputs_on = self.state.drives();
         if evaluated {
             let o = &self.out;
-            s.reference = reference.pos.to_array().map(Real::to_f32);
+            s.reference = nominal.to_array().map(Real::to_f32);
             s.tracking = o.tracking.to_array().map(Real::to_f32);
             s.contour = o.contour.to_array().map(Real::to_f32);
             s.s = o.s.to_array().map(Real::to_f32);

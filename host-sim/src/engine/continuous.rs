@@ -38,6 +38,12 @@ impl OdeState<f64> for Augmented {
 
 /// Run `r` in continuous mode with step `dt_s` and the controller in number type `R`.
 pub fn run<R: Real>(r: &Resolved, dt_s: f64) -> Result<RunResult> {
+    if r.compensation.is_some() {
+        anyhow::bail!(
+            "run `{}`: compensation tables need the discrete mode (the servo step applies them)",
+            r.name
+        );
+    }
     let cfg = &r.run;
     let mut ctl = Controller3::<R>::new(&cfg.servo.controller)
         .map_err(|e| anyhow!("run `{}`: invalid controller configuration: {e}", r.name))?;

@@ -9,10 +9,11 @@
 use super::split_memory::SplitParts;
 use super::{Decimator, RunResult, Trace, TRACE_EVERY_S};
 use anyhow::{anyhow, Result};
+use controller_core::axes::Axis;
 use controller_core::machine::MachineMemory;
 use controller_core::motion::planner::PlannerHandle;
 use controller_core::servo::Servo;
-use controller_core::sim::run::{factory_planner, SimRun};
+use controller_core::sim::run::{factory_planner, RunMachine, SimRun};
 use controller_core::Real;
 use gantry_scenario::Resolved;
 use std::ops::DerefMut;
@@ -42,12 +43,29 @@ pub fn run<R: Real>(r: &Resolved, obs: &mut impl Observer<R>) -> Result<RunResul
         let mut parts = SplitParts::new();
         let (memory, mut task) = parts.split();
         let planner = factory_planner(r.run.servo.rate_hz);
-        let run = SimRun::<R, _, _>::with_memory(&r.run, &planner, memory).map_err(invalid)?;
+        let mut run = SimRun::<R, _, _>::with_memory(&r.run, &planner, memory).map_err(invalid)?;
+        compensate(r, run.machine_mut())?;
         Ok(drive(r, run, obs, || task.run()))
     } else {
-        let run = SimRun::<R>::new(&r.run).map_err(invalid)?;
+        let mut run = SimRun::<R>::new(&r.run).map_err(invalid)?;
+        compensate(r, run.machine_mut())?;
         Ok(drive(r, run, obs, || {}))
     }
+}
+
+/// The run's compensation tables entered into its machine, if it has any.
+fn compensate<R: Real, P, M>(r: &Resolved, m: &mut RunMachine<R, P, M>) -> Result<()>
+where
+    P: DerefMut<Target = MachineMemory<M>>,
+    M: PlannerHandle,
+{
+    if let Some(c) = &r.compensation {
+        for (axis, t) in Axis::ALL.into_iter().zip(c.iter()) {
+            m.set_compensation(axis, *t)
+                .map_err(|e| anyhow!("run `{}`: compensation of {axis:?}: {e:?}", r.name))?;
+        }
+    }
+    Ok(())
 }
 
 /// Every period of `run`, then `after_period` (the planning half of a split planner).

@@ -309,3 +309,86 @@ pub fn run_with_settings(
     };
     Ok(report)
 }
+
+/// Where the tool stood at the end of one dwell of a positioning program.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DwellReading {
+    /// The dwell's G-code line.
+    pub line: u32,
+    /// The programmed position (machine mm).
+    pub nominal_mm: [f64; 3],
+    /// The true tool position in the dwell's last period (the simulated laser
+    /// interferometer, mm).
+    pub tool_mm: [f64; 3],
+}
+
+/// Run the positioning program `program_path` (moves and `G4` dwells) on `machine` with
+/// the axes' backlash and lead-screw compensation `comp` entered, as the machine's
+/// settings would, and read the tool where each dwell ends: ISO 230-2's bidirectional
+/// positioning test with a laser at the tool, in simulation.
+pub fn run_positioning(
+    program_path: &Path,
+    machine: Option<&Path>,
+    comp: &[controller_core::motion::compensation::AxisCompensation; 3],
+) -> Result<Vec<DwellReading>> {
+    let (mut cfg, pcfg) = machine_and_planner_with(machine, &FACTORY)?;
+    let travel = travel_of(&cfg)?;
+    cfg.hold = true;
+    cfg.periods = u32::MAX;
+    cfg.inject = None;
+    cfg.program = false;
+    let memory = Box::new(MachineMemory {
+        planner: MachinePlanner::BLANK,
+        scope: Scope::new(),
+    });
+    let mut run: ProgramRun =
+        SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    for (axis, c) in controller_core::axes::Axis::ALL.into_iter().zip(comp) {
+        run.machine_mut()
+            .set_compensation(axis, *c)
+            .map_err(|e| anyhow!("compensation of {axis:?}: {e:?}"))?;
+    }
+    arm_home_and_run(&mut run)?;
+    let here = run
+        .servo()
+        .planner_start_mm()
+        .ok_or_else(|| anyhow!("the servo is not running the planner"))?;
+    let name = program_path.display().to_string();
+    let program = load_program_with(
+        program_path,
+        &parse_options(&FACTORY, here.map(f64::from)),
+        &travel,
+    )
+    .map_err(|e| anyhow!("{e}"))?;
+    let (segs, _) = segments(&program, decimal(pcfg.tolerance_mm));
+    let (max_periods, _) = period_bounds(&program, run.servo().period_s());
+    let mut readings: Vec<Option<DwellReading>> = vec![None; program.moves.len()];
+    let (mut next, mut k) = (0usize, 0u64);
+    loop {
+        next = stream(&mut run, &segs, next);
+        run.control_with(&[]);
+        let tag = run.machine().path_sample().tag as usize;
+        let tool_mm = run.world().tool_pos();
+        run.finish_period();
+        k += 1;
+        if let Some(m) = program.moves.get(tag) {
+            if matches!(m.kind, MoveKind::Dwell { .. }) {
+                readings[tag] = Some(DwellReading {
+                    line: m.line,
+                    nominal_mm: m.from,
+                    tool_mm,
+                });
+            }
+        }
+        match run.machine().program_end() {
+            ProgramEnd::Running => {}
+            ProgramEnd::Completed => break,
+            ProgramEnd::Fault(_) => bail!("{name}: {}", stop_on_fault(&mut run)?),
+            _ => return Err(refusal(&run, &program, &name)),
+        }
+        if k >= max_periods {
+            bail!("{name}: the program did not finish within {max_periods} periods");
+        }
+    }
+    Ok(readings.into_iter().flatten().collect())
+}

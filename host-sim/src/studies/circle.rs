@@ -85,11 +85,24 @@ fn case(r: &Resolved) -> Result<CircleCase> {
 
 /// The test on the built-in gantry or on `machine`.
 pub fn run(machine: Option<&Path>) -> Result<CircleReport> {
+    run_compensated(machine, None)
+}
+
+/// [`run`] with the compensation tables of `comp` entered: a folder of LinuxCNC
+/// COMP_FILEs of type 0 named `comp_x.txt`, `comp_y.txt`, `comp_z.txt` (an absent one: no
+/// table on that axis), as `host-sim compensation --write DIR` writes them.
+pub fn run_compensated(machine: Option<&Path>, comp: Option<&Path>) -> Result<CircleReport> {
     let file = match machine {
         Some(m) => builtin::load_on_machine("circle.toml", m)?,
         None => builtin::load("circle.toml")?,
     };
-    let runs = resolve_all(&file)?;
+    let mut runs = resolve_all(&file)?;
+    if let Some(dir) = comp {
+        let tables = crate::comp_file::read_dir(dir)?;
+        for r in &mut runs {
+            r.compensation = Some(Box::new(tables));
+        }
+    }
     let cases = jobs::run_all(&runs, case)?;
     Ok(CircleReport {
         machine: machine.map_or("host-sim/machines/gantry.toml (built in)".into(), |m| {

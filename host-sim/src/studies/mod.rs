@@ -12,6 +12,7 @@
 
 pub mod circle;
 pub mod circular_test;
+pub mod compensation;
 pub mod estimators;
 pub mod faults;
 pub mod generic;

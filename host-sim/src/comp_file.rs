@@ -1,0 +1,172 @@
+//! LinuxCNC's screw-compensation file (`[JOINT_n] COMP_FILE`, `COMP_FILE_TYPE`), read into
+//! one axis' table (controller-core `motion::compensation`) and written back.
+//!
+//! One point per line, three numbers separated by blanks, nominal positions increasing
+//! (LinuxCNC `usrmotLoadComp`, at most 256 points):
+//! - type 0: `nominal forward-actual reverse-actual`: where the axis really is, measured at
+//!   the tool (a laser, a gauge), when it comes to `nominal` moving forward and in reverse;
+//!   the trim added to the command is `nominal − actual`;
+//! - type 1: `nominal forward-trim reverse-trim`: the trims themselves.
+//!
+//! Blank lines and lines starting with `#` or `;` are skipped (LinuxCNC stops at the first
+//! line that is not a triplet; here such a line is an error naming `FILE:LINE`). Units are
+//! the machine's: mm.
+
+use anyhow::{bail, Context, Result};
+use controller_core::motion::compensation::{AxisCompensation, CompPoint, MAX_COMP_POINTS};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The two layouts of a compensation file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CompFileType {
+    /// `nominal forward-actual reverse-actual`.
+    Actual,
+    /// `nominal forward-trim reverse-trim`.
+    Trim,
+}
+
+impl CompFileType {
+    /// LinuxCNC's `COMP_FILE_TYPE` number.
+    pub fn from_number(n: u32) -> Result<Self> {
+        match n {
+            0 => Ok(Self::Actual),
+            1 => Ok(Self::Trim),
+            _ => bail!("COMP_FILE_TYPE must be 0 (actual positions) or 1 (trims), got {n}"),
+        }
+    }
+}
+
+/// Parse the text of a compensation file named `name` (for the errors).
+pub fn parse(name: &str, text: &str, kind: CompFileType) -> Result<Vec<CompPoint>> {
+    let mut pts: Vec<CompPoint> = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.trim();
+        if line.is_empty() || line.starts_with('#') || line.starts_with(';') {
+            continue;
+        }
+        let at = || format!("{name}:{}", i + 1);
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|w| w.parse::<f64>())
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("{}: not three numbers: `{line}`", at()))?;
+        let [nom, fwd, rev] = v[..] else {
+            bail!(
+                "{}: expected three numbers (nominal, forward, reverse), got {}",
+                at(),
+                v.len()
+            );
+        };
+        if !(nom.is_finite() && fwd.is_finite() && rev.is_finite()) {
+            bail!("{}: a value is not finite", at());
+        }
+        if let Some(prev) = pts.last() {
+            if nom <= f64::from(prev.nominal_mm) {
+                bail!(
+                    "{}: nominal {nom} does not increase (previous {})",
+                    at(),
+                    prev.nominal_mm
+                );
+            }
+        }
+        if pts.len() == MAX_COMP_POINTS {
+            bail!("{}: more than {MAX_COMP_POINTS} points", at());
+        }
+        let (f, r) = match kind {
+            CompFileType::Actual => (nom - fwd, nom - rev),
+            CompFileType::Trim => (fwd, rev),
+        };
+        pts.push(CompPoint {
+            nominal_mm: nom as f32,
+            fwd_trim_mm: f as f32,
+            rev_trim_mm: r as f32,
+        });
+    }
+    Ok(pts)
+}
+
+/// Read the compensation file at `path`.
+pub fn read(path: &Path, kind: CompFileType) -> Result<Vec<CompPoint>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading compensation file {}", path.display()))?;
+    parse(&path.display().to_string(), &text, kind)
+}
+
+/// The tables of a folder of type-0 files `comp_x.txt`, `comp_y.txt`, `comp_z.txt` (an
+/// absent file: no compensation on that axis).
+pub fn read_dir(dir: &Path) -> Result<[AxisCompensation; 3]> {
+    let mut out = [AxisCompensation::NONE; 3];
+    if !dir.is_dir() {
+        bail!("compensation folder {} not found", dir.display());
+    }
+    for (i, letter) in ['x', 'y', 'z'].into_iter().enumerate() {
+        let path = dir.join(format!("comp_{letter}.txt"));
+        if path.exists() {
+            let pts = read(&path, CompFileType::Actual)?;
+            out[i] = AxisCompensation::new(&pts, 0.0)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        }
+    }
+    Ok(out)
+}
+
+/// A type-0 file (`nominal forward-actual reverse-actual`, µm resolution kept to 0.1 µm)
+/// of measured points `(nominal, forward actual, reverse actual)`, with a header comment.
+pub fn write_actual(header: &str, pts: &[(f64, f64, f64)]) -> String {
+    let mut s = String::new();
+    for h in header.lines() {
+        let _ = writeln!(s, "# {h}");
+    }
+    for (n, f, r) in pts {
+        let _ = writeln!(s, "{n:.4} {f:.5} {r:.5}");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn type_0_gives_nominal_minus_actual_and_type_1_the_trims() {
+        let text = "# measured\n0.0 0.0 -0.001\n\n10.0 10.002 9.995\n";
+        let p = parse("c.txt", text, CompFileType::Actual).unwrap();
+        assert_eq!(p.len(), 2);
+        assert!((p[0].rev_trim_mm - 0.001).abs() < 1e-7);
+        assert!((p[1].fwd_trim_mm + 0.002).abs() < 1e-6);
+        assert!((p[1].rev_trim_mm - 0.005).abs() < 1e-6);
+        let p = parse("c.txt", "5 0.01 -0.01\n", CompFileType::Trim).unwrap();
+        assert_eq!(p[0].fwd_trim_mm, 0.01);
+    }
+
+    #[test]
+    fn bad_lines_are_errors_naming_file_and_line() {
+        let e = |t: &str| {
+            parse("comp.txt", t, CompFileType::Actual)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(
+            e("0 0 0\n1 1\n").starts_with("comp.txt:2: expected three numbers"),
+            "{}",
+            e("0 0 0\n1 1\n")
+        );
+        assert!(e("0 0 0\n0 0 0\n").starts_with("comp.txt:2: nominal 0 does not increase"));
+        assert!(e("0 x 0\n").starts_with("comp.txt:1: not three numbers"));
+        assert!(e("0 inf 0\n").starts_with("comp.txt:1: a value is not finite"));
+        let many: String = (0..=MAX_COMP_POINTS)
+            .map(|i| format!("{i} {i} {i}\n"))
+            .collect();
+        assert!(e(&many).starts_with("comp.txt:257: more than 256 points"));
+        assert!(CompFileType::from_number(2).is_err());
+    }
+
+    #[test]
+    fn a_written_file_reads_back() {
+        let s = write_actual("test", &[(0.0, 0.001, -0.002), (7.0, 7.0, 6.99)]);
+        let p = parse("w", &s, CompFileType::Actual).unwrap();
+        assert!((p[0].fwd_trim_mm + 0.001).abs() < 1e-7);
+        assert!((p[1].rev_trim_mm - 0.01).abs() < 1e-6);
+    }
+}
