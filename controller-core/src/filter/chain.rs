@@ -72,7 +72,7 @@ impl<R: Real, const N: usize> FilterChain<R, N> {
     /// One sample through the chain. Without stages the input is returned as it is. A
     /// non-finite output (a non-finite input, or an overflow of a float state) clears
     /// the states and gives 0, so the chain never latches a NaN.
-    #[inline]
+    #[inline(always)]
     pub fn process(&mut self, x: R) -> R {
         if self.count == 0 {
             return x;
@@ -148,7 +148,7 @@ impl<R: Real> OutputFilters<R> {
     }
 
     /// Filter the three axes' control outputs.
-    #[inline]
+    #[inline(always)]
     pub fn process(&mut self, u: Vec3<R>) -> Vec3<R> {
         let [x, y, z] = &mut self.axes;
         Vec3::new(x.process(u.x), y.process(u.y), z.process(u.z))
