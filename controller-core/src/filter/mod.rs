@@ -40,6 +40,9 @@ pub use biquad::Biquad;
 pub use chain::{FilterChain, OutputFilters};
 pub use cookbook::Coefficients;
 pub use design::{AxisFilterConfig, FilterConfig, MAX_STAGES};
-pub use margins::{accept, loop_margins, pid_response, Margins, Rejection};
+pub use margins::{
+    accept, loop_margins, margins_of_samples, pid_response, Margins, Rejection, SampleError,
+    MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG,
+};
 pub use placement::{place, Placement, Resonance};
 pub use response::FrequencyResponse;

@@ -214,6 +214,14 @@ fn reset_holds_a_constant_output_and_nan_does_not_latch() {
     assert_eq!(z.x, 0.0);
     let next = f.process(Vec3::new(1.0, 1.0, 1.0));
     assert!(next.x.is_finite() && (next.x - 1.0).abs() < 0.1, "{next:?}");
+    // a chain shorter than the configuration refuses it
+    let two =
+        AxisFilterConfig::new(&[notch(52.0, 15.0, 18.0), FilterConfig::low_pass(400.0)]).unwrap();
+    assert_eq!(
+        FilterChain::<f32, 1>::new(&two, T),
+        Err(crate::config::ConfigError::OutOfRange("filters"))
+    );
+    assert_eq!(FilterChain::<f32, 2>::new(&two, T).map(|c| c.len()), Ok(2));
     // bad configurations name their field
     let mut bad = cfg;
     bad[2] =
