@@ -14,6 +14,8 @@
 //!   identified rigid-body model, and the physical axis a simulation follows;
 //! - [`law`]: PID, SMC/DSMC, DOB-SMC, adaptive friction SMC behind one interface;
 //! - [`coupling`]: the paper's 3-D contour coupling and the variable-gain contour PID;
+//! - [`filter`]: notch and low-pass biquads on the control output, their placement from
+//!   measured resonances and the stability margins that accept them;
 //! - [`controller`]: the 3-axis controller (a law per axis, coupling);
 //! - [`estimator`]: wide counts, PLL and Kalman velocity estimators, the per-axis bank;
 //! - [`motion`]: reference trajectories and their configuration;
@@ -38,6 +40,7 @@ pub mod config;
 pub mod controller;
 pub mod coupling;
 pub mod estimator;
+pub mod filter;
 pub mod law;
 pub mod link;
 pub mod machine;

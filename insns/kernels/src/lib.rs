@@ -13,10 +13,12 @@
 //! - [`ServoPeriod`]: the whole control period as the board's interrupt runs it
 //!   ([`Servo::period`] with the board's configuration, `presets::board`);
 //! - [`parts`]: the blocks of that period one by one (`servo_part_*`);
+//! - [`filters`]: the three axes' output filters (notches, a low-pass) for one period;
 //! - [`machine_period`]: the core's whole control period behind the link
 //!   (`Machine::linked_period` of the board's machine, `machine_period_*`).
 #![no_std]
 
+pub mod filters;
 pub mod link;
 pub mod machine_period;
 pub mod parts;

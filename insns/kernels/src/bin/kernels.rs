@@ -68,6 +68,7 @@ macro_rules! kernel {
 mod cortex_m4 {
     use super::*;
     use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
+    use insns_kernels::filters::Filters3;
     use insns_kernels::link::{LinkDecode, LinkEncode};
     use insns_kernels::machine_period::MachinePeriod;
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
@@ -125,6 +126,14 @@ mod cortex_m4 {
     );
     kernel!(servo_period, ServoPeriod, ServoPeriod::setup(), |k| k
         .step());
+    kernel!(filters3_f32, Filters3<f32>, Filters3::<f32>::setup(), |k| k
+        .step());
+    kernel!(
+        filters3_fixed,
+        Filters3<FxQ32>,
+        Filters3::<FxQ32>::setup(),
+        |k| k.step()
+    );
     kernel!(
         servo_part_estimators,
         PartEstimators,
