@@ -590,6 +590,7 @@ mod split {
             Box::new(MachineMemory {
                 planner: exec,
                 scope: Scope::new(),
+                comp: controller_core::motion::compensation::CompTables::NONE,
             }),
         )
         .unwrap();

@@ -64,6 +64,7 @@ mod tests {
             let memory = Box::new(MachineMemory {
                 planner: MachinePlanner::BLANK,
                 scope: Scope::new(),
+                comp: controller_core::motion::compensation::CompTables::NONE,
             });
             let planner = factory_planner(decoded.servo.rate_hz);
             let mut run = SimRun::<f32, _, _>::with_memory(&decoded, &planner, memory).unwrap();

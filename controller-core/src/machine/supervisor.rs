@@ -62,12 +62,15 @@ pub type MachineTaskPlanner = Planner<MACHINE_SEGMENTS, MACHINE_SPANS>;
 pub struct MachineMemory<M = MachinePlanner> {
     pub planner: M,
     pub scope: Scope,
+    /// The backlash and lead-screw compensation tables (6 KiB; all zeros: none).
+    pub comp: crate::motion::compensation::CompTables,
 }
 
 impl MachineMemory<MachinePlanner> {
     pub const BLANK: Self = Self {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
+        comp: crate::motion::compensation::CompTables::NONE,
     };
 }
 
@@ -393,14 +396,24 @@ where
         &self.servo
     }
 
-    /// Set `axis`' backlash and lead-screw compensation (the servo's
-    /// [`Servo::set_compensation`]): refused while the outputs are on.
+    /// Set `axis`' backlash and lead-screw compensation
+    /// ([`crate::motion::compensation`], kept in the machine's memory and applied by the
+    /// servo step): refused while the outputs are on.
     pub fn set_compensation(
         &mut self,
         axis: crate::axes::Axis,
         c: crate::motion::compensation::AxisCompensation,
     ) -> Result<(), crate::servo::ReconfigureError> {
-        self.servo.set_compensation(axis, c)
+        if self.servo.state().drives() {
+            return Err(crate::servo::ReconfigureError::OutputsOn);
+        }
+        self.mem.comp.set(axis.index(), c);
+        Ok(())
+    }
+
+    /// The compensation tables in use.
+    pub fn compensation(&self) -> &crate::motion::compensation::CompTables {
+        &self.mem.comp
     }
 
     /// The settings tree it runs (the factory tree for a machine built
@@ -636,7 +649,7 @@ where
         }
         // (the snapshot is read in place: a copy of its 200 bytes cost ~190 instructions
         // a period; only the three fields the machine acts on are taken out)
-        let s = self.servo.period(io, &cmds);
+        let s = self.servo.period_with(io, &cmds, Some(&self.mem.comp));
         self.mem.scope.record(s, &self.sample);
         let (refused_now, state, fault) = (s.refused, s.state, s.fault);
         if servo_request {

@@ -20,7 +20,7 @@
 //! Tables are in machine coordinates: they apply only to axes that are referenced (homed,
 //! or taking no part in homing), as in LinuxCNC. The servo applies the offset to the
 //! reference its laws track (motor side) and holds nominal positions where it stops
-//! ([`Compensation::nominal_of`] turns a measured motor position into the nominal that
+//! ([`CompState::nominal_of`] turns a measured motor position into the nominal that
 //! needs it, so that arming moves nothing).
 //!
 //! Storage: trims are kept as `i16` multiples of [`TRIM_UNIT_MM`] (0.1 µm, ±3.27 mm):
@@ -52,7 +52,7 @@ pub const DEFAULT_COMP_RATE_MM_S: f32 = 20.0;
 /// Default acceleration of the applied offset, mm/s²: 20 µm of backlash is crossed in
 /// 4 ms at up to 10 mm/s, half the gantry's slowest axis' physical acceleration (Y:
 /// 11,000 mm/s², presets/gantry.rs). While an axis takes up such a step the encoder
-/// monitor's counts-due check releases its claims on it ([`Compensation::crossing_mask`]):
+/// monitor's counts-due check releases its claims on it ([`CompState::crossing_mask`]):
 /// a motor side crossing the play alone knocks into its frame's spring, which the rigid
 /// model of that check does not bound (it tripped, a false `EncoderJump`, at a reversal
 /// of the flexible gantry's Y before).
@@ -119,14 +119,16 @@ pub struct AxisCompensation {
 }
 
 impl AxisCompensation {
-    /// No compensation (nothing is added, nothing is computed).
+    /// No compensation (nothing is added, nothing is computed; the limits are unused).
+    /// All zeros, so that a servo's tables start as zero-filled memory, not as a 6 KiB
+    /// image copied from flash.
     pub const NONE: Self = Self {
         len: 0,
         nominal_mm: [0.0; MAX_COMP_POINTS],
         trim: [[0; 2]; MAX_COMP_POINTS],
         half_backlash_mm: 0.0,
-        rate_mm_s: DEFAULT_COMP_RATE_MM_S,
-        accel_mm_s2: DEFAULT_COMP_ACCEL_MM_S2,
+        rate_mm_s: 0.0,
+        accel_mm_s2: 0.0,
     };
 
     /// A table (may be empty) and a backlash with the default rate and acceleration
@@ -257,7 +259,7 @@ impl AxisCompensation {
 }
 
 /// How long after its offset last moved faster than [`STEP_RATE_MM_S`] an axis counts as
-/// taking up its play ([`Compensation::crossing_mask`]), s: the knock of a motor side
+/// taking up its play ([`CompState::crossing_mask`]), s: the knock of a motor side
 /// into its frame's spring rings for a few of the mode's periods (the gantry's slowest,
 /// Y's 35 Hz: 29 ms each).
 pub const CROSSING_HOLD_S: f32 = 0.1;
@@ -301,44 +303,35 @@ impl AxisState {
     }
 }
 
-/// The three axes' compensation and its state, as the servo step applies it.
+/// The three axes' tables (the machine's: the caller places them, e.g. in the board's
+/// static machine memory; 6 KiB, too large to move through the stack with the servo).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Compensation {
+pub struct CompTables {
     axes: [AxisCompensation; AXES],
-    state: [AxisState; AXES],
     /// Axes with something to add (bit i: axis i): none on the rigid, uncompensated
     /// machine, whose period then skips all of it.
     any: u8,
 }
 
-impl Default for Compensation {
+impl Default for CompTables {
     fn default() -> Self {
         Self::NONE
     }
 }
 
-impl Compensation {
-    /// No compensation on any axis.
+impl CompTables {
+    /// No compensation on any axis (all zeros: zero-filled memory is this).
     pub const NONE: Self = Self {
         axes: [AxisCompensation::NONE; AXES],
-        state: [AxisState {
-            reverse: false,
-            offset_mm: 0.0,
-            rate_mm_s: 0.0,
-            crossing_s: 0.0,
-            hint: 0,
-        }; AXES],
         any: 0,
     };
 
-    /// Set `axis`' compensation (its offset restarts from zero: call while the outputs
-    /// are off).
+    /// Set `axis`' compensation.
     pub fn set(&mut self, axis: usize, c: AxisCompensation) {
         let Some(slot) = self.axes.get_mut(axis) else {
             return;
         };
         *slot = c;
-        self.state[axis] = AxisState::default();
         let bit = 1u8 << axis;
         if c.is_none() {
             self.any &= !bit;
@@ -357,6 +350,30 @@ impl Compensation {
     pub fn any(&self) -> bool {
         self.any != 0
     }
+}
+
+/// The compensation's state in the servo step: per axis the direction, the offset applied
+/// and its rate; whether a hold set this period waits to be turned nominal.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CompState {
+    state: [AxisState; AXES],
+    /// A hold at motor positions was set: [`Self::nominal_of`] turns it into the nominal
+    /// position before the next reference is sampled.
+    pub pending_hold: bool,
+}
+
+impl CompState {
+    /// Nothing applied yet.
+    pub const NONE: Self = Self {
+        state: [AxisState {
+            reverse: false,
+            offset_mm: 0.0,
+            rate_mm_s: 0.0,
+            crossing_s: 0.0,
+            hint: 0,
+        }; AXES],
+        pending_hold: false,
+    };
 
     /// Axes taking up a step of their offset (a reversal's backlash), or within
     /// [`CROSSING_HOLD_S`] of one (bit i: axis i).
@@ -376,20 +393,26 @@ impl Compensation {
         core::array::from_fn(|i| self.state[i].offset_mm)
     }
 
-    /// Add this period's offsets to `r` (the nominal reference, in place): on the axes of
-    /// `active` (referenced) towards their trims, each within its rate and acceleration
-    /// over `dt_s`; elsewhere none (at once: those references are motor positions); the direction follows the reference's velocity
-    /// on every axis. The offset's rate and acceleration are added to the velocity and the
-    /// acceleration.
-    pub fn apply<R: Real>(&mut self, r: &mut RefSample<R>, active: u8, dt_s: f32) {
-        if self.any == 0 || !(dt_s > 0.0) {
+    /// Add this period's offsets of `tables` to `r` (the nominal reference, in place): on
+    /// the axes of `active` (referenced) towards their trims, each within its rate and
+    /// acceleration over `dt_s`; elsewhere none (at once: those references are motor
+    /// positions); the direction follows the reference's velocity on every axis. The
+    /// offset's rate and acceleration are added to the velocity and the acceleration.
+    pub fn apply<R: Real>(
+        &mut self,
+        tables: &CompTables,
+        r: &mut RefSample<R>,
+        active: u8,
+        dt_s: f32,
+    ) {
+        if tables.any == 0 || !(dt_s > 0.0) {
             return;
         }
         for i in 0..AXES {
-            if self.any & (1 << i) == 0 {
+            if tables.any & (1 << i) == 0 {
                 continue;
             }
-            let (c, s) = (&self.axes[i], &mut self.state[i]);
+            let (c, s) = (&tables.axes[i], &mut self.state[i]);
             let v = r.vel[i].to_f32();
             if v > 0.0 {
                 s.reverse = false;
@@ -420,16 +443,21 @@ impl Compensation {
     /// The nominal position that the motor position `motor` stands for on the axes of
     /// `active` (the inverse of [`Self::apply`] at rest), with the offsets set to match
     /// at once: holding there moves nothing. Inactive axes: the offset is zero.
-    pub fn nominal_of<R: Real>(&mut self, motor: Vec3<R>, active: u8) -> Vec3<R> {
+    pub fn nominal_of<R: Real>(
+        &mut self,
+        tables: &CompTables,
+        motor: Vec3<R>,
+        active: u8,
+    ) -> Vec3<R> {
         let mut n = motor;
-        if self.any == 0 {
+        if tables.any == 0 {
             return n;
         }
         for i in 0..AXES {
-            if self.any & (1 << i) == 0 {
+            if tables.any & (1 << i) == 0 {
                 continue;
             }
-            let (c, s) = (&self.axes[i], &mut self.state[i]);
+            let (c, s) = (&tables.axes[i], &mut self.state[i]);
             if active & (1 << i) == 0 {
                 s.offset_mm = 0.0;
                 s.rate_mm_s = 0.0;
@@ -518,17 +546,18 @@ mod tests {
 
     #[test]
     fn a_reversal_crosses_the_backlash_within_the_limits_and_holding_moves_nothing() {
-        let mut c = Compensation::NONE;
+        let mut t = CompTables::NONE;
+        let mut c = CompState::NONE;
         let (rate, accel) = (10.0f32, 2000.0f32);
-        c.set(
+        t.set(
             0,
             AxisCompensation::with_limits(&[], 0.020, rate, accel).unwrap(),
         );
         let dt = 1e-4;
-        let step = |c: &mut Compensation, v: f32| {
+        let step = |c: &mut CompState, v: f32| {
             let mut r = RefSample::<f32>::default();
             r.vel[0] = v;
-            c.apply(&mut r, 0b111, dt);
+            c.apply(&t, &mut r, 0b111, dt);
             r
         };
         for _ in 0..200 {
@@ -540,7 +569,8 @@ mod tests {
             c.offsets_mm()
         );
         // reverse: to −10 µm, the added velocity and acceleration within the limits,
-        // never beyond the target by more than nm, in about the triangular profile's 2·√(d/a) = 6.3 ms
+        // never beyond the target by more than nm, in about the triangular profile's
+        // 2·√(d/a) = 6.3 ms
         let mut last = c.offsets_mm()[0];
         let mut k_done = None;
         for k in 0..400 {
@@ -564,30 +594,30 @@ mod tests {
         assert!((60..=75).contains(&k), "{k} periods");
         // the nominal of a motor position, applied again, gives the motor position
         let motor = Vec3::new(5.0f32, 0.0, 0.0);
-        let n = c.nominal_of(motor, 0b111);
+        let n = c.nominal_of(&t, motor, 0b111);
         let mut r = RefSample {
             pos: n,
             ..Default::default()
         };
-        c.apply(&mut r, 0b111, dt);
+        c.apply(&t, &mut r, 0b111, dt);
         assert!((r.pos[0] - 5.0).abs() < 1e-6, "{:?}", r.pos);
         // an inactive axis has no offset, at once
         let mut r = RefSample::<f32>::default();
-        c.apply(&mut r, 0, dt);
+        c.apply(&t, &mut r, 0, dt);
         assert_eq!(r.pos[0], 0.0);
         assert_eq!(c.crossing_mask(), 0);
     }
 
     #[test]
     fn nothing_configured_is_bit_exact_passthrough() {
-        let mut c = Compensation::NONE;
+        let mut c = CompState::NONE;
         let mut r = RefSample {
             pos: Vec3::new(1.25f32, -3.5, 7.0),
             vel: Vec3::new(0.5, 0.0, -1.0),
             acc: Vec3::zero(),
         };
         let before = r;
-        c.apply(&mut r, 0b111, 1e-4);
+        c.apply(&CompTables::NONE, &mut r, 0b111, 1e-4);
         assert_eq!(r, before);
     }
 }

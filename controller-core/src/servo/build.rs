@@ -18,7 +18,7 @@ use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3};
 use crate::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
-use crate::motion::compensation::Compensation;
+use crate::motion::compensation::CompState;
 use crate::motion::path::PathStart;
 use crate::motion::reference::{Clock, ReferenceMode};
 use crate::{Real, Vec3};
@@ -118,7 +118,7 @@ impl<R: Real> Servo<R> {
             path,
             path_start,
             motion: ReferenceMode::Hold(Vec3::zero()),
-            comp: Compensation::NONE,
+            comp: CompState::NONE,
             travel: cfg.travel,
             manual: ManualState {
                 homing: cfg.homing,
@@ -215,7 +215,7 @@ impl<R: Real> Servo<R> {
             next.index.carry_over(&self.index);
         }
         next.faults = self.faults;
-        // the tables are the machine's, not the configuration's (set_compensation)
+        // the offsets applied stay (the tables are the machine's, not the configuration's)
         next.comp = self.comp;
         next.link_down = self.link_down;
         next.state = self.state;

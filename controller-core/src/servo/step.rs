@@ -24,7 +24,7 @@ use super::travel::TravelConfig;
 use crate::axes::{Axis, AXES};
 use crate::controller::{ControlOutput, Controller3, Measured};
 use crate::estimator::{EstimatorBank, WideCounter};
-use crate::motion::compensation::{AxisCompensation, Compensation};
+use crate::motion::compensation::{CompState, CompTables};
 use crate::motion::path::PathStart;
 use crate::motion::planner::PathSample;
 use crate::motion::reference::{Clock, ReferenceMode};
@@ -78,9 +78,10 @@ pub struct Servo<R> {
     pub(super) path: Option<(Trajectory<R>, Option<u32>)>,
     pub(super) path_start: PathStart,
     pub(super) motion: ReferenceMode<R>,
-    /// Backlash and lead-screw compensation added to the reference the laws track
-    /// ([`crate::motion::compensation`]).
-    pub(super) comp: Compensation,
+    /// The state of the backlash and lead-screw compensation added to the reference the
+    /// laws track ([`crate::motion::compensation`]; the tables are the caller's,
+    /// [`Self::period_with`]).
+    pub(super) comp: CompState,
     pub(super) travel: TravelConfig,
     /// Homing and jogging: their configuration and the axes referenced.
     pub(super) manual: ManualState,
@@ -295,23 +296,8 @@ impl<R: Real> Servo<R> {
         self.period_s
     }
 
-    /// Set `axis`' backlash and lead-screw compensation
-    /// ([`crate::motion::compensation`]); refused while the outputs are on. The tables
-    /// are the machine's: a reconfiguration keeps them.
-    pub fn set_compensation(
-        &mut self,
-        axis: Axis,
-        c: AxisCompensation,
-    ) -> Result<(), super::ReconfigureError> {
-        if self.state.drives() {
-            return Err(super::ReconfigureError::OutputsOn);
-        }
-        self.comp.set(axis.index(), c);
-        Ok(())
-    }
-
-    /// The compensation in use.
-    pub fn compensation(&self) -> &Compensation {
+    /// The compensation's state (offsets applied, axes taking up their play).
+    pub fn compensation(&self) -> &CompState {
         &self.comp
     }
 
@@ -331,10 +317,22 @@ impl<R: Real> Servo<R> {
     }
 
     /// Hold the axes where the motor positions `motor` are: at the nominal position
-    /// that compensates to them, so that holding there moves nothing.
+    /// that compensates to them (turned nominal before the next reference is sampled,
+    /// when the period has the tables), so that holding there moves nothing.
     pub(super) fn hold_motor(&mut self, motor: Vec3<R>) {
-        let n = self.comp.nominal_of(motor, self.referenced_mask());
-        self.motion = ReferenceMode::Hold(n);
+        self.motion = ReferenceMode::Hold(motor);
+        self.comp.pending_hold = true;
+    }
+
+    /// A hold at motor positions set since the last reference, turned nominal.
+    #[cold]
+    #[inline(never)]
+    fn hold_nominal(&mut self, tables: &CompTables) {
+        self.comp.pending_hold = false;
+        let active = self.referenced_mask();
+        if let ReferenceMode::Hold(p) = &mut self.motion {
+            *p = self.comp.nominal_of(tables, *p, active);
+        }
     }
 
     /// The measured position of `counts` (the estimators' formula: what the controller
@@ -379,8 +377,19 @@ impl<R: Real> Servo<R> {
 
     /// One control period. See the module documentation of [`super`] for the sequence.
     /// Commands that are not valid now are refused: the refusal is in the snapshot
-    /// ([`Snapshot::refused`]).
+    /// ([`Snapshot::refused`]). No backlash or lead-screw compensation: [`Self::period_with`].
     pub fn period<IO: ServoIo<R>>(&mut self, io: &mut IO, commands: &[Command]) -> &Snapshot {
+        self.period_with(io, commands, None)
+    }
+
+    /// [`Self::period`] with the machine's compensation `tables` (the machine keeps them
+    /// in its memory: [`crate::machine::Machine::set_compensation`]).
+    pub fn period_with<IO: ServoIo<R>>(
+        &mut self,
+        io: &mut IO,
+        commands: &[Command],
+        tables: Option<&CompTables>,
+    ) -> &Snapshot {
         self.snapshot.period = self.snapshot.period.wrapping_add(1);
 
         // 1. Safety first: hard inputs and commands decide before anything is computed.
@@ -402,14 +411,21 @@ impl<R: Real> Servo<R> {
 
         // 3. Reference.
         let arm_checking = self.step_reference(io, &inputs, index, held, &mut counts);
+        let tables = tables.filter(|t| t.any());
+        if self.comp.pending_hold {
+            match tables {
+                Some(t) => self.hold_nominal(t),
+                None => self.comp.pending_hold = false,
+            }
+        }
         let (mut reference, motion_t, at_rest) = self.sample_reference(held);
         // the programmed position, before compensation (what stops hold and telemetry
         // shows)
         let nominal = reference.pos;
-        if self.comp.any() {
+        if let Some(t) = tables {
             let active = self.compensated_mask();
             self.comp
-                .apply(&mut reference, active, self.period_s as f32);
+                .apply(t, &mut reference, active, self.period_s as f32);
             let crossing = self.comp.crossing_mask();
             if crossing != 0 {
                 self.monitor.release_due_claims(crossing);

@@ -66,6 +66,7 @@ impl RunMemory {
         Self(MachineMemory {
             planner: NoPlanner { start_mm: [0.0; 3] },
             scope: Scope::new(),
+            comp: crate::motion::compensation::CompTables::NONE,
         })
     }
 }

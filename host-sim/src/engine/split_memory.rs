@@ -37,6 +37,7 @@ impl SplitParts {
         let memory = Box::new(MachineMemory {
             planner: exec,
             scope: Scope::new(),
+            comp: controller_core::motion::compensation::CompTables::NONE,
         });
         (memory, SplitPlanner::new(&mut self.planner, pl))
     }

@@ -207,6 +207,7 @@ pub fn run_with_settings(
     let memory = Box::new(MachineMemory {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
+        comp: controller_core::motion::compensation::CompTables::NONE,
     });
     let mut run: ProgramRun =
         SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
@@ -340,6 +341,7 @@ pub fn run_positioning(
     let memory = Box::new(MachineMemory {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
+        comp: controller_core::motion::compensation::CompTables::NONE,
     });
     let mut run: ProgramRun =
         SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;

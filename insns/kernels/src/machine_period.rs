@@ -62,6 +62,7 @@ const IDLE_PERIODS: u32 = 50;
 static mut MEMORY: MachineMemory<Executor> = MachineMemory {
     planner: SplitExecutor::DETACHED,
     scope: Scope::new(),
+    comp: controller_core::motion::compensation::CompTables::NONE,
 };
 static mut PLANNER: MachineTaskPlanner = MachineTaskPlanner::BLANK;
 static mut PLANNER_CHANNELS: PlannerChannels = PlannerChannels::new();
