@@ -1,0 +1,178 @@
+//! The block's construction and bookkeeping: the documented minimum frequencies, refusals
+//! that name the axis, the common centroid of the taps, start-up, reset and settling.
+//! (Residual vibration, limits, the deviation bound and fixed point: tests/shaper.rs.)
+
+use super::*;
+use crate::axes::Axis;
+use crate::config::ConfigError;
+use crate::motion::trajectory::RefSample;
+use crate::Vec3;
+
+const PERIOD_S: f32 = 1.0e-4;
+
+/// The board's set: MZV on X at 90 Hz, ZV on Y at 35 Hz, ZVD on Z at 55 Hz.
+fn board_set() -> AxisShapers {
+    AxisShapers {
+        x: Some(ShaperConfig::new(ShaperKind::Mzv, 90.0)),
+        y: Some(ShaperConfig::new(ShaperKind::Zv, 35.0)),
+        z: Some(ShaperConfig::new(ShaperKind::Zvd, 55.0)),
+    }
+}
+
+fn sample(p: [f64; 3], v: [f64; 3], a: [f64; 3]) -> RefSample<f64> {
+    RefSample {
+        pos: Vec3::new(p[0], p[1], p[2]),
+        vel: Vec3::new(v[0], v[1], v[2]),
+        acc: Vec3::new(a[0], a[1], a[2]),
+    }
+}
+
+#[test]
+fn minimum_frequencies_are_the_documented_ones_and_hold() {
+    let table = [9.86f32, 14.78, 19.71, 19.71, 29.20, 38.89];
+    for (kind, want) in ShaperKind::ALL.into_iter().zip(table) {
+        let f = min_freq_hz(kind, 0.1, PERIOD_S, BOARD_SHAPER_HISTORY).unwrap();
+        // the table rounds up to 0.01 Hz: a frequency it names always fits
+        assert!(f <= want && f > want - 0.01, "{kind:?}: {f} (docs {want})");
+        let on_y = |freq_hz| AxisShapers {
+            y: Some(ShaperConfig::new(kind, freq_hz)),
+            ..AxisShapers::NONE
+        };
+        assert!(InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(&on_y(f), PERIOD_S).is_ok());
+        match InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(&on_y(0.99 * f), PERIOD_S) {
+            Err(ConfigError::OutOfRange(name)) => {
+                assert!(name.starts_with("shaper.y ("), "{name}");
+                assert!(name.contains(kind.name()), "{name}");
+                assert!(name.contains("longer than the shaper history"), "{name}");
+            }
+            other => panic!("{kind:?} at 0.99 f_min: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn bad_sets_are_refused_with_the_axis_named() {
+    let mut s = board_set();
+    s.z = Some(ShaperConfig::new(ShaperKind::Zvd, 10.0));
+    assert_eq!(
+        InputShaper::<f32, 512>::new(&s, PERIOD_S),
+        Err(ConfigError::OutOfRange(
+            "shaper.z (zvd) longer than the shaper history: raise freq_hz or use a shorter kind"
+        ))
+    );
+    let mut s = board_set();
+    s.x = Some(ShaperConfig::new(ShaperKind::Mzv, 0.0));
+    assert_eq!(
+        InputShaper::<f32, 512>::new(&s, PERIOD_S),
+        Err(ConfigError::NotPositive("shaper.x.freq_hz"))
+    );
+    let mut s = board_set();
+    s.y = Some(ShaperConfig::new(ShaperKind::Zv, 501.0));
+    assert_eq!(
+        InputShaper::<f32, 512>::new(&s, PERIOD_S),
+        Err(ConfigError::OutOfRange(
+            "shaper.y.freq_hz (<= 1/20 of the control rate)"
+        ))
+    );
+    assert!(matches!(
+        InputShaper::<f32, 500>::new(&board_set(), PERIOD_S),
+        Err(ConfigError::Unsupported(_))
+    ));
+    assert!(InputShaper::<f32, 512>::new(&board_set(), 0.0).is_err());
+    // The board's set fits, a shorter history than its window does not.
+    let sh = InputShaper::<f32, 512>::new(&board_set(), PERIOD_S).unwrap();
+    assert!(sh.window_periods() < 256, "{}", sh.window_periods());
+    assert!(InputShaper::<f32, 128>::new(&board_set(), PERIOD_S).is_err());
+}
+
+/// Every axis' taps: weights positive, summing to 1, centred on the common delay D (the
+/// largest centroid, ZVD at 55 Hz: 0.48774 · 9.1367 ms + 0.17784 · 18.273 ms = 7.706 ms
+/// = 77.06 periods, rounded up to 78).
+#[test]
+fn every_axis_is_centred_on_the_common_delay() {
+    let sh = InputShaper::<f64, 512>::new(&board_set(), PERIOD_S).unwrap();
+    assert_eq!(sh.delay_periods(), 78);
+    assert!((sh.delay_s() - 7.8e-3).abs() < 1e-7);
+    for axis in Axis::ALL {
+        let (mut sum, mut mean) = (0.0, 0.0);
+        for (off, w) in sh.tap_weights(axis) {
+            assert!(w > 0.0, "{axis:?}");
+            sum += w;
+            mean += w * off as f64;
+        }
+        assert!((sum - 1.0).abs() < 1e-12, "{axis:?}: {sum}");
+        assert!((mean - 78.0).abs() < 1e-9, "{axis:?}: {mean}");
+    }
+    // two taps per impulse (no impulse falls on the grid here)
+    assert_eq!(sh.taps(Axis::X), 6);
+    assert_eq!(sh.taps(Axis::Y), 4);
+    assert_eq!(sh.taps(Axis::Z), 6);
+    // An unshaped axis is one tap: an exact delay of D.
+    let only_y = AxisShapers {
+        y: board_set().y,
+        ..AxisShapers::NONE
+    };
+    let sh = InputShaper::<f64, 512>::new(&only_y, PERIOD_S).unwrap();
+    let mut x = sh.tap_weights(Axis::X);
+    assert_eq!((x.next(), x.next()), (Some((61, 1.0)), None));
+    assert_eq!(sh.bound().second_moment_s2[0], 0.0);
+    // ZV's second moment A0·A1·(t_d/2)², 5.03e-5 s², plus the split's f(1−f)·T² ≤ T²/4.
+    let m = sh.bound().second_moment_s2[1] as f64;
+    let zv = 0.5782862 * 0.4217138 * 0.01435768f64.powi(2);
+    assert!(m >= zv && m <= zv + 0.5e-8, "{m} vs {zv}");
+}
+
+#[test]
+fn no_shaper_is_a_pass_through() {
+    let sh = InputShaper::<f64, 4>::new(&AxisShapers::NONE, PERIOD_S).unwrap();
+    assert_eq!(sh.delay_periods(), 0);
+    let mut st = sh.state(&sample([0.0; 3], [0.0; 3], [0.0; 3]));
+    for k in 0..20 {
+        let x = k as f64;
+        let s = sample([x, 2.0 * x, -x], [1.0, 2.0, -1.0], [0.0; 3]);
+        assert_eq!(sh.process(&mut st, &s), s);
+    }
+}
+
+#[test]
+fn rest_stays_rest_and_the_end_is_reached_exactly() {
+    let sh = InputShaper::<f64, 512>::new(&board_set(), PERIOD_S).unwrap();
+    let rest = sample([12.5, -3.25, 40.0], [0.0; 3], [0.0; 3]);
+    let mut st = sh.state(&rest);
+    assert!(st.is_settled());
+    assert_eq!(st.pending_periods(), 0);
+    for _ in 0..1000 {
+        assert_eq!(sh.process(&mut st, &rest), rest);
+    }
+    // A step of the input: nothing moves before the first tap, the end is reached after
+    // the window exactly, and pending_periods counts down to it.
+    let moved = sample([13.5, -2.25, 41.0], [0.0; 3], [0.0; 3]);
+    let w = sh.window_periods();
+    let first = (0..3)
+        .map(|a| {
+            sh.tap_weights(Axis::ALL[a])
+                .map(|(o, _)| o)
+                .min()
+                .unwrap_or(0)
+        })
+        .min()
+        .unwrap();
+    for k in 0..=w + 5 {
+        let y = sh.process(&mut st, &moved);
+        assert_eq!(st.pending_periods(), w.saturating_sub(k), "period {k}");
+        if k < first {
+            assert_eq!(y.pos, rest.pos, "period {k}");
+        }
+        if k >= w {
+            assert!(st.is_settled());
+            assert_eq!(y, moved, "period {k}");
+        } else {
+            assert!(!st.is_settled());
+        }
+    }
+    // A jump after reset: the output is the new sample at once, no interpolation.
+    let jumped = sample([-100.0, 0.0, 5.0], [0.0; 3], [0.0; 3]);
+    st.reset(&jumped);
+    assert!(st.is_settled());
+    assert_eq!(sh.process(&mut st, &jumped), jumped);
+}
