@@ -14,7 +14,8 @@
 //!   ([`Servo::period`] with the board's configuration, `presets::board`);
 //! - [`parts`]: the blocks of that period one by one (`servo_part_*`);
 //! - [`machine_period`]: the core's whole control period behind the link
-//!   (`Machine::linked_period` of the board's machine, `machine_period_*`).
+//!   (`Machine::linked_period` of the board's machine, `machine_period_*`);
+//! - [`shaper`]: the input shaper on three axes (`shaper3_f32`).
 #![no_std]
 
 pub mod link;
@@ -22,6 +23,7 @@ pub mod machine_period;
 pub mod parts;
 pub mod plan_task;
 pub mod planner;
+pub mod shaper;
 
 use controller_core::axes::AXES;
 use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, Measured};

@@ -85,10 +85,22 @@
 //!
 //! # Cost
 //!
-//! Per period: 9 stores and 9 compares of the new sample, then per axis and tap three
-//! multiply-adds on one contiguous `[pos, vel, acc]`. The board's set (MZV on X at
-//! 90 Hz, ZV on Y at 35 Hz, ZVD on Z at 55 Hz: 16 taps) is the `shaper3_f32` kernel of
-//! `cargo insns` (insns/README.md).
+//! Per period: the new sample is compared with the previous one and stored (9 values),
+//! then per axis and tap one index, one weight and three multiply-adds on a contiguous
+//! `[pos, vel, acc]`. `cargo insns` (insns/README.md), one period on the Cortex-M4:
+//!
+//! | kernel | taps | instructions | cycles_est |
+//! |---|---|---|---|
+//! | `shaper3_f32`: MZV X 90 Hz, ZV Y 35 Hz, ZVD Z 55 Hz (the board's set) | 16 | 402 | 715 |
+//! | `shaper3_f32_on_grid`: the same kinds with every impulse on a period | 8 | 286 | 499 |
+//!
+//! About 27 cycles per tap (a weight, three loads, three `VMLA` of 3 cycles each, the
+//! index) over ~285 of bookkeeping (the compare and store of the sample, three tap
+//! loops, the returned sample). The split between samples doubles the taps: 715 against
+//! 499 cycles. 715 cycles are 4.3 µs at 168 MHz, 4.3 % of the 10 kHz period. Issue 24's
+//! budget of 150 cycles for filters and shaper together cannot hold three shaped
+//! channels per axis: 16 taps × 3 channels × (a 2-cycle load and a 3-cycle `VMLA`) are
+//! 240 cycles before any index, weight or bookkeeping.
 
 pub mod block;
 pub mod bound;

@@ -176,3 +176,33 @@ fn rest_stays_rest_and_the_end_is_reached_exactly() {
     assert!(st.is_settled());
     assert_eq!(sh.process(&mut st, &jumped), jumped);
 }
+
+/// Undamped shapers whose impulses and centroids fall on the 10 kHz grid (ZV at
+/// 2500/71 Hz: impulses 142 periods apart, centroid 71; ZVD at 5000/91 Hz: 91 apart,
+/// centroid 91; MZV at 3750/42 Hz: 42 apart, centroid 42) take one tap per impulse, at
+/// the impulse's own period, though the `f32` frequencies put them ~1e-5 periods off.
+#[test]
+fn impulses_on_the_grid_take_one_tap() {
+    let undamped = |kind, f| {
+        let mut c = ShaperConfig::new(kind, f);
+        c.damping_ratio = 0.0;
+        Some(c)
+    };
+    let s = AxisShapers {
+        x: undamped(ShaperKind::Mzv, 3750.0 / 42.0),
+        y: undamped(ShaperKind::Zv, 2500.0 / 71.0),
+        z: undamped(ShaperKind::Zvd, 5000.0 / 91.0),
+    };
+    let sh = InputShaper::<f64, 512>::new(&s, PERIOD_S).unwrap();
+    assert_eq!(sh.delay_periods(), 91);
+    let offsets = |a| {
+        let mut v = [0usize; 3];
+        for (d, (o, _)) in v.iter_mut().zip(sh.tap_weights(a)) {
+            *d = o;
+        }
+        (sh.taps(a), v)
+    };
+    assert_eq!(offsets(Axis::X), (3, [49, 91, 133]));
+    assert_eq!(offsets(Axis::Y), (2, [20, 162, 0]));
+    assert_eq!(offsets(Axis::Z), (3, [0, 91, 182]));
+}

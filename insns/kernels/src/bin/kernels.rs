@@ -73,6 +73,7 @@ mod cortex_m4 {
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
     use insns_kernels::plan_task::{PlanTask, Program};
     use insns_kernels::planner::PlannerState;
+    use insns_kernels::shaper::Shaper3;
     use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
 
     kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
@@ -188,6 +189,13 @@ mod cortex_m4 {
     );
     kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
         .step());
+    kernel!(shaper3_f32, Shaper3, Shaper3::setup(), |k| k.step());
+    kernel!(
+        shaper3_f32_on_grid,
+        Shaper3,
+        Shaper3::setup_on_grid(),
+        |k| k.step()
+    );
     kernel!(link_decode_segment, LinkDecode, LinkDecode::setup(), |k| k
         .step());
     kernel!(
