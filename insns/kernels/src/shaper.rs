@@ -9,7 +9,10 @@
 //! tap per impulse, 8 taps): undamped shapers (ζ = 0) at frequencies whose impulses and
 //! centroids fall on the 10 kHz grid, MZV at 3750/42 = 89.29 Hz, ZV at 2500/71 =
 //! 35.21 Hz, ZVD at 5000/91 = 54.95 Hz. It prices the alternative of rounding the
-//! impulse times to whole periods instead of splitting them.
+//! impulse times to whole periods instead of splitting them. Its history is 256 periods
+//! (its window is 182): the cost does not depend on the capacity (the ring index is a
+//! mask), and a second 18 KB history would leave the emulator's RAM too little stack for
+//! the `plan_task_*` setups.
 
 use controller_core::axes::Axis;
 use controller_core::motion::shaper::{
@@ -26,12 +29,13 @@ const Z_RATE_MM_S: f32 = 5.0;
 /// Periods run before counting: longer than the shaper's window.
 const WARMUP_PERIODS: u32 = 2000;
 
-type BoardShaper = InputShaper<f32, BOARD_SHAPER_HISTORY>;
+/// The history of `shaper3_f32_on_grid` (periods).
+pub const ON_GRID_HISTORY: usize = 256;
 
-/// The shaper, its history and the next period's input.
-pub struct Shaper3 {
-    shaper: BoardShaper,
-    state: ShaperState<f32, BOARD_SHAPER_HISTORY>,
+/// The shaper with a history of `N` periods, its history and the next period's input.
+pub struct Shaper3<const N: usize> {
+    shaper: InputShaper<f32, N>,
+    state: ShaperState<f32, N>,
     input: RefSample<f32>,
 }
 
@@ -55,7 +59,7 @@ fn undamped(kind: ShaperKind, freq_hz: f32) -> Option<ShaperConfig> {
     Some(c)
 }
 
-impl Shaper3 {
+impl Shaper3<BOARD_SHAPER_HISTORY> {
     /// The board's set, warmed up on the circle.
     pub fn setup() -> Option<Self> {
         Self::with(&AxisShapers {
@@ -65,7 +69,9 @@ impl Shaper3 {
         })
         .filter(|s| s.taps() == 16)
     }
+}
 
+impl Shaper3<ON_GRID_HISTORY> {
     /// The set whose impulses all fall on the period grid (8 taps).
     pub fn setup_on_grid() -> Option<Self> {
         Self::with(&AxisShapers {
@@ -75,13 +81,15 @@ impl Shaper3 {
         })
         .filter(|s| s.taps() == 8)
     }
+}
 
+impl<const N: usize> Shaper3<N> {
     fn taps(&self) -> usize {
         Axis::ALL.iter().map(|a| self.shaper.taps(*a)).sum()
     }
 
     fn with(cfg: &AxisShapers) -> Option<Self> {
-        let shaper = BoardShaper::new(cfg, PERIOD_S).ok()?;
+        let shaper = InputShaper::<f32, N>::new(cfg, PERIOD_S).ok()?;
         let mut state = shaper.state(&circle(0));
         for n in 1..WARMUP_PERIODS {
             shaper.process(&mut state, &circle(n));

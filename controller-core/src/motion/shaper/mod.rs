@@ -91,13 +91,13 @@
 //!
 //! | kernel | taps | instructions | cycles_est |
 //! |---|---|---|---|
-//! | `shaper3_f32`: MZV X 90 Hz, ZV Y 35 Hz, ZVD Z 55 Hz (the board's set) | 16 | 402 | 715 |
-//! | `shaper3_f32_on_grid`: the same kinds with every impulse on a period | 8 | 286 | 499 |
+//! | `shaper3_f32`: MZV X 90 Hz, ZV Y 35 Hz, ZVD Z 55 Hz (the board's set) | 16 | 383 | 668 |
+//! | `shaper3_f32_on_grid`: the same kinds with every impulse on a period | 8 | 277 | 458 |
 //!
-//! About 27 cycles per tap (a weight, three loads, three `VMLA` of 3 cycles each, the
-//! index) over ~285 of bookkeeping (the compare and store of the sample, three tap
-//! loops, the returned sample). The split between samples doubles the taps: 715 against
-//! 499 cycles. 715 cycles are 4.3 µs at 168 MHz, 4.3 % of the 10 kHz period. Issue 24's
+//! About 26 cycles per tap (a weight, three loads, three `VMLA` of 3 cycles each, the
+//! index) over ~250 of bookkeeping (the compare and store of the sample, three tap
+//! loops, the returned sample). The split between samples doubles the taps: 668 against
+//! 458 cycles. 668 cycles are 4.0 µs at 168 MHz, 4.0 % of the 10 kHz period. Issue 24's
 //! budget of 150 cycles for filters and shaper together cannot hold three shaped
 //! channels per axis: 16 taps × 3 channels × (a 2-cycle load and a 3-cycle `VMLA`) are
 //! 240 cycles before any index, weight or bookkeeping.
