@@ -1,7 +1,9 @@
 //! The input shaper (controller-core `motion::shaper`) on references with numbers:
 //!
 //! - residual vibration of every kind on a damped mode (the gantry's Y: 35 Hz, ζ = 0.1)
-//!   driven by a shaped move as base excitation, at the design frequency and ±10 %;
+//!   driven by a shaped move as base excitation, at the design frequency and ±10 %: the
+//!   taps on whole periods are what the simulated mode sees, and they cost no more than
+//!   the rounding's bound over Klipper's impulses;
 //! - the planner's per-axis limits after shaping (velocity and acceleration never above
 //!   the unshaped maxima of the window);
 //! - the contour deviation bound on a circle (holds, and within 4× of the measured) and
@@ -118,14 +120,14 @@ fn residual<const N: usize>(shapers: &AxisShapers, plant_hz: f64, plant_zeta: f6
 }
 
 /// Klipper's (and Singhose's) percentage residual vibration of an impulse train on a mode:
-/// `|Σ Aᵢ e^{−ζω(T_N − tᵢ)} e^{iω_d tᵢ}|`, relative to one unshaped impulse at `T_N`.
-fn analytic_v(c: &ShaperConfig, plant_hz: f64, plant_zeta: f64) -> f64 {
-    let s = c.impulses().unwrap();
+/// `|Σ Aᵢ e^{−ζω(T_N − tᵢ)} e^{iω_d tᵢ}|`, relative to one unshaped impulse at `T_N` (the
+/// last impulse's time). `imp`: `(amplitude, time s)`.
+fn train_v(imp: &[(f64, f64)], plant_hz: f64, plant_zeta: f64) -> f64 {
     let w = 2.0 * std::f64::consts::PI * plant_hz;
     let wd = w * (1.0 - plant_zeta * plant_zeta).sqrt();
-    let tn = s.duration_s();
+    let tn = imp.iter().map(|(_, t)| *t).fold(0.0, f64::max);
     let (mut re, mut im) = (0.0, 0.0);
-    for (a, t) in s.iter() {
+    for (a, t) in imp {
         let k = a * (-plant_zeta * w * (tn - t)).exp();
         re += k * (wd * t).cos();
         im += k * (wd * t).sin();
@@ -133,7 +135,35 @@ fn analytic_v(c: &ShaperConfig, plant_hz: f64, plant_zeta: f64) -> f64 {
     re.hypot(im)
 }
 
-/// The shaped move's residual over the unshaped one delayed by the shaper's last impulse
+/// `train_v` of the shaper's impulses (Klipper's times and amplitudes).
+fn analytic_v(c: &ShaperConfig, plant_hz: f64, plant_zeta: f64) -> f64 {
+    let s = c.impulses().unwrap();
+    train_v(&s.iter().collect::<Vec<_>>(), plant_hz, plant_zeta)
+}
+
+/// The impulses of the block's taps on Y: `(weight, time s)` from its first tap.
+fn y_taps<const N: usize>(sh: &InputShaper<f32, N>) -> Vec<(f64, f64)> {
+    let taps: Vec<(usize, f32)> = sh.tap_weights(Axis::Y).collect();
+    let first = taps[0].0;
+    taps.iter()
+        .map(|(o, w)| (*w as f64, (o - first) as f64 * DT))
+        .collect()
+}
+
+/// What rounding the impulses to whole periods can cost in residual vibration:
+/// `Σ |Aᵢ' − Aᵢ| + ω Σ Aᵢ |tᵢ' − tᵢ|` (primes: the taps). Each term of the train is
+/// `Aᵢ g(tᵢ)` with `|g| ≤ 1` and `|g'| ≤ ω` before the last impulse, so moving a term
+/// changes the sum by at most that much (module docs, "Whole periods").
+fn rounding_bound(c: &ShaperConfig, taps: &[(f64, f64)], plant_hz: f64) -> f64 {
+    let s = c.impulses().unwrap();
+    let w = 2.0 * std::f64::consts::PI * plant_hz;
+    s.iter()
+        .zip(taps)
+        .map(|((a, t), (a2, t2))| (a2 - a).abs() + w * a * (t2 - t).abs())
+        .sum()
+}
+
+/// The shaped move's residual over the unshaped one delayed by the shaper's last tap
 /// (Klipper's percentage residual vibration, here measured on the simulated mode), with a
 /// history of `N` periods.
 fn measured_v<const N: usize>(c: ShaperConfig, plant_hz: f64, plant_zeta: f64) -> f64 {
@@ -142,9 +172,7 @@ fn measured_v<const N: usize>(c: ShaperConfig, plant_hz: f64, plant_zeta: f64) -
         ..AxisShapers::NONE
     };
     let sh = InputShaper::<f32, N>::new(&on_y, PERIOD_S).unwrap();
-    let s = c.impulses().unwrap();
-    // the last impulse, after the shift that puts the centroid on the whole-period delay
-    let t_last = s.duration_s() + sh.delay_s() as f64 - s.centroid_s();
+    let t_last = sh.tap_weights(Axis::Y).map(|(o, _)| o).max().unwrap() as f64 * DT;
     let unshaped = residual::<N>(&AxisShapers::NONE, plant_hz, plant_zeta);
     // the unshaped move must ring, or the ratio would prove nothing
     assert!(unshaped > 0.01, "unshaped residual {unshaped} mm");
@@ -152,6 +180,11 @@ fn measured_v<const N: usize>(c: ShaperConfig, plant_hz: f64, plant_zeta: f64) -
     residual::<N>(&on_y, plant_hz, plant_zeta) / unshaped * (-plant_zeta * w * t_last).exp()
 }
 
+/// Every kind at 35 Hz (ζ = 0.1) on the simulated mode at 0.9, 1 and 1.1 times its
+/// frequency. The taps on whole periods are exactly what the mode sees (the measured V
+/// equals their train's within 2e-3), they stay within the rounding's bound of Klipper's
+/// impulses, and at the design frequency ZV, MZV and ZVD leave at most 1 % (Klipper's
+/// impulses: 0; the rounding: 0.54, 0.43 and 0.39 %, module docs).
 #[test]
 fn every_kind_removes_the_residual_vibration_of_its_mode() {
     const F: f64 = 35.0;
@@ -159,24 +192,40 @@ fn every_kind_removes_the_residual_vibration_of_its_mode() {
     for kind in ShaperKind::ALL {
         let c = ShaperConfig::new(kind, F as f32);
         let tol = c.vibration_tolerance as f64;
+        let on_y = AxisShapers {
+            y: Some(c),
+            ..AxisShapers::NONE
+        };
+        // 3hump_ei at 35 Hz (57 ms) needs more than the board's 51.2 ms history
+        let long = kind == ShaperKind::ThreeHumpEi;
+        let taps = if long {
+            y_taps(&InputShaper::<f32, 1024>::new(&on_y, PERIOD_S).unwrap())
+        } else {
+            y_taps(&Shaper::<f32>::new(&on_y, PERIOD_S).unwrap())
+        };
         for ratio in [0.9, 1.0, 1.1] {
-            // 3hump_ei at 35 Hz (57 ms) needs more than the board's 51.2 ms history
-            let v = if kind == ShaperKind::ThreeHumpEi {
+            let v = if long {
                 measured_v::<1024>(c, F * ratio, ZETA)
             } else {
                 measured_v::<BOARD_SHAPER_HISTORY>(c, F * ratio, ZETA)
             };
+            let vt = train_v(&taps, F * ratio, ZETA);
             let va = analytic_v(&c, F * ratio, ZETA);
+            let bound = rounding_bound(&c, &taps, F * ratio);
             println!(
-                "{:>8} at {ratio:.1} f: V = {:.4} (impulses: {va:.4})",
+                "{:>8} at {ratio:.1} f: V = {v:.4} (taps {vt:.4}, impulses {va:.4}, rounding bound {bound:.4})",
                 kind.name(),
-                v
             );
-            // the sampled shaper (split taps, held acceleration) is the impulse train
-            assert!((v - va).abs() < 2e-3, "{kind:?} {ratio}: {v} vs {va}");
+            // the sampled shaper (held acceleration) is the train of its taps
+            assert!((v - vt).abs() < 2e-3, "{kind:?} {ratio}: {v} vs {vt}");
+            // and the taps are Klipper's impulses within what the rounding can cost
+            assert!(
+                (vt - va).abs() <= bound,
+                "{kind:?} {ratio}: {vt} vs {va} ± {bound}"
+            );
             let limit = match (kind, ratio == 1.0) {
-                // ZV, MZV, ZVD: a zero at the design frequency
-                (ShaperKind::Zv | ShaperKind::Mzv | ShaperKind::Zvd, true) => 0.05,
+                // ZV, MZV, ZVD: a zero at the design frequency, moved by the rounding
+                (ShaperKind::Zv | ShaperKind::Mzv | ShaperKind::Zvd, true) => 0.01,
                 // EI family: the tolerance at (or below it around) the design frequency
                 (ShaperKind::Ei | ShaperKind::TwoHumpEi | ShaperKind::ThreeHumpEi, _) => tol + 0.01,
                 // ZVD within its documented band (0.835 … 1.174)

@@ -1,18 +1,15 @@
 //! The input shaper kernel (`shaper3_f32`): one period of
 //! [`controller_core::motion::shaper::InputShaper`] on three axes with the board's history
-//! (`BOARD_SHAPER_HISTORY`, 512 periods) at 10 kHz: MZV on X at 90 Hz, ZV on Y at 35 Hz,
-//! ZVD on Z at 55 Hz (the gantry's modes; 16 taps in all), the reference a 20 mm circle
-//! at 100 mm/s in XY rising 5 mm/s in Z, every axis moving (the shaper is not settled, so
-//! every tap is read).
-//!
-//! `shaper3_f32_on_grid` is the same period with every impulse on a period boundary (one
-//! tap per impulse, 8 taps): undamped shapers (ζ = 0) at frequencies whose impulses and
-//! centroids fall on the 10 kHz grid, MZV at 3750/42 = 89.29 Hz, ZV at 2500/71 =
-//! 35.21 Hz, ZVD at 5000/91 = 54.95 Hz. It prices the alternative of rounding the
-//! impulse times to whole periods instead of splitting them. Its history is 256 periods
-//! (its window is 182): the cost does not depend on the capacity (the ring index is a
-//! mask), and a second 18 KB history would leave the emulator's RAM too little stack for
-//! the `plan_task_*` setups.
+//! (`BOARD_SHAPER_HISTORY`) at 10 kHz: MZV on X at 90 Hz, ZV on Y at 35 Hz, ZVD on Z at
+//! 55 Hz (the gantry's modes; one tap per impulse on whole periods, 8 taps in all), the
+//! reference a 20 mm circle at 100 mm/s in XY rising 5 mm/s in Z, every axis moving (the
+//! shaper is not settled, and every tap reads a different sample). `shaper3_f32_rest`: the
+//! same set with the input at rest for longer than the window (the same work, and the
+//! longest path of the comparison with the previous sample), on a history of 256
+//! periods ([`REST_HISTORY`]; the set's window is 183): a second 18 KB history would
+//! leave the emulator's RAM too little stack for the `plan_task_*` setups, and the cost
+//! hardly depends on the capacity (the ring index is masked; the compiler's byte form of
+//! the 256 mask is one instruction more per tap).
 
 use controller_core::axes::Axis;
 use controller_core::motion::shaper::{
@@ -29,14 +26,17 @@ const Z_RATE_MM_S: f32 = 5.0;
 /// Periods run before counting: longer than the shaper's window.
 const WARMUP_PERIODS: u32 = 2000;
 
-/// The history of `shaper3_f32_on_grid` (periods).
-pub const ON_GRID_HISTORY: usize = 256;
+/// The history of `shaper3_f32_rest` (periods).
+pub const REST_HISTORY: usize = 256;
 
-/// The shaper with a history of `N` periods, its history and the next period's input.
+/// The board's shaper with a history of `N` periods, its history and the next period's
+/// input. In this order (`repr(C)`): the input and the taps within an immediate offset of
+/// the kernel's one base address, as a caller's would be, not behind the 18 KB history.
+#[repr(C)]
 pub struct Shaper3<const N: usize> {
+    input: RefSample<f32>,
     shaper: InputShaper<f32, N>,
     state: ShaperState<f32, N>,
-    input: RefSample<f32>,
 }
 
 /// The reference at period `n`.
@@ -52,60 +52,47 @@ fn circle(n: u32) -> RefSample<f32> {
     }
 }
 
-/// An undamped shaper of `kind` at `freq_hz`.
-fn undamped(kind: ShaperKind, freq_hz: f32) -> Option<ShaperConfig> {
-    let mut c = ShaperConfig::new(kind, freq_hz);
-    c.damping_ratio = 0.0;
-    Some(c)
-}
-
 impl Shaper3<BOARD_SHAPER_HISTORY> {
     /// The board's set, warmed up on the circle.
     pub fn setup() -> Option<Self> {
-        Self::with(&AxisShapers {
-            x: Some(ShaperConfig::new(ShaperKind::Mzv, 90.0)),
-            y: Some(ShaperConfig::new(ShaperKind::Zv, 35.0)),
-            z: Some(ShaperConfig::new(ShaperKind::Zvd, 55.0)),
-        })
-        .filter(|s| s.taps() == 16)
+        Self::with(circle)
     }
 }
 
-impl Shaper3<ON_GRID_HISTORY> {
-    /// The set whose impulses all fall on the period grid (8 taps).
-    pub fn setup_on_grid() -> Option<Self> {
-        Self::with(&AxisShapers {
-            x: undamped(ShaperKind::Mzv, 3750.0 / 42.0),
-            y: undamped(ShaperKind::Zv, 2500.0 / 71.0),
-            z: undamped(ShaperKind::Zvd, 5000.0 / 91.0),
-        })
-        .filter(|s| s.taps() == 8)
+impl Shaper3<REST_HISTORY> {
+    /// The board's set at rest (the input constant for longer than the window): the
+    /// comparison of the new sample with the previous one sees all nine values equal,
+    /// its longest path.
+    pub fn setup_rest() -> Option<Self> {
+        Self::with(|_| circle(0))
     }
 }
 
 impl<const N: usize> Shaper3<N> {
-    fn taps(&self) -> usize {
-        Axis::ALL.iter().map(|a| self.shaper.taps(*a)).sum()
-    }
-
-    fn with(cfg: &AxisShapers) -> Option<Self> {
-        let shaper = InputShaper::<f32, N>::new(cfg, PERIOD_S).ok()?;
-        let mut state = shaper.state(&circle(0));
+    fn with(input_at: impl Fn(u32) -> RefSample<f32>) -> Option<Self> {
+        let cfg = AxisShapers {
+            x: Some(ShaperConfig::new(ShaperKind::Mzv, 90.0)),
+            y: Some(ShaperConfig::new(ShaperKind::Zv, 35.0)),
+            z: Some(ShaperConfig::new(ShaperKind::Zvd, 55.0)),
+        };
+        let shaper = InputShaper::new(&cfg, PERIOD_S).ok()?;
+        let taps: usize = Axis::ALL.iter().map(|a| shaper.taps(*a)).sum();
+        let mut state = shaper.state(&input_at(0));
         for n in 1..WARMUP_PERIODS {
-            shaper.process(&mut state, &circle(n));
+            shaper.process(&mut state, &input_at(n));
         }
-        let input = circle(WARMUP_PERIODS);
-        (!state.is_settled()).then_some(Self {
+        let input = input_at(WARMUP_PERIODS);
+        (taps == 8).then_some(Self {
             shaper,
             state,
             input,
         })
     }
 
-    /// One period; returns a sum of the shaped values (so none is optimised away).
+    /// One period; returns the shaped reference (the kernel keeps it: nothing is
+    /// optimised away, and no arithmetic on it is counted).
     #[inline(never)]
-    pub fn step(&mut self) -> f32 {
-        let y = self.shaper.process(&mut self.state, &self.input);
-        y.pos.x + y.pos.y + y.pos.z + y.vel.x + y.vel.y + y.vel.z + y.acc.x + y.acc.y + y.acc.z
+    pub fn step(&mut self) -> RefSample<f32> {
+        self.shaper.process(&mut self.state, &self.input)
     }
 }

@@ -5,21 +5,20 @@ use super::impulses::{Impulses, ParamNames, ShaperConfig, ShaperKind, MAX_IMPULS
 use crate::axes::{Axis, AXES};
 use crate::config::{positive, ConfigError};
 use crate::motion::trajectory::RefSample;
-use crate::Real;
+use crate::{Real, Vec3};
 
-/// Taps per axis at most: every impulse split over two samples.
-pub const MAX_TAPS: usize = 2 * MAX_IMPULSES;
+/// Taps per axis at most: one per impulse (the impulse times are rounded to whole
+/// periods).
+pub const MAX_TAPS: usize = MAX_IMPULSES;
 
-/// Highest mode frequency accepted, as a fraction of the control rate: at rate/20 the
-/// linear split between samples changes an impulse's response by at most `(ωT)²/8`
-/// = 1.2 % (T the period), so it adds at most about that much residual vibration.
-pub const MAX_FREQ_OF_RATE: f32 = 0.05;
-
-/// A fractional sample position this close to a whole period (in periods) is taken as
-/// on it, one tap instead of two: the `f32` frequency's rounding leaves an impulse meant
-/// to be on the grid up to ~1e-5 periods off it. The impulse moves by at most 10 ns at
-/// 10 kHz, its axis' centroid by as much: 2.5 nm of skew at 250 mm/s.
-const ON_GRID: f64 = 1e-4;
+/// Highest mode frequency accepted, as a fraction of the control rate (100 Hz at 10 kHz,
+/// 200 Hz at 20 kHz). Rounding an impulse time to the nearest period moves it by at most
+/// half a period `T`; the shortest spacing of any kind (MZV's 3/8 of the mode's period) is
+/// then at least 37.5 periods, so the shaper is tuned to a frequency at most 1.3 % off,
+/// inside every kind's band (ZV's, the narrowest, is ±3.7 %). The residual vibration the
+/// rounding adds is at most `5.2·f·T`, 5.2 % at this limit (module docs, "Whole
+/// periods").
+pub const MAX_FREQ_OF_RATE: f32 = 0.01;
 
 /// The shaper of each axis; `None` delays the axis by the common delay without shaping.
 /// In TOML: `[shaper.y] kind = "zv"`, `freq_hz = 35.0` (missing axes are `None`).
@@ -49,7 +48,8 @@ impl AxisShapers {
     }
 }
 
-/// One tap: the sample `off` periods back, weighted `w`.
+/// One tap: the sample `off` periods back, weighted `w`. An axis' first tap (its newest
+/// sample) is the reference of the others: `process` reads its weight as `1 − Σ` theirs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Tap<R> {
     off: usize,
@@ -57,8 +57,9 @@ struct Tap<R> {
 }
 
 /// The validated shapers of the three axes (see the module docs): per axis up to
-/// [`MAX_TAPS`] `(offset, weight)` pairs precomputed from the impulses, all axes centred
-/// on one delay. `N` is the history's capacity in periods (a power of two).
+/// [`MAX_TAPS`] `(offset, weight)` pairs precomputed from the impulses, one per impulse
+/// on a whole period, all axes centred on one delay. `N` is the history's capacity in
+/// periods (a power of two).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InputShaper<R, const N: usize> {
     taps: [[Tap<R>; MAX_TAPS]; AXES],
@@ -70,11 +71,10 @@ pub struct InputShaper<R, const N: usize> {
     bound: DeviationBound,
 }
 
-/// The history the shaper reads: the last `N` reference samples per axis as
-/// `[pos, vel, acc]`, newest at `head`.
+/// The history the shaper reads: the last `N` reference samples, newest at `head`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShaperState<R, const N: usize> {
-    hist: [[[R; 3]; N]; AXES],
+    hist: [RefSample<R>; N],
     head: usize,
     /// Periods since the input last changed (saturating).
     age: usize,
@@ -95,37 +95,41 @@ impl<R: Real, const N: usize> InputShaper<R, N> {
             ));
         }
         let p = f64::from(positive(period_s, "shaper period_s")?);
-        let mut imp: [Option<Impulses>; AXES] = [None; AXES];
-        for (axis, slot) in Axis::ALL.iter().zip(imp.iter_mut()) {
+        let mut rounded: [Option<Rounded>; AXES] = [None; AXES];
+        for (axis, slot) in Axis::ALL.iter().zip(rounded.iter_mut()) {
             if let Some(c) = cfg.get(*axis) {
                 let names = axis_names(*axis);
-                *slot = Some(c.impulses_named(&names.params)?);
+                let imp = c.impulses_named(&names.params)?;
                 if f64::from(c.freq_hz) * p > f64::from(MAX_FREQ_OF_RATE) {
                     return Err(ConfigError::OutOfRange(names.freq_high));
                 }
+                *slot = Some(Rounded::new(&imp, p));
             }
         }
-        // The common delay D, rounded up to a whole period (an unshaped axis is then one
-        // tap, an exact delay).
-        let max_c = imp
-            .iter()
-            .flatten()
-            .map(|s| s.centroid_s() / p)
-            .fold(0.0, f64::max);
-        let d = libm::ceil(max_c - ON_GRID);
+        // The common delay D: the largest of the shaped axes' centroids, each rounded to a
+        // whole period (an unshaped axis is then one tap, an exact delay).
+        let d = rounded.iter().flatten().map(|r| r.delay).max().unwrap_or(0);
         let mut sh = Self {
             taps: [[Tap::default(); MAX_TAPS]; AXES],
             n_taps: [0; AXES],
             window: 0,
-            delay_periods: d as usize,
+            delay_periods: d,
             period_s,
             bound: DeviationBound::default(),
         };
-        for (i, (axis, s)) in Axis::ALL.iter().zip(imp.iter()).enumerate() {
-            let (taps, n, m2) = axis_taps::<R>(s.as_ref(), d, p);
+        for (i, (axis, r)) in Axis::ALL.iter().zip(rounded.iter()).enumerate() {
+            let names = axis_names(*axis);
+            let (taps, n, m2) = match r {
+                None => {
+                    let delay = Tap { off: d, w: R::ONE };
+                    ([delay; MAX_TAPS], 1, 0.0)
+                }
+                Some(r) => r
+                    .taps::<R>(d, p)
+                    .ok_or(ConfigError::OutOfRange(names.too_damped))?,
+            };
             let oldest = taps.iter().take(n).map(|t| t.off).max().unwrap_or(0);
             if oldest > N - 1 {
-                let names = axis_names(*axis);
                 let kind = cfg.get(*axis).map_or(0, |c| c.kind.index());
                 return Err(ConfigError::OutOfRange(
                     names
@@ -168,47 +172,38 @@ impl<R: Real, const N: usize> InputShaper<R, N> {
     /// One control period: `input` (the unshaped reference of this period) enters the
     /// history and the shaped reference is returned. Once the input has been constant
     /// for the whole window ([`ShaperState::is_settled`]) the output is the input itself,
-    /// bit for bit.
+    /// bit for bit (every tap reads the same sample, so every difference from the
+    /// reference tap is zero).
     #[inline]
     pub fn process(&self, st: &mut ShaperState<R, N>, input: &RefSample<R>) -> RefSample<R> {
         let mask = N - 1;
-        let prev = st.head;
+        let prev = st.head & mask;
         let head = (prev + 1) & mask;
         st.head = head;
-        let mut same = true;
-        for (a, h) in st.hist.iter_mut().enumerate() {
-            let x = [input.pos[a], input.vel[a], input.acc[a]];
-            if let Some(p) = h.get(prev) {
-                same &= *p == x;
-            }
-            if let Some(s) = h.get_mut(head) {
-                *s = x;
-            }
+        let same = st.hist.get(prev) == Some(input);
+        if let Some(s) = st.hist.get_mut(head) {
+            *s = *input;
         }
         st.age = if same { st.age.saturating_add(1) } else { 0 };
-        if st.age >= self.window {
-            return *input;
+        let x = self.shape_axis(&st.hist, head, 0);
+        let y = self.shape_axis(&st.hist, head, 1);
+        let z = self.shape_axis(&st.hist, head, 2);
+        RefSample {
+            pos: Vec3::new(x[0], y[0], z[0]),
+            vel: Vec3::new(x[1], y[1], z[1]),
+            acc: Vec3::new(x[2], y[2], z[2]),
         }
-        let mut out = RefSample::default();
-        for (a, (h, (taps, n))) in st
-            .hist
-            .iter()
-            .zip(self.taps.iter().zip(self.n_taps))
-            .enumerate()
-        {
-            let (mut p, mut v, mut acc) = (R::ZERO, R::ZERO, R::ZERO);
-            for t in taps.iter().take(n) {
-                if let Some(s) = h.get(head.wrapping_sub(t.off) & mask) {
-                    p += t.w * s[0];
-                    v += t.w * s[1];
-                    acc += t.w * s[2];
-                }
-            }
-            out.pos[a] = p;
-            out.vel[a] = v;
-            out.acc[a] = acc;
-        }
-        out
+    }
+
+    /// Axis `a`'s shaped `[pos, vel, acc]` ([`shape_taps`]; `a` is a constant where
+    /// `process` calls it, so the taps' and the samples' addresses are too).
+    #[inline(always)]
+    fn shape_axis(&self, hist: &[RefSample<R>; N], head: usize, a: usize) -> [R; 3] {
+        let Some(taps) = self.taps.get(a) else {
+            return [R::ZERO; 3];
+        };
+        let n = self.n_taps.get(a).copied().unwrap_or(0);
+        shape_taps::<R, N>(hist, head, taps, n, a)
     }
 
     /// The common delay `D` of every axis (s): a whole number of periods.
@@ -258,7 +253,11 @@ impl<R: Real, const N: usize> ShaperState<R, N> {
     /// An empty history (zeros, no window) for a static; [`InputShaper::restart`] makes it
     /// a shaper's.
     pub const ZERO: Self = Self {
-        hist: [[[R::ZERO; 3]; N]; AXES],
+        hist: [RefSample {
+            pos: Vec3::new(R::ZERO, R::ZERO, R::ZERO),
+            vel: Vec3::new(R::ZERO, R::ZERO, R::ZERO),
+            acc: Vec3::new(R::ZERO, R::ZERO, R::ZERO),
+        }; N],
         head: 0,
         age: usize::MAX,
         window: 0,
@@ -268,10 +267,7 @@ impl<R: Real, const N: usize> ShaperState<R, N> {
     /// the axes, a new mode starts) nothing is interpolated across the jump, and the
     /// shaped reference is `sample` at once.
     pub fn reset(&mut self, sample: &RefSample<R>) {
-        for (a, h) in self.hist.iter_mut().enumerate() {
-            let x = [sample.pos[a], sample.vel[a], sample.acc[a]];
-            h.fill(x);
-        }
+        self.hist.fill(*sample);
         self.age = usize::MAX;
     }
 
@@ -287,52 +283,143 @@ impl<R: Real, const N: usize> ShaperState<R, N> {
     }
 }
 
-/// The taps of one axis around the common delay `d` (periods; period `p` s), with their
-/// second moment about `d` (s²). No shaper: one tap at `d`.
-fn axis_taps<R: Real>(s: Option<&Impulses>, d: f64, p: f64) -> ([Tap<R>; MAX_TAPS], usize, f64) {
-    let mut taps = [Tap::default(); MAX_TAPS];
-    let mut w64 = [0.0f64; MAX_TAPS];
-    let mut n = 0;
-    let mut add = |off: usize, w: f64| {
-        let i = taps.iter().take(n).position(|t| t.off == off).unwrap_or(n);
-        if let (Some(t), Some(acc)) = (taps.get_mut(i), w64.get_mut(i)) {
-            t.off = off;
-            *acc += w;
-            n = n.max(i + 1);
+/// One axis' shaper on whole periods (module docs, "Whole periods"): the impulses at
+/// `k` periods after the first, each time rounded to the nearest period, with their
+/// amplitudes; `centroid` their centroid (periods) before the tilt, `delay` it rounded.
+#[derive(Clone, Copy, Debug)]
+struct Rounded {
+    k: [usize; MAX_TAPS],
+    amp: [f64; MAX_TAPS],
+    n: usize,
+    centroid: f64,
+    delay: usize,
+}
+
+impl Rounded {
+    fn new(s: &Impulses, p: f64) -> Self {
+        let mut r = Self {
+            k: [0; MAX_TAPS],
+            amp: [0.0; MAX_TAPS],
+            n: 0,
+            centroid: 0.0,
+            delay: 0,
+        };
+        for (a, t) in s.iter() {
+            let k = libm::round((t / p).max(0.0)) as usize;
+            // Two impulses on one period (only above the accepted frequencies) add up.
+            let i = r.k.iter().take(r.n).position(|x| *x == k).unwrap_or(r.n);
+            if let (Some(rk), Some(ra)) = (r.k.get_mut(i), r.amp.get_mut(i)) {
+                *rk = k;
+                *ra += a;
+                r.n = r.n.max(i + 1);
+            }
+        }
+        r.centroid = r.iter().map(|(k, a)| a * k).sum();
+        r.delay = libm::round(r.centroid) as usize;
+        r
+    }
+
+    /// `(periods after the first, amplitude)` of each impulse.
+    fn iter(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.k
+            .iter()
+            .zip(self.amp)
+            .take(self.n)
+            .map(|(k, a)| (*k as f64, a))
+    }
+
+    /// The taps around the common delay `d` (periods; period `p` s) and their second
+    /// moment about `d` (s²). The axis is shifted by `d − delay` whole periods; the
+    /// amplitudes are tilted, `Aᵢ' = Aᵢ (1 + (kᵢ − c)(delay − c)/M)` (`c` the centroid, `M`
+    /// the second moment about it, in periods): the smallest change (weighted by `1/Aᵢ`)
+    /// that keeps their sum at 1 and moves the centroid onto `delay`, so onto `d` after
+    /// the shift. `None` when a tilted amplitude is not positive (a tiny impulse of a
+    /// heavily damped mode; module docs).
+    fn taps<R: Real>(&self, d: usize, p: f64) -> Option<([Tap<R>; MAX_TAPS], usize, f64)> {
+        let c = self.centroid;
+        let m: f64 = self.iter().map(|(k, a)| a * (k - c) * (k - c)).sum();
+        let tilt = if m > 0.0 {
+            (self.delay as f64 - c) / m
+        } else {
+            0.0
+        };
+        let shift = d.checked_sub(self.delay)?;
+        let mut taps = [Tap::default(); MAX_TAPS];
+        let mut m2 = 0.0;
+        for (t, (k, a)) in taps.iter_mut().zip(self.iter()) {
+            let w = a * (1.0 + (k - c) * tilt);
+            if !(w > 0.0) {
+                return None;
+            }
+            *t = Tap {
+                off: (k as usize).saturating_add(shift),
+                w: R::from_f64(w),
+            };
+            let dt = (t.off as f64 - d as f64) * p;
+            m2 += w * dt * dt;
+        }
+        Some((taps, self.n, m2))
+    }
+}
+
+/// One axis' shaped `[pos, vel, acc]` from its `n` taps: the reference tap's sample `x₀`
+/// plus `Σ wᵢ (xᵢ − x₀)` over the others. The same as `Σ wᵢ xᵢ` with the reference's
+/// weight `1 − Σ` the others', but exact on a constant input (every difference is 0),
+/// and the differences are small where the positions are large. One tap (an unshaped
+/// axis) is a plain copy. The taps are nested tests, not a loop: straight-line code with
+/// one compare per tap (a `match` on `n` costs a jump table and a loop the counter and
+/// the branch back). The index is masked, so it is in range: the bound check folds away.
+#[inline(always)]
+fn shape_taps<R: Real, const N: usize>(
+    hist: &[RefSample<R>; N],
+    head: usize,
+    taps: &[Tap<R>; MAX_TAPS],
+    n: usize,
+    a: usize,
+) -> [R; 3] {
+    let read = |off: usize| {
+        hist.get(head.wrapping_sub(off) & (N - 1))
+            .map_or([R::ZERO; 3], |s| [s.pos[a], s.vel[a], s.acc[a]])
+    };
+    // The `MAX_TAPS` (5) slots by name: this stops compiling if `MAX_TAPS` changes.
+    let [t0, t1, t2, t3, t4] = taps;
+    let x0 = read(t0.off);
+    if n < 2 {
+        return x0;
+    }
+    let term = |t: &Tap<R>| {
+        let x = read(t.off);
+        [
+            t.w * (x[0] - x0[0]),
+            t.w * (x[1] - x0[1]),
+            t.w * (x[2] - x0[2]),
+        ]
+    };
+    let mut s = term(t1);
+    let mut add = |t: &Tap<R>| {
+        for (s, d) in s.iter_mut().zip(term(t)) {
+            *s += d;
         }
     };
-    match s {
-        None => add(d as usize, 1.0),
-        Some(s) => {
-            let shift = d - s.centroid_s() / p;
-            for (a, t) in s.iter() {
-                let x = (t / p + shift).max(0.0);
-                let k = libm::floor(x);
-                let f = x - k;
-                if f < ON_GRID {
-                    add(k as usize, a);
-                } else if f > 1.0 - ON_GRID {
-                    add(k as usize + 1, a);
-                } else {
-                    add(k as usize, a * (1.0 - f));
-                    add(k as usize + 1, a * f);
-                }
+    // Nested tests, not a loop: one compare per tap, nothing the compiler rolls back up.
+    if n > 2 {
+        add(t2);
+        if n > 3 {
+            add(t3);
+            if n > 4 {
+                add(t4);
             }
         }
     }
-    let mut m2 = 0.0;
-    for (t, w) in taps.iter_mut().zip(w64).take(n) {
-        t.w = R::from_f64(w);
-        let dt = (t.off as f64 - d) * p;
-        m2 += w * dt * dt;
-    }
-    (taps, n, m2)
+    [x0[0] + s[0], x0[1] + s[1], x0[2] + s[2]]
 }
 
 /// The names an axis' errors carry.
 struct AxisNames {
     params: ParamNames,
     freq_high: &'static str,
+    /// A tilted amplitude not positive (module docs, "Whole periods").
+    too_damped: &'static str,
     /// Window too long for the history, per kind ([`ShaperKind::index`]).
     too_long: [&'static str; 6],
 }
@@ -349,7 +436,12 @@ macro_rules! axis_names {
                     ".vibration_tolerance (ei: 0..=0.2; hump ei: 0.05)"
                 ),
             },
-            freq_high: concat!("shaper.", $a, ".freq_hz (<= 1/20 of the control rate)"),
+            freq_high: concat!("shaper.", $a, ".freq_hz (<= 1/100 of the control rate)"),
+            too_damped: concat!(
+                "shaper.",
+                $a,
+                ".damping_ratio (too high for impulses on whole periods at this freq_hz)"
+            ),
             too_long: [
                 concat!("shaper.", $a, " (zv) longer than the shaper history: raise freq_hz"),
                 concat!("shaper.", $a, " (mzv) longer than the shaper history: raise freq_hz or use zv"),

@@ -2,8 +2,9 @@
 //!
 //! Every axis `i` of the shaped reference is a weighted sum of the reference's samples,
 //! `yᵢ(t) = Σₖ wₖ rᵢ(t − τₖ)`, with weights `wₖ ≥ 0` summing to 1 and centred on the
-//! common delay `D` (`Σₖ wₖ τₖ = D`, the taps after the linear split included: the split
-//! keeps each impulse's time as the mean of its two taps). Taylor's theorem about
+//! common delay `D` (`Σₖ wₖ τₖ = D`: the taps sit on whole periods, and their amplitudes
+//! are tilted so that each axis' centroid is on `D` exactly, module docs "Whole
+//! periods"). Taylor's theorem about
 //! `t − D` with the integral remainder gives
 //!
 //! ```text
@@ -29,7 +30,7 @@
 //! [`DeviationBound::blend_tolerance_mm`]), so the shaped reference stays within `ε` of the
 //! programmed path; or the acceleration is limited so that `B` fits a share of `ε`
 //! ([`DeviationBound::acc_for_deviation_mm_s2`]). On this gantry (Y's 35 Hz mode, ZV,
-//! M = 5.0e-5 s²) at the planner's 2000 mm/s² B = 0.050 mm, five times its 0.01 mm
+//! M = 5.06e-5 s² on whole periods) at the planner's 2000 mm/s² B = 0.051 mm, five times its 0.01 mm
 //! tolerance: Klipper's "smoothing", the price of the shaper, is the reason its
 //! calibration recommends a maximum acceleration per shaper.
 

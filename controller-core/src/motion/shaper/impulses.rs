@@ -347,10 +347,11 @@ fn expansion(f: f64, z: f64, t: &[[f64; 4]], a: &[[f64; 4]]) -> Impulses {
 }
 
 /// Lowest `freq_hz` at which a shaper of `kind` (at `damping_ratio`) fits a history of
-/// `capacity` periods of `period_s` on its own: its duration plus one period (the common
-/// delay is rounded up to a whole period) within `capacity − 1` periods. An axis sharing
-/// the common delay with a longer shaper can need more (validated at construction).
-/// `None` for an invalid damping ratio or a capacity below 3.
+/// `capacity` periods of `period_s` on its own: its duration within `capacity − 1`
+/// periods (its last impulse, rounded to the nearest period, is then at most
+/// `capacity − 1` periods back). An axis sharing the common delay with a longer shaper
+/// can need more (validated at construction). `None` for an invalid damping ratio or a
+/// capacity below 2.
 pub fn min_freq_hz(
     kind: ShaperKind,
     damping_ratio: f32,
@@ -360,7 +361,7 @@ pub fn min_freq_hz(
     let mut c = ShaperConfig::new(kind, 1.0);
     c.damping_ratio = damping_ratio;
     let dur_at_1hz = c.impulses().ok()?.duration_s();
-    let room_s = f64::from(period_s) * (capacity.checked_sub(2)? as f64);
+    let room_s = f64::from(period_s) * (capacity.checked_sub(1)? as f64);
     (room_s > 0.0).then(|| (dur_at_1hz / room_s) as f32)
 }
 

@@ -2,6 +2,8 @@
 //! that name the axis, the common centroid of the taps, start-up, reset and settling.
 //! (Residual vibration, limits, the deviation bound and fixed point: tests/shaper.rs.)
 
+extern crate std;
+
 use super::*;
 use crate::axes::Axis;
 use crate::config::ConfigError;
@@ -29,7 +31,7 @@ fn sample(p: [f64; 3], v: [f64; 3], a: [f64; 3]) -> RefSample<f64> {
 
 #[test]
 fn minimum_frequencies_are_the_documented_ones_and_hold() {
-    let table = [9.86f32, 14.78, 19.71, 19.71, 29.20, 38.89];
+    let table = [9.84f32, 14.76, 19.67, 19.67, 29.14, 38.81];
     for (kind, want) in ShaperKind::ALL.into_iter().zip(table) {
         let f = min_freq_hz(kind, 0.1, PERIOD_S, BOARD_SHAPER_HISTORY).unwrap();
         // the table rounds up to 0.01 Hz: a frequency it names always fits
@@ -67,13 +69,28 @@ fn bad_sets_are_refused_with_the_axis_named() {
         Err(ConfigError::NotPositive("shaper.x.freq_hz"))
     );
     let mut s = board_set();
-    s.y = Some(ShaperConfig::new(ShaperKind::Zv, 501.0));
+    s.y = Some(ShaperConfig::new(ShaperKind::Zv, 101.0));
     assert_eq!(
         InputShaper::<f32, 512>::new(&s, PERIOD_S),
         Err(ConfigError::OutOfRange(
-            "shaper.y.freq_hz (<= 1/20 of the control rate)"
+            "shaper.y.freq_hz (<= 1/100 of the control rate)"
         ))
     );
+    // ZV at ζ = 0.9, 100 Hz: the second impulse (0.15 %, 115 periods after the first)
+    // puts the centroid 0.17 periods after the first; on whole periods it can only be
+    // at 0 (the second impulse tilted to nothing) or 1 (its amplitude ×5.8): refused.
+    let mut z = ShaperConfig::new(ShaperKind::Zv, 100.0);
+    z.damping_ratio = 0.9;
+    s.y = Some(z);
+    assert_eq!(
+        InputShaper::<f32, 512>::new(&s, PERIOD_S),
+        Err(ConfigError::OutOfRange(
+            "shaper.y.damping_ratio (too high for impulses on whole periods at this freq_hz)"
+        ))
+    );
+    z.damping_ratio = 0.5;
+    s.y = Some(z);
+    assert!(InputShaper::<f32, 512>::new(&s, PERIOD_S).is_ok());
     assert!(matches!(
         InputShaper::<f32, 500>::new(&board_set(), PERIOD_S),
         Err(ConfigError::Unsupported(_))
@@ -86,13 +103,13 @@ fn bad_sets_are_refused_with_the_axis_named() {
 }
 
 /// Every axis' taps: weights positive, summing to 1, centred on the common delay D (the
-/// largest centroid, ZVD at 55 Hz: 0.48774 · 9.1367 ms + 0.17784 · 18.273 ms = 7.706 ms
-/// = 77.06 periods, rounded up to 78).
+/// largest rounded centroid, ZVD at 55 Hz: impulses at 0, 91, 183 periods (91.37 and
+/// 182.73 rounded), centroid 0.48774 · 91 + 0.17784 · 183 = 76.93, rounded to 77).
 #[test]
 fn every_axis_is_centred_on_the_common_delay() {
     let sh = InputShaper::<f64, 512>::new(&board_set(), PERIOD_S).unwrap();
-    assert_eq!(sh.delay_periods(), 78);
-    assert!((sh.delay_s() - 7.8e-3).abs() < 1e-7);
+    assert_eq!(sh.delay_periods(), 77);
+    assert!((sh.delay_s() - 7.7e-3).abs() < 1e-7);
     for axis in Axis::ALL {
         let (mut sum, mut mean) = (0.0, 0.0);
         for (off, w) in sh.tap_weights(axis) {
@@ -101,12 +118,12 @@ fn every_axis_is_centred_on_the_common_delay() {
             mean += w * off as f64;
         }
         assert!((sum - 1.0).abs() < 1e-12, "{axis:?}: {sum}");
-        assert!((mean - 78.0).abs() < 1e-9, "{axis:?}: {mean}");
+        assert!((mean - 77.0).abs() < 1e-9, "{axis:?}: {mean}");
     }
-    // two taps per impulse (no impulse falls on the grid here)
-    assert_eq!(sh.taps(Axis::X), 6);
-    assert_eq!(sh.taps(Axis::Y), 4);
-    assert_eq!(sh.taps(Axis::Z), 6);
+    // one tap per impulse
+    assert_eq!(sh.taps(Axis::X), 3);
+    assert_eq!(sh.taps(Axis::Y), 2);
+    assert_eq!(sh.taps(Axis::Z), 3);
     // An unshaped axis is one tap: an exact delay of D.
     let only_y = AxisShapers {
         y: board_set().y,
@@ -116,10 +133,49 @@ fn every_axis_is_centred_on_the_common_delay() {
     let mut x = sh.tap_weights(Axis::X);
     assert_eq!((x.next(), x.next()), (Some((61, 1.0)), None));
     assert_eq!(sh.bound().second_moment_s2[0], 0.0);
-    // ZV's second moment A0·A1·(t_d/2)², 5.03e-5 s², plus the split's f(1−f)·T² ≤ T²/4.
+    // ZV's second moment A0·A1·(t_d/2)², 5.03e-5 s²; on whole periods A0'·A1'·(144 T)²:
+    // the spacing 0.29 % longer (143.58 periods rounded to 144) and A1 tilted from
+    // 0.42171 to 61/144 = 0.42361, which puts the centroid on period 61 (module docs,
+    // "Whole periods"): 0.7 % more.
     let m = sh.bound().second_moment_s2[1] as f64;
     let zv = 0.5782862 * 0.4217138 * 0.01435768f64.powi(2);
-    assert!(m >= zv && m <= zv + 0.5e-8, "{m} vs {zv}");
+    let w: std::vec::Vec<f64> = sh.tap_weights(Axis::Y).map(|(_, w)| w).collect();
+    assert!((w[1] - 61.0 / 144.0).abs() < 1e-12, "{w:?}");
+    assert!(
+        (m / (w[0] * w[1] * 0.0144f64.powi(2)) - 1.0).abs() < 1e-6,
+        "{m}"
+    );
+    assert!(m / zv > 1.006 && m / zv < 1.009, "{m} vs {zv}");
+}
+
+/// The taps are the impulses, each at its time rounded to the nearest period (shifted
+/// by a whole number of periods), with the amplitudes changed by the tilt only: at most
+/// `½ |kᵢ − c| / M` relative, `kᵢ` the rounded times, `c` their centroid and `M` their
+/// second moment in periods (module docs); here at most 1.0 % (MZV's last impulse on X).
+#[test]
+fn taps_are_the_impulses_on_the_nearest_periods() {
+    let sh = InputShaper::<f64, 512>::new(&board_set(), PERIOD_S).unwrap();
+    let set = board_set();
+    for axis in Axis::ALL {
+        let s = set.get(axis).unwrap().impulses().unwrap();
+        let taps: std::vec::Vec<(usize, f64)> = sh.tap_weights(axis).collect();
+        assert_eq!(taps.len(), s.len, "{axis:?}");
+        let first = taps[0].0 as f64;
+        let k = |t: f64| (t / PERIOD_S as f64).round();
+        let c: f64 = s.iter().map(|(a, t)| a * k(t)).sum();
+        let m: f64 = s.iter().map(|(a, t)| a * (k(t) - c).powi(2)).sum();
+        for ((off, w), (a, t)) in taps.iter().zip(s.iter()) {
+            let periods = t / PERIOD_S as f64;
+            assert_eq!(*off as f64 - first, k(t), "{axis:?}");
+            assert!((*off as f64 - first - periods).abs() <= 0.5, "{axis:?}");
+            let tilt = (w / a - 1.0).abs();
+            assert!(
+                tilt <= 0.5 * (k(t) - c).abs() / m + 1e-12,
+                "{axis:?}: {w} vs {a}"
+            );
+            assert!(tilt < 0.0105, "{axis:?}: {w} vs {a}");
+        }
+    }
 }
 
 #[test]
@@ -179,10 +235,10 @@ fn rest_stays_rest_and_the_end_is_reached_exactly() {
 
 /// Undamped shapers whose impulses and centroids fall on the 10 kHz grid (ZV at
 /// 2500/71 Hz: impulses 142 periods apart, centroid 71; ZVD at 5000/91 Hz: 91 apart,
-/// centroid 91; MZV at 3750/42 Hz: 42 apart, centroid 42) take one tap per impulse, at
-/// the impulse's own period, though the `f32` frequencies put them ~1e-5 periods off.
+/// centroid 91; MZV at 3750/42 Hz: 42 apart, centroid 42) keep their times and their
+/// amplitudes exactly (no tilt), though the `f32` frequencies put them ~1e-5 periods off.
 #[test]
-fn impulses_on_the_grid_take_one_tap() {
+fn impulses_on_the_grid_keep_their_times_and_amplitudes() {
     let undamped = |kind, f| {
         let mut c = ShaperConfig::new(kind, f);
         c.damping_ratio = 0.0;
@@ -205,4 +261,10 @@ fn impulses_on_the_grid_take_one_tap() {
     assert_eq!(offsets(Axis::X), (3, [49, 91, 133]));
     assert_eq!(offsets(Axis::Y), (2, [20, 162, 0]));
     assert_eq!(offsets(Axis::Z), (3, [0, 91, 182]));
+    for axis in Axis::ALL {
+        let s = s.get(axis).unwrap().impulses().unwrap();
+        for ((_, w), (a, _)) in sh.tap_weights(axis).zip(s.iter()) {
+            assert!((w - a).abs() < 1e-6, "{axis:?}: {w} vs {a}");
+        }
+    }
 }

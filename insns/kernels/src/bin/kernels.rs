@@ -74,7 +74,7 @@ mod cortex_m4 {
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
     use insns_kernels::plan_task::{PlanTask, Program};
     use insns_kernels::planner::PlannerState;
-    use insns_kernels::shaper::{Shaper3, ON_GRID_HISTORY};
+    use insns_kernels::shaper::{Shaper3, REST_HISTORY};
     use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
 
     kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
@@ -197,9 +197,9 @@ mod cortex_m4 {
         |k| k.step()
     );
     kernel!(
-        shaper3_f32_on_grid,
-        Shaper3<ON_GRID_HISTORY>,
-        Shaper3::setup_on_grid(),
+        shaper3_f32_rest,
+        Shaper3<REST_HISTORY>,
+        Shaper3::setup_rest(),
         |k| k.step()
     );
     kernel!(link_decode_segment, LinkDecode, LinkDecode::setup(), |k| k
