@@ -8,7 +8,9 @@
 //!   jerk-limited feed, hold/resume/abort, feed override) and its per-period executor;
 //! - [`reference`]: what produces the servo step's reference each period (hold, the
 //!   configured path, a controlled stop, a jog, homing, the planner's sample), with the
-//!   reference generators it steps: [`jog`], [`homing`] and their one-axis [`ramp`].
+//!   reference generators it steps: [`jog`], [`homing`] and their one-axis [`ramp`];
+//! - [`shaper`]: input shaping of a sampled reference per axis (Klipper's ZV … 3-hump EI)
+//!   on a common delay, with its bound on the added contour deviation.
 //!
 //! - [`compensation`]: backlash and lead-screw error tables added to the reference.
 //!
@@ -21,6 +23,7 @@ pub mod path;
 pub mod planner;
 pub mod ramp;
 pub mod reference;
+pub mod shaper;
 pub mod trajectory;
 
 pub use trajectory::{RefSample, Trajectory};

@@ -15,7 +15,8 @@
 //! - [`parts`]: the blocks of that period one by one (`servo_part_*`);
 //! - [`filters`]: the three axes' output filters (notches, a low-pass) for one period;
 //! - [`machine_period`]: the core's whole control period behind the link
-//!   (`Machine::linked_period` of the board's machine, `machine_period_*`).
+//!   (`Machine::linked_period` of the board's machine, `machine_period_*`);
+//! - [`shaper`]: the input shaper on three axes (`shaper3_f32`).
 #![no_std]
 
 pub mod filters;
@@ -24,6 +25,7 @@ pub mod machine_period;
 pub mod parts;
 pub mod plan_task;
 pub mod planner;
+pub mod shaper;
 
 use controller_core::axes::AXES;
 use controller_core::controller::{ControlOutput, Controller3, ControllerConfig, Measured};

@@ -68,12 +68,14 @@ macro_rules! kernel {
 mod cortex_m4 {
     use super::*;
     use controller_core::estimator::{EstimatorConfig, PAPER_SIM_KALMAN, PAPER_SIM_PLL};
+    use controller_core::motion::shaper::BOARD_SHAPER_HISTORY;
     use insns_kernels::filters::Filters3;
     use insns_kernels::link::{LinkDecode, LinkEncode};
     use insns_kernels::machine_period::MachinePeriod;
     use insns_kernels::parts::{PartChecks, PartCoupling, PartEstimators, PartLaws, PartReference};
     use insns_kernels::plan_task::{PlanTask, Program};
     use insns_kernels::planner::PlannerState;
+    use insns_kernels::shaper::{Shaper3, REST_HISTORY};
     use insns_kernels::{Estimator3, Law3, LawKind, ServoPeriod};
 
     kernel!(dsmc3_f32, Dsmc3<f32>, Dsmc3::<f32>::setup(), |k| k.step());
@@ -197,6 +199,18 @@ mod cortex_m4 {
     );
     kernel!(servo_part_checks, PartChecks, PartChecks::setup(), |k| k
         .step());
+    kernel!(
+        shaper3_f32,
+        Shaper3<BOARD_SHAPER_HISTORY>,
+        Shaper3::setup(),
+        |k| k.step()
+    );
+    kernel!(
+        shaper3_f32_rest,
+        Shaper3<REST_HISTORY>,
+        Shaper3::setup_rest(),
+        |k| k.step()
+    );
     kernel!(link_decode_segment, LinkDecode, LinkDecode::setup(), |k| k
         .step());
     kernel!(
