@@ -53,6 +53,15 @@ const PROGRESS_PERIODS: u64 = 100_000;
 /// One plot sample every this many periods at most (the plots keep ≤ ~20,000 points).
 const PLOT_POINTS: u64 = 20_000;
 
+/// A program run's machine memory (planner, scope, no compensation tables), boxed.
+fn program_memory() -> Box<MachineMemory<MachinePlanner>> {
+    Box::new(MachineMemory {
+        planner: MachinePlanner::BLANK,
+        scope: Scope::new(),
+        comp: controller_core::motion::compensation::CompTables::NONE,
+    })
+}
+
 /// Run until the servo leaves `state` (homing) or `max` periods pass.
 fn run_while(run: &mut ProgramRun, state: ServoState, max: u64) -> Result<()> {
     let mut k = 0u64;
@@ -204,11 +213,7 @@ pub fn run_with_settings(
     cfg.periods = u32::MAX;
     cfg.inject = None;
     cfg.program = false;
-    let memory = Box::new(MachineMemory {
-        planner: MachinePlanner::BLANK,
-        scope: Scope::new(),
-        comp: controller_core::motion::compensation::CompTables::NONE,
-    });
+    let memory = program_memory();
     let mut run: ProgramRun =
         SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
     let start = run.world().state().map(|s| s.pos);
@@ -338,11 +343,7 @@ pub fn run_positioning(
     cfg.periods = u32::MAX;
     cfg.inject = None;
     cfg.program = false;
-    let memory = Box::new(MachineMemory {
-        planner: MachinePlanner::BLANK,
-        scope: Scope::new(),
-        comp: controller_core::motion::compensation::CompTables::NONE,
-    });
+    let memory = program_memory();
     let mut run: ProgramRun =
         SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
     for (axis, c) in controller_core::axes::Axis::ALL.into_iter().zip(comp) {
