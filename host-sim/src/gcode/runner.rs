@@ -31,9 +31,10 @@ use controller_core::machine::messages::{Outcome, ProgramEnd, Request};
 use controller_core::machine::scope::Scope;
 use controller_core::machine::{MachineMemory, MachinePlanner};
 use controller_core::motion::planner::PathSample;
+use controller_core::motion::planner::PlannerConfig;
 use controller_core::servo::ServoState;
 use controller_core::settings::{Settings, FACTORY};
-use controller_core::sim::run::SimRun;
+use controller_core::sim::run::{RunConfig, SimRun};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::time::Instant;
@@ -53,13 +54,20 @@ const PROGRESS_PERIODS: u64 = 100_000;
 /// One plot sample every this many periods at most (the plots keep ≤ ~20,000 points).
 const PLOT_POINTS: u64 = 20_000;
 
-/// A program run's machine memory (planner, scope, no compensation tables), boxed.
-fn program_memory() -> Box<MachineMemory<MachinePlanner>> {
-    Box::new(MachineMemory {
+/// The simulated run of a program on the machine `cfg` (made to hold until commanded and
+/// to run until stopped) with the planner `pcfg`: its memory (planner, scope, no
+/// compensation tables) boxed.
+fn program_run(cfg: &mut RunConfig, pcfg: &PlannerConfig) -> Result<ProgramRun> {
+    cfg.hold = true;
+    cfg.periods = u32::MAX;
+    cfg.inject = None;
+    cfg.program = false;
+    let memory = Box::new(MachineMemory {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
         comp: controller_core::motion::compensation::CompTables::NONE,
-    })
+    });
+    SimRun::with_memory(cfg, pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))
 }
 
 /// Run until the servo leaves `state` (homing) or `max` periods pass.
@@ -209,13 +217,7 @@ pub fn run_with_settings(
     let tol = decimal(pcfg.tolerance_mm);
     let name = program_path.display().to_string();
     let travel = travel_of(&cfg)?;
-    cfg.hold = true;
-    cfg.periods = u32::MAX;
-    cfg.inject = None;
-    cfg.program = false;
-    let memory = program_memory();
-    let mut run: ProgramRun =
-        SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    let mut run = program_run(&mut cfg, &pcfg)?;
     let start = run.world().state().map(|s| s.pos);
     // rejected before any motion
     if let Err(e) = load_program_with(program_path, &parse_options(settings, start), &travel) {
@@ -339,13 +341,7 @@ pub fn run_positioning(
 ) -> Result<Vec<DwellReading>> {
     let (mut cfg, pcfg) = machine_and_planner_with(machine, &FACTORY)?;
     let travel = travel_of(&cfg)?;
-    cfg.hold = true;
-    cfg.periods = u32::MAX;
-    cfg.inject = None;
-    cfg.program = false;
-    let memory = program_memory();
-    let mut run: ProgramRun =
-        SimRun::with_memory(&cfg, &pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    let mut run = program_run(&mut cfg, &pcfg)?;
     for (axis, c) in controller_core::axes::Axis::ALL.into_iter().zip(comp) {
         run.machine_mut()
             .set_compensation(axis, *c)
