@@ -887,3 +887,57 @@ fn a_machine_runs_its_servo_in_f64_too() {
         "it ends at the last segment's end, not {p:?}"
     );
 }
+
+#[test]
+fn compensation_tables_arm_in_place_are_refused_while_armed_and_move_the_motor_by_the_trim() {
+    use controller_core::axes::Axis;
+    use controller_core::motion::compensation::{AxisCompensation, CompPoint};
+    use controller_core::servo::ReconfigureError;
+    let (mut m, mut w) = machine();
+    let pts = [
+        CompPoint {
+            nominal_mm: -100.0,
+            fwd_trim_mm: 0.010,
+            rev_trim_mm: -0.010,
+        },
+        CompPoint {
+            nominal_mm: 100.0,
+            fwd_trim_mm: 0.030,
+            rev_trim_mm: 0.010,
+        },
+    ];
+    let c = AxisCompensation::new(&pts, 0.0).unwrap();
+    m.set_compensation(Axis::X, c).unwrap();
+    let before = w.counts();
+    m.submit(Request::Arm);
+    periods(&mut m, &mut w, 3000);
+    assert_eq!(m.servo().state(), ServoState::Idle);
+    // arming holds where the motor is: nothing moved (the arm check's excursions are back)
+    let after = w.counts();
+    assert!((after[0] - before[0]).abs() <= 2, "{before:?} → {after:?}");
+    // the tables are the machine's: not changed under power
+    assert_eq!(
+        m.set_compensation(Axis::X, AxisCompensation::NONE),
+        Err(ReconfigureError::OutputsOn)
+    );
+    // forward to X 50: the motor lands at 50 + the forward trim there (25 µm); the
+    // telemetry's reference stays the programmed position
+    m.submit(Request::Run);
+    m.submit(Request::Segment(Segment::line([50.0, 0.0, 0.0], 50.0, 1)));
+    m.submit(Request::EndProgram);
+    let mut k = 0;
+    while !(m.status().program_done && m.servo().state() == ServoState::Idle) {
+        periods(&mut m, &mut w, 100);
+        k += 100;
+        assert!(k < 100_000, "the program did not end");
+    }
+    periods(&mut m, &mut w, 2000);
+    let snap = m.servo().snapshot();
+    assert!(
+        (snap.reference[0] - 50.0).abs() < 1e-4,
+        "{:?}",
+        snap.reference
+    );
+    assert!((snap.pos[0] - 50.025).abs() < 0.002, "{:?}", snap.pos);
+    assert!(!m.servo().faults().any());
+}

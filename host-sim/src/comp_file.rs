@@ -163,6 +163,23 @@ mod tests {
     }
 
     #[test]
+    fn a_missing_folder_or_a_bad_file_in_it_is_an_error_naming_it() {
+        let e = read_dir(Path::new("/nonexistent/comp"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/comp not found"), "{e}");
+        let dir = std::env::temp_dir().join(format!("gantry-comp-dir-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("comp_y.txt"), "0 0 0\n1 1\n").unwrap();
+        let e = read_dir(&dir).unwrap_err().to_string();
+        assert!(e.contains("comp_y.txt:2: expected three numbers"), "{e}");
+        std::fs::write(dir.join("comp_y.txt"), "0 0.001 -0.001\n").unwrap();
+        let t = read_dir(&dir).unwrap();
+        assert!(t[0].is_none() && !t[1].is_none() && t[2].is_none());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
     fn a_written_file_reads_back() {
         let s = write_actual("test", &[(0.0, 0.001, -0.002), (7.0, 7.0, 6.99)]);
         let p = parse("w", &s, CompFileType::Actual).unwrap();
