@@ -405,6 +405,78 @@ fn stop_ends_a_move_in_idle_and_disarm_during_identification_cuts_the_outputs() 
     ));
 }
 
+/// A frequency-response measurement from Idle runs in the identification's mode under
+/// its rules: one axis driven by the measurement, the others holding where they are,
+/// its points readable as they come; a stop ends it holding (Idle), its outcome kept
+/// apart from the model identification's.
+#[test]
+fn a_frequency_response_from_idle_measures_one_axis_and_a_stop_ends_it() {
+    let mut r = run([0.0; 3]);
+    step(&mut r, &[Command::Arm], 2_000);
+    assert_eq!(r.servo().state(), ServoState::Idle);
+    // the window must contain the axis
+    let bad = Command::MeasureResponse {
+        axis: Axis::Y,
+        window_mm: Some([5.0, 60.0]),
+    };
+    assert_eq!(
+        step(&mut r, &[bad], 1),
+        Some(CommandRefusal::BadWindow { axis: Axis::Y })
+    );
+    let held = r.world().state().map(|a| a.pos);
+    let cmd = Command::MeasureResponse {
+        axis: Axis::Y,
+        window_mm: Some([-50.0, 50.0]),
+    };
+    assert_eq!(step(&mut r, &[cmd], 1), None);
+    assert_eq!(r.servo().state(), ServoState::Identify);
+    // 6 s: the start, then the highest frequencies, one after the other
+    let mut seen = Vec::new();
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for _ in 0..60_000 {
+        r.control_with(&[]);
+        if let Some((i, p)) = r.servo().response_point() {
+            if seen.last().map(|(j, _)| *j) != Some(i) {
+                seen.push((i, p));
+            }
+        }
+        r.finish_period();
+        let y = r.world().state()[1].pos;
+        lo = lo.min(y);
+        hi = hi.max(y);
+    }
+    assert_eq!(r.servo().state(), ServoState::Identify);
+    assert!(seen.len() >= 3, "{seen:?}");
+    // from the top of the grid down, each a point of the rigid Y's response: 1/(J ω²)
+    for (k, (i, p)) in seen.iter().enumerate() {
+        assert_eq!(usize::from(*i), k);
+        let w = 2.0 * core::f32::consts::PI * p.freq_hz;
+        let rigid = 1.0 / (GANTRY_AXES[1].inertia * w * w);
+        assert!((p.magnitude() / rigid - 1.0).abs() < 0.1, "{p:?}");
+    }
+    assert!(seen[0].1.freq_hz > 290.0 && seen[1].1.freq_hz < seen[0].1.freq_hz);
+    assert!(lo >= -50.0 && hi <= 50.0, "{lo}..{hi}");
+    // the others hold
+    let now = r.world().state().map(|a| a.pos);
+    for i in [0, 2] {
+        assert!(
+            (now[i] - held[i]).abs() < 0.01,
+            "axis {i}: {} -> {}",
+            held[i],
+            now[i]
+        );
+    }
+    assert_eq!(step(&mut r, &[Command::Stop], 1), None);
+    assert_eq!(r.servo().state(), ServoState::Idle);
+    assert!(r.world().outputs_on());
+    let out = r.servo().response_outcome().expect("an outcome");
+    assert_eq!(out.axis, Axis::Y);
+    assert!(matches!(out.status, IdentifyStatus::Aborted(_)), "{out:?}");
+    assert_eq!(usize::from(out.points), seen.len());
+    assert!(r.servo().identify_outcome().is_none());
+    assert!(r.servo().response_point().is_none());
+}
+
 #[test]
 fn homing_on_the_index_latches_the_pulse_after_the_switch() {
     // X's switch closes at true -38.7 mm; its encoder gives an index every 5 mm (8000

@@ -39,6 +39,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("identify.toml", include_str!("../scenarios/identify.toml")),
     ("gcode.toml", include_str!("../scenarios/gcode.toml")),
     ("circle.toml", include_str!("../scenarios/circle.toml")),
+    ("freqresp.toml", include_str!("../scenarios/freqresp.toml")),
     (
         "flexible_frame.toml",
         include_str!("../scenarios/flexible_frame.toml"),

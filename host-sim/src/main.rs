@@ -160,6 +160,24 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Each axis' frequency response from effort to encoder, measured through the servo
+    /// step (stepped sine on a slow travel), its resonances and anti-resonances against
+    /// the machine file's modes (host-sim/scenarios/freqresp.toml, docs/precision.md).
+    Freqresp {
+        /// Machine file (default: the built-in flexible gantry,
+        /// host-sim/machines/gantry_flexible.toml).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Output folder for the Bode plots.
+        #[arg(long, default_value = "out/freqresp")]
+        out: PathBuf,
+        /// Skip the plots.
+        #[arg(long)]
+        no_plots: bool,
+    },
     /// Run a G-code program on a simulated machine through the planner and the servo step
     /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
     /// completed, 2 when it was rejected (nothing ran), 1 on a fault or an error.
@@ -260,6 +278,12 @@ fn main() -> ExitCode {
             write,
             json,
         }) => run_compensation(machine.as_deref(), write.as_deref(), json.as_deref()),
+        Some(Command::Freqresp {
+            machine,
+            json,
+            out,
+            no_plots,
+        }) => run_freqresp(machine.as_deref(), json.as_deref(), &out, no_plots),
         Some(Command::Gcode {
             file,
             machine,
@@ -485,6 +509,31 @@ fn run_compensation(
         println!("JSON: {}", j.display());
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn run_freqresp(
+    machine: Option<&Path>,
+    json: Option<&Path>,
+    out: &Path,
+    no_plots: bool,
+) -> Result<()> {
+    let started = Instant::now();
+    let r = host_sim::studies::freqresp::run(machine)?;
+    print!("{}", host_sim::studies::freqresp::table(&r));
+    if let Some(j) = json {
+        write_json(j, &r)?;
+        println!("JSON: {}", j.display());
+    }
+    if !no_plots {
+        create_dir(out)?;
+        let n = host_sim::output::freqresp_plots::figures(out, &r)?;
+        println!("{n} figures (PNG + SVG) in {}", out.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    if !r.all_done() {
+        bail!("not every axis was measured to the end");
+    }
     Ok(())
 }
 

@@ -131,6 +131,8 @@ impl<R: Real> Servo<R> {
                 cfg: cfg.identify,
                 run: None,
                 outcome: None,
+                outcome_kind: super::identify::IdentifyKind::Model,
+                response_points: 0,
             },
             link_down: false,
             stopping: StopState {
@@ -220,6 +222,8 @@ impl<R: Real> Servo<R> {
         next.link_down = self.link_down;
         next.state = self.state;
         next.ident.outcome = self.ident.outcome;
+        next.ident.outcome_kind = self.ident.outcome_kind;
+        next.ident.response_points = self.ident.response_points;
         let mut snap = self.snapshot;
         snap.model_missing = next.snapshot.model_missing;
         next.snapshot = snap;

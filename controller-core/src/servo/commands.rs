@@ -39,6 +39,13 @@ pub enum Command {
     /// A new link session started: the `LinkLost` fault's cause is gone (a reset clears
     /// it).
     LinkUp,
+    /// Measure `axis`' frequency response from effort to encoder (from Disabled or Idle,
+    /// in Identify mode, the window as for [`Command::Identify`]): a stepped sine riding
+    /// on a slow travel back and forth ([`crate::sysid::frequency`]).
+    MeasureResponse {
+        axis: Axis,
+        window_mm: Option<[f32; 2]>,
+    },
 }
 
 /// Why a command was refused.

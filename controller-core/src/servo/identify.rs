@@ -1,25 +1,92 @@
-//! The servo's identification mode: one axis runs [`crate::sysid::Identifier`] (its own
+//! The servo's identification mode: one axis runs an identification procedure (its own
 //! velocity loop and moves), the others hold their position with their laws when the
 //! machine was armed, or stay unpowered when identification started from Disabled (a
-//! machine whose laws have no model yet).
+//! machine whose laws have no model yet). Two procedures share the mode and its rules:
+//! the model identification ([`crate::sysid::Identifier`], `Command::Identify`) and the
+//! frequency-response measurement ([`crate::sysid::frequency::ResponseMeasurement`],
+//! `Command::MeasureResponse`).
 //!
 //! The window is the axis' travel when homed, or the window the user confirmed; it is
 //! never larger than the travel. The torque cap is the configured one, never above the
-//! amplifier's full scale.
+//! amplifier's full scale. The frequency response runs with the identification's
+//! window, cap, velocity limit and inertia guess and the measurement's defaults
+//! ([`ResponseConfig::from_identify`]); its points are read while it runs
+//! ([`IdentifyRun::response_point`]: the servo keeps no array of them), how it ended
+//! afterwards ([`ResponseOutcome`]).
 
 use super::commands::CommandRefusal;
 use super::travel::AxisTravel;
 use crate::axes::Axis;
+use crate::sysid::frequency::{ResponseConfig, ResponseMeasurement, ResponsePoint};
 use crate::sysid::{
-    AxisSample, Identifier, IdentifyConfig, IdentifyOutput, IdentifyResult, IdentifyStatus,
+    AxisSample, Identifier, IdentifyConfig, IdentifyOutput, IdentifyPhase, IdentifyResult,
+    IdentifyStatus,
 };
 
 /// Identification as the servo keeps it: the configuration a run starts from, the run
-/// under way and how the last one ended.
+/// under way and how the last one ended (either kind: one slot, the servo's size is
+/// budgeted; a frequency response keeps its outcome there without a result).
 pub(super) struct Identification {
     pub(super) cfg: IdentifyConfig,
     pub(super) run: Option<IdentifyRun>,
     pub(super) outcome: Option<IdentifyOutcome>,
+    /// The kind of run `outcome` is from, and a frequency response's points measured.
+    pub(super) outcome_kind: IdentifyKind,
+    pub(super) response_points: u8,
+}
+
+impl Identification {
+    /// Keep how `run` ended.
+    pub(super) fn keep_outcome(&mut self, run: &IdentifyRun) {
+        self.outcome = Some(IdentifyOutcome {
+            axis: run.axis_name(),
+            status: run.last.status,
+            result: match &run.procedure {
+                Procedure::Model(id) => id.result().copied(),
+                Procedure::Response(_) => None,
+            },
+        });
+        self.outcome_kind = run.kind();
+        self.response_points = match &run.procedure {
+            Procedure::Response(m) => m.measured(),
+            Procedure::Model(_) => 0,
+        };
+    }
+
+    /// How the last model identification ended (`None` after a frequency response).
+    pub(super) fn model_outcome(&self) -> Option<&IdentifyOutcome> {
+        self.outcome
+            .as_ref()
+            .filter(|_| self.outcome_kind == IdentifyKind::Model)
+    }
+
+    /// How the last frequency response ended (`None` after a model identification).
+    pub(super) fn response_outcome(&self) -> Option<ResponseOutcome> {
+        let o = self.outcome.as_ref()?;
+        (self.outcome_kind == IdentifyKind::Response).then_some(ResponseOutcome {
+            axis: o.axis,
+            status: o.status,
+            points: self.response_points,
+        })
+    }
+}
+
+/// Which procedure an identification runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IdentifyKind {
+    /// The rigid-body model (friction, inertia): `Command::Identify`.
+    Model,
+    /// The frequency response from effort to encoder: `Command::MeasureResponse`.
+    Response,
+}
+
+/// The procedure of a run (in place: nothing allocates; the run is the model
+/// identification's size either way).
+#[derive(Clone, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+enum Procedure {
+    Model(Identifier),
+    Response(ResponseMeasurement),
 }
 
 /// An identification in progress.
@@ -27,7 +94,7 @@ pub struct IdentifyRun {
     pub axis: usize,
     /// The other axes hold with their laws (started from Idle).
     pub hold_others: bool,
-    identifier: Identifier,
+    procedure: Procedure,
     last: IdentifyOutput,
 }
 
@@ -39,19 +106,31 @@ pub struct IdentifyOutcome {
     pub result: Option<IdentifyResult>,
 }
 
+/// How a frequency-response measurement ended (kept until the next one starts).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ResponseOutcome {
+    pub axis: Axis,
+    pub status: IdentifyStatus,
+    /// Frequencies measured.
+    pub points: u8,
+}
+
 impl IdentifyRun {
     /// Prepare identification of `axis` from rest at `pos_mm`; `window_mm` is the user's
     /// window (`None`: the travel, which must then be limited... or, on an unlimited
-    /// simulated axis, the template's window around the start).
+    /// simulated axis, the template's window around the start). `count_mm` is the axis'
+    /// count length (the frequency response's travel speed is chosen from it).
     #[allow(clippy::too_many_arguments)]
     pub fn start(
         template: &IdentifyConfig,
+        kind: IdentifyKind,
         axis: Axis,
         pos_mm: f32,
         travel: &AxisTravel,
         window_mm: Option<[f32; 2]>,
         full_scale: f32,
         period_s: f32,
+        count_mm: f32,
         hold_others: bool,
     ) -> Result<Self, CommandRefusal> {
         let bad = CommandRefusal::BadWindow { axis };
@@ -78,15 +157,31 @@ impl IdentifyRun {
             torque_cap_mnm: template.torque_cap_mnm.min(full_scale),
             ..*template
         };
-        let identifier =
-            Identifier::new(&cfg, pos_mm).map_err(|_| CommandRefusal::IdentifyRejected { axis })?;
+        let rejected = CommandRefusal::IdentifyRejected { axis };
+        let (procedure, phase) = match kind {
+            IdentifyKind::Model => (
+                Procedure::Model(Identifier::new(&cfg, pos_mm).map_err(|_| rejected)?),
+                IdentifyPhase::FrictionPasses,
+            ),
+            IdentifyKind::Response => (
+                Procedure::Response(
+                    ResponseMeasurement::new(
+                        &ResponseConfig::from_identify(&cfg),
+                        pos_mm,
+                        count_mm,
+                    )
+                    .map_err(|_| rejected)?,
+                ),
+                IdentifyPhase::FrequencyResponse,
+            ),
+        };
         Ok(Self {
             axis: axis.index(),
             hold_others,
-            identifier,
+            procedure,
             last: IdentifyOutput {
                 effort_mnm: 0.0,
-                phase: crate::sysid::IdentifyPhase::FrictionPasses,
+                phase,
                 progress: 0.0,
                 status: IdentifyStatus::Running,
             },
@@ -95,12 +190,35 @@ impl IdentifyRun {
 
     /// One period: the measurement in, this period's effort out.
     pub fn step(&mut self, sample: &AxisSample) -> IdentifyOutput {
-        self.last = self.identifier.step(sample);
+        self.last = match &mut self.procedure {
+            Procedure::Model(id) => id.step(sample),
+            Procedure::Response(m) => {
+                let o = m.step(sample);
+                IdentifyOutput {
+                    effort_mnm: o.effort_mnm,
+                    phase: match o.status {
+                        IdentifyStatus::Running => IdentifyPhase::FrequencyResponse,
+                        IdentifyStatus::Stopping(_) => IdentifyPhase::Stopping,
+                        IdentifyStatus::Done => IdentifyPhase::Done,
+                        IdentifyStatus::Aborted(_) => IdentifyPhase::Aborted,
+                    },
+                    progress: o.progress,
+                    status: o.status,
+                }
+            }
+        };
         self.last
     }
 
     pub fn last(&self) -> &IdentifyOutput {
         &self.last
+    }
+
+    pub fn kind(&self) -> IdentifyKind {
+        match self.procedure {
+            Procedure::Model(_) => IdentifyKind::Model,
+            Procedure::Response(_) => IdentifyKind::Response,
+        }
     }
 
     /// Finished (done or aborted, at rest).
@@ -111,11 +229,15 @@ impl IdentifyRun {
         )
     }
 
-    pub fn outcome(&self) -> IdentifyOutcome {
-        IdentifyOutcome {
-            axis: Axis::ALL[self.axis.min(2)],
-            status: self.last.status,
-            result: self.identifier.result().copied(),
+    /// The frequency response's latest point and its index in the grid.
+    pub fn response_point(&self) -> Option<(u8, ResponsePoint)> {
+        match &self.procedure {
+            Procedure::Response(m) => m.last_point(),
+            Procedure::Model(_) => None,
         }
+    }
+
+    fn axis_name(&self) -> Axis {
+        Axis::ALL[self.axis.min(2)]
     }
 }

@@ -25,7 +25,8 @@
 //!
 //! States ([`ServoState`], [`state`]): `Disabled` (boot; outputs off) → arm → `Idle`
 //! (holding the position it armed at: arming never starts motion) → `Run` (a path or the
-//! planner's program), `Jog`, `Homing` or `Identify`, each back to `Idle` (a stop command
+//! planner's program), `Jog`, `Homing` or `Identify` (the model identification, or the
+//! frequency response of `Command::MeasureResponse`), each back to `Idle` (a stop command
 //! ends the motion with a controlled stop). A fault of the immediate category goes
 //! straight to `Fault` (outputs off in that period); a controlled one goes through
 //! `Stopping`. `Fault` → reset → `Disabled` only once every cause is gone; an encoder fault

@@ -6,7 +6,7 @@
 use super::checks::{ArmCheck, ArmPhase, Check};
 use super::commands::{Command, CommandRefusal};
 use super::faults::{Fault, FaultKind, FaultRecord, StopCategory};
-use super::identify::IdentifyRun;
+use super::identify::{IdentifyKind, IdentifyRun};
 use super::io::Inputs;
 use super::snapshot::Snapshot;
 use super::state::ServoState;
@@ -60,7 +60,10 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), CommandRefusal> {
         (Command::StartPath, S::Idle | S::Run) => Ok(()),
         (Command::Home, S::Idle) => Ok(()),
         (Command::Jog { .. }, S::Idle | S::Jog) => Ok(()),
-        (Command::Identify { axis, window_mm }, S::Disabled | S::Idle) => {
+        (
+            Command::Identify { axis, window_mm } | Command::MeasureResponse { axis, window_mm },
+            S::Disabled | S::Idle,
+        ) => {
             needs_clear_inputs()?;
             if window_mm.is_none() {
                 homed(*axis)?;
@@ -73,7 +76,9 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), CommandRefusal> {
         }
         (Command::Stop, S::Run | S::Jog | S::Homing | S::Identify | S::Idle) => Ok(()),
         (Command::LinkLost | Command::LinkUp, _) => Ok(()),
-        (Command::Arm | Command::Identify { .. }, S::Fault) => Err(CommandRefusal::FaultLatched),
+        (Command::Arm | Command::Identify { .. } | Command::MeasureResponse { .. }, S::Fault) => {
+            Err(CommandRefusal::FaultLatched)
+        }
         _ => Err(CommandRefusal::WrongState),
     }
 }
@@ -208,7 +213,10 @@ impl<R: Real> Servo<R> {
             Command::Home => return self.home(counts),
             Command::Jog { axis, vel_mm_s } => self.jog(axis, vel_mm_s),
             Command::Identify { axis, window_mm } => {
-                return self.start_identify(axis, window_mm, counts)
+                return self.start_identify(IdentifyKind::Model, axis, window_mm, counts)
+            }
+            Command::MeasureResponse { axis, window_mm } => {
+                return self.start_identify(IdentifyKind::Response, axis, window_mm, counts)
             }
             Command::Run => self.run_planner(),
             Command::Stop => self.stop(counts),
@@ -379,10 +387,12 @@ impl<R: Real> Servo<R> {
         }
     }
 
-    /// Start identifying `axis` inside its travel (once referenced) or `window_mm`.
+    /// Start identifying `axis` (its model or its frequency response) inside its travel
+    /// (once referenced) or `window_mm`.
     #[inline(always)]
     fn start_identify(
         &mut self,
+        kind: IdentifyKind,
         axis: Axis,
         window_mm: Option<[f32; 2]>,
         counts: &[i64; AXES],
@@ -398,12 +408,14 @@ impl<R: Real> Servo<R> {
         };
         let run = IdentifyRun::start(
             &self.ident.cfg,
+            kind,
             axis,
             pos,
             &travel,
             window_mm,
             self.full_scale[i].to_f32(),
             self.period_s as f32,
+            self.count_len_f32[i],
             st == ServoState::Idle,
         )?;
         if st == ServoState::Disabled {
@@ -461,7 +473,7 @@ impl<R: Real> Servo<R> {
                     ..AxisSample::default()
                 });
             }
-            self.ident.outcome = Some(run.outcome());
+            self.ident.keep_outcome(&run);
         }
     }
 

@@ -12,7 +12,7 @@ use super::brake::Brakes;
 use super::checks::EncoderChecks;
 use super::commands::Command;
 use super::faults::{Fault, FaultKind, FaultLog, FaultRecord};
-use super::identify::{Identification, IdentifyOutcome};
+use super::identify::{Identification, IdentifyOutcome, ResponseOutcome};
 use super::index_check::{IndexCheck, IndexVerdict};
 use super::io::{Inputs, ServoIo};
 use super::manual::ManualState;
@@ -184,7 +184,19 @@ impl<R: Real> Servo<R> {
 
     /// How the last identification ended (its result, if it finished).
     pub fn identify_outcome(&self) -> Option<&IdentifyOutcome> {
-        self.ident.outcome.as_ref()
+        self.ident.model_outcome()
+    }
+
+    /// How the last frequency-response measurement ended.
+    pub fn response_outcome(&self) -> Option<ResponseOutcome> {
+        self.ident.response_outcome()
+    }
+
+    /// The frequency-response measurement under way: its latest point and the point's
+    /// index in the grid (a caller collects the points as they come: the servo keeps
+    /// only the latest).
+    pub fn response_point(&self) -> Option<(u8, crate::sysid::frequency::ResponsePoint)> {
+        self.ident.run.as_ref().and_then(|r| r.response_point())
     }
 
     /// Per axis: homed (or taking no part in homing), so that its soft limits apply.

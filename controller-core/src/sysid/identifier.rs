@@ -60,6 +60,8 @@ pub enum IdentifyPhase {
     FrictionPasses,
     Inertia,
     Validation,
+    /// A frequency-response measurement ([`super::frequency`]) under way.
+    FrequencyResponse,
     /// Braking to rest after an abort reason that allows a controlled stop.
     Stopping,
     Done,

@@ -10,11 +10,14 @@
 //! - [`identifier`]: [`Identifier`], the per-period state machine (friction passes,
 //!   inertia excitation, validation), with its safety checks.
 //! - [`lsq`]: 4-parameter least squares accumulated as normal equations.
-//! - [`tuning`]: the law configurations from a model ([`TuningConfig`]).
+//! - [`tuning`]: the law configurations from a model ([`TuningConfig`]);
+//! - [`frequency`]: the frequency response from effort to encoder (stepped sine on a
+//!   constant travel), its resonances and anti-resonances.
 //!
 //! Method, equations, accuracy over random machines: docs/identification.md.
 
 pub mod config;
+pub mod frequency;
 pub mod identifier;
 pub mod lsq;
 pub mod tuning;

@@ -47,6 +47,17 @@ impl VelocityLoop {
         self.ki = self.kp * self.bandwidth_rad_s / PI_ZERO_RATIO;
     }
 
+    /// The integral term, mN·m (it carries the friction the feed-forward leaves).
+    pub(crate) fn integral_mnm(&self) -> f32 {
+        self.integral_mnm
+    }
+
+    /// Replace the integral term (e.g. with the friction of the direction a reversal
+    /// goes into), limited to the cap.
+    pub(crate) fn set_integral_mnm(&mut self, v: f32) {
+        self.integral_mnm = v.finite_or_zero().clamp_sym(self.cap_mnm);
+    }
+
     /// One period: the capped effort for setpoint `(v_sp, a_sp)`, measured `v` and
     /// feed-forward `ff` (inertia × acceleration + friction), mN·m.
     pub(crate) fn step(&mut self, v_sp: f32, v: f32, ff_mnm: f32) -> f32 {

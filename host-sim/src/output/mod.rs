@@ -3,6 +3,7 @@
 //! seed methods' ([`seed_plots`]), a G-code run's ([`gcode_plots`]), the identification's
 //! ([`identify_plots`]) and a scope capture's ([`scope_plots`]).
 
+pub mod freqresp_plots;
 pub mod gcode_plots;
 pub mod identify_plots;
 pub mod plots;

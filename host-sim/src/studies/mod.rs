@@ -6,6 +6,8 @@
 //! - [`faults`]: the fault matrix (every fault class injected, detection and overrun);
 //! - [`identify`]: identification of every axis through the servo step, and the contour it buys;
 //! - [`circle`]: the ISO 230-4 circular test on a machine, evaluated by [`circular_test`];
+//! - [`freqresp`]: each axis' frequency response through the servo step, its resonances
+//!   and anti-resonances;
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`machine_replay`]: the QEMU link rig's machine replayed in host-sim, bit for bit;
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
@@ -15,6 +17,7 @@ pub mod circular_test;
 pub mod compensation;
 pub mod estimators;
 pub mod faults;
+pub mod freqresp;
 pub mod generic;
 pub mod identify;
 pub mod machine_replay;

@@ -1,0 +1,213 @@
+//! Bode plots of `host-sim freqresp` (PNG and SVG), one per axis: the measured response
+//! from effort to encoder (magnitude in dB re 1 mm/(mN·m), phase in degrees) against
+//! frequency on a log axis, the rigid-body line `1/(J s² + B s)` the mode finder fitted,
+//! and the resonances (red) and anti-resonances (blue) it found, each marked with its
+//! frequency and damping.
+
+use crate::output::plots::register_font;
+use crate::studies::freqresp::{AxisResponse, FreqRespReport, ModeJson};
+use anyhow::{anyhow, Context, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+const MEASURED: RGBColor = RGBColor(31, 119, 180);
+const RIGID: RGBColor = RGBColor(127, 127, 127);
+const RESONANCE: RGBColor = RGBColor(214, 39, 40);
+const ANTI: RGBColor = RGBColor(44, 160, 44);
+const SIZE: (u32, u32) = (1000, 800);
+
+fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+    anyhow!("plotting failed: {e:?}")
+}
+
+/// The rigid-body line at `f`: (dB, degrees).
+fn rigid(a: &AxisResponse, f: f64) -> (f64, f64) {
+    let w = 2.0 * std::f64::consts::PI * f;
+    // 1/(-J ω² + j B ω)
+    let (re, im) = (-a.inertia * w * w, a.viscous * w);
+    let m2 = re * re + im * im;
+    // (in (-360, 0], as the study unwraps the measured phase)
+    let mut deg = (-im).atan2(re).to_degrees();
+    if deg > 0.0 {
+        deg -= 360.0;
+    }
+    (-10.0 * m2.max(1e-300).log10(), deg)
+}
+
+/// Lower and upper bound of `v`, padded by 5 % of the span (and at least `min_span`).
+fn range(v: impl Iterator<Item = f64>, min_span: f64) -> (f64, f64) {
+    let (lo, hi) = v.fold((f64::MAX, f64::MIN), |(l, h), x| (l.min(x), h.max(x)));
+    let span = (hi - lo).max(min_span);
+    let mid = 0.5 * (lo + hi);
+    (mid - 0.55 * span, mid + 0.55 * span)
+}
+
+fn label(kind: &str, m: &ModeJson) -> String {
+    format!(
+        "{kind} {:.1} Hz, ζ {:.3}, {:+.1} dB",
+        m.freq_hz, m.damping_ratio, m.peak_db
+    )
+}
+
+/// One panel: the measured curve (`pick` of each point), the rigid line, the modes.
+#[allow(clippy::too_many_arguments)]
+fn panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    y_desc: &str,
+    a: &AxisResponse,
+    measured: Vec<(f64, f64)>,
+    rigid_line: Vec<(f64, f64)>,
+    y: (f64, f64),
+    legend: bool,
+) -> Result<()> {
+    let f_lo = a.points.first().map_or(1.0, |p| p.freq_hz);
+    let f_hi = a.points.last().map_or(10.0, |p| p.freq_hz).max(f_lo * 1.01);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(42)
+        .y_label_area_size(70)
+        .build_cartesian_2d((f_lo..f_hi).log_scale(), y.0..y.1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("frequency (Hz, log)")
+        .x_labels(8)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .y_desc(y_desc)
+        .label_style(("sans-serif", 12))
+        .axis_desc_style(("sans-serif", 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(err)?;
+    chart
+        .draw_series(DashedLineSeries::new(
+            rigid_line,
+            6,
+            4,
+            RIGID.stroke_width(1),
+        ))
+        .map_err(err)?
+        .label("rigid-body line 1/(J s² + B s)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RIGID));
+    chart
+        .draw_series(LineSeries::new(measured.clone(), MEASURED.stroke_width(1)))
+        .map_err(err)?
+        .label("measured (servo, stepped sine)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], MEASURED));
+    chart
+        .draw_series(
+            measured
+                .iter()
+                .map(|p| Circle::new(*p, 2, MEASURED.filled())),
+        )
+        .map_err(err)?;
+    for (modes, colour, kind) in [
+        (&a.resonances, RESONANCE, "resonance"),
+        (&a.anti_resonances, ANTI, "anti-resonance"),
+    ] {
+        for m in modes {
+            let f = m.freq_hz.clamp(f_lo, f_hi);
+            let s = chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(f, y.0), (f, y.1)],
+                    colour.stroke_width(1),
+                )))
+                .map_err(err)?;
+            if legend {
+                s.label(label(kind, m))
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            }
+        }
+    }
+    if legend {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(RGBColor(200, 200, 200))
+            .label_font(("sans-serif", 13))
+            .position(SeriesLabelPosition::LowerLeft)
+            .draw()
+            .map_err(err)?;
+    }
+    Ok(())
+}
+
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    name: &str,
+    a: &AxisResponse,
+) -> Result<()> {
+    root.fill(&WHITE).map_err(err)?;
+    let (top, bottom) = root.split_vertically(SIZE.1 / 2);
+    let f_lo = a.points.first().map_or(1.0, |p| p.freq_hz);
+    let f_hi = a.points.last().map_or(10.0, |p| p.freq_hz);
+    let grid: Vec<f64> = (0..=400)
+        .map(|k| f_lo * (f_hi / f_lo).powf(f64::from(k) / 400.0))
+        .collect();
+    let mag: Vec<(f64, f64)> = a
+        .points
+        .iter()
+        .map(|p| (p.freq_hz, p.magnitude_db))
+        .collect();
+    let phase: Vec<(f64, f64)> = a.points.iter().map(|p| (p.freq_hz, p.phase_deg)).collect();
+    let rigid_mag: Vec<(f64, f64)> = grid.iter().map(|&f| (f, rigid(a, f).0)).collect();
+    let rigid_phase: Vec<(f64, f64)> = grid.iter().map(|&f| (f, rigid(a, f).1)).collect();
+    let y_mag = range(mag.iter().chain(&rigid_mag).map(|p| p.1), 10.0);
+    let y_phase = range(phase.iter().chain(&rigid_phase).map(|p| p.1), 30.0);
+    panel(
+        &top,
+        &format!("Axis {name}: effort to encoder, magnitude"),
+        "|H| (dB re 1 mm/(mN·m))",
+        a,
+        mag,
+        rigid_mag,
+        y_mag,
+        true,
+    )?;
+    panel(
+        &bottom,
+        &format!("Axis {name}: effort to encoder, phase"),
+        "arg H (deg)",
+        a,
+        phase,
+        rigid_phase,
+        y_phase,
+        false,
+    )
+}
+
+/// Axis `name`'s Bode plot as `freqresp_<name>.png` and `.svg`.
+fn axis_figure(dir: &Path, name: &str, a: &AxisResponse) -> Result<usize> {
+    if a.points.len() < 2 {
+        return Ok(0);
+    }
+    let png = dir.join(format!("freqresp_{name}.png"));
+    let svg = dir.join(format!("freqresp_{name}.svg"));
+    {
+        let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
+        draw(&root, name, a)?;
+        root.present()
+            .with_context(|| format!("writing {}", png.display()))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
+        draw(&root, name, a)?;
+        root.present()
+            .with_context(|| format!("writing {}", svg.display()))?;
+    }
+    Ok(2)
+}
+
+/// Every axis' Bode plot into `dir`; the number of files written.
+pub fn figures(dir: &Path, r: &FreqRespReport) -> Result<usize> {
+    register_font()?;
+    let mut n = 0;
+    for (name, a) in &r.axes {
+        n += axis_figure(dir, name, a)?;
+    }
+    Ok(n)
+}
