@@ -225,7 +225,6 @@ impl AxisCompensation {
     /// backlash included, mm; `hint` is the table segment to look from (the last one
     /// used: the reference moves little between periods), updated.
     pub fn trim_mm(&self, pos_mm: f32, forward: bool, hint: &mut u16) -> f32 {
-        let side = if forward { 0 } else { 1 };
         let backlash = if forward {
             self.half_backlash_mm
         } else {
@@ -235,25 +234,36 @@ impl AxisCompensation {
         if n == 0 {
             return backlash;
         }
-        let at = |i: usize| f32::from(self.trim[i][side]) * TRIM_UNIT_MM;
-        if n == 1 || pos_mm <= self.nominal_mm[0] {
+        // (every read through `get`: the control interrupt has no panic path, and the
+        // indices below stay under `n` by construction)
+        let at = |i: usize| {
+            self.trim.get(i).map_or(0.0, |t| {
+                f32::from(if forward { t[0] } else { t[1] }) * TRIM_UNIT_MM
+            })
+        };
+        let x = |i: usize| self.nominal_mm.get(i).copied().unwrap_or(0.0);
+        if n == 1 || pos_mm <= x(0) {
             return at(0) + backlash;
         }
-        if pos_mm >= self.nominal_mm[n - 1] {
+        if pos_mm >= x(n - 1) {
             return at(n - 1) + backlash;
         }
         // segment k: nominal[k] <= pos < nominal[k + 1], walked to from the hint
         let mut k = usize::from(*hint).min(n - 2);
-        while k > 0 && pos_mm < self.nominal_mm[k] {
+        while k > 0 && pos_mm < x(k) {
             k -= 1;
         }
-        while k + 2 < n && pos_mm >= self.nominal_mm[k + 1] {
+        while k + 2 < n && pos_mm >= x(k + 1) {
             k += 1;
         }
         *hint = k as u16;
-        let (x0, x1) = (self.nominal_mm[k], self.nominal_mm[k + 1]);
-        // x1 > x0 (validated strictly increasing)
-        let f = (pos_mm - x0) / (x1 - x0);
+        let (x0, x1) = (x(k), x(k + 1));
+        // x1 > x0 (validated strictly increasing); guarded all the same
+        let f = if x1 > x0 {
+            (pos_mm - x0) / (x1 - x0)
+        } else {
+            0.0
+        };
         at(k) + f * (at(k + 1) - at(k)) + backlash
     }
 }
@@ -295,7 +305,8 @@ impl AxisState {
         let land = e.abs() / dt_s;
         let want = reach.min(land).copysign(e);
         let dv = accel * dt_s;
-        let v = want.clamp(self.rate_mm_s - dv, self.rate_mm_s + dv);
+        // (max/min, not `clamp`: `clamp` panics on crossed bounds, a NaN `dv` included)
+        let v = want.max(self.rate_mm_s - dv).min(self.rate_mm_s + dv);
         let a = (v - self.rate_mm_s) / dt_s;
         self.rate_mm_s = v;
         self.offset_mm += v * dt_s;
