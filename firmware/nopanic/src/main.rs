@@ -1,5 +1,5 @@
 //! Host evidence that the servo step cannot panic: [`servo_period`] wraps
-//! `controller_core::servo::Servo::<f32>::period` (the code the firmware's control
+//! `controller_core::servo::Servo::<f32>::period_with` with compensation tables (the code the firmware's control
 //! interrupt runs, with an IO whose every reading is opaque to the optimiser) in
 //! `#[no_panic]`. The attribute makes any unwinding out of the function call an undefined
 //! symbol, so this binary only *links* if the optimiser proved that no panic is reachable
@@ -18,6 +18,7 @@
 use std::hint::black_box;
 
 use controller_core::axes::AXES;
+use controller_core::motion::compensation::CompTables;
 use controller_core::presets::board::{servo_config, BOARD_RATE_HZ};
 use controller_core::servo::io::{Inputs, ServoIo};
 use controller_core::servo::snapshot::Snapshot;
@@ -59,8 +60,13 @@ impl ServoIo<f32> for OpaqueIo {
 /// refuses to claim anything without them).
 #[cfg_attr(not(debug_assertions), no_panic::no_panic)]
 #[inline(never)]
-fn servo_period(servo: &mut Servo<f32>, io: &mut OpaqueIo, commands: &[Command]) -> Snapshot {
-    *servo.period(io, commands)
+fn servo_period(
+    servo: &mut Servo<f32>,
+    io: &mut OpaqueIo,
+    commands: &[Command],
+    tables: &CompTables,
+) -> Snapshot {
+    *servo.period_with(io, commands, Some(tables))
 }
 
 fn main() {
@@ -79,14 +85,16 @@ fn main() {
         eprintln!("servo-no-panic: the board configuration was rejected");
         std::process::exit(1);
     };
+    // the machine's compensation tables, opaque too (the board passes its own)
+    let tables = black_box(CompTables::NONE);
     let arm = black_box([Command::Arm, Command::StartPath]);
-    let mut snap = servo_period(&mut servo, &mut io, &arm);
+    let mut snap = servo_period(&mut servo, &mut io, &arm, &tables);
     for k in 1..1000u32 {
         io.counters = black_box([k, k / 2, k / 3]);
-        snap = servo_period(&mut servo, &mut io, &[]);
+        snap = servo_period(&mut servo, &mut io, &[], &tables);
     }
     println!(
-        "servo-no-panic: Servo::<f32>::period linked under #[no_panic] (no panic path); \
+        "servo-no-panic: Servo::<f32>::period_with linked under #[no_panic] (no panic path); \
          1000 periods run, state {:?}, {} output switch-offs",
         snap.state, io.disabled
     );

@@ -22,7 +22,10 @@ impl Step {
         let c = &s.c;
         let t = c.period_s;
         let f = c.freq_max_hz * libm::expf(-s.log_step * i as f32);
-        let settle_s = (c.settle_cycles / f).clamp(c.settle_min_s, c.settle_max_s);
+        // max/min, not clamp: clamp panics on crossed or NaN bounds
+        let settle_s = (c.settle_cycles / f)
+            .max(c.settle_min_s)
+            .min(c.settle_max_s);
         let cycles = libm::ceilf((f * c.measure_s).max(f32::from(c.measure_min_cycles))).max(1.0);
         // whole periods for whole cycles: f = cycles / (periods · T)
         let periods = libm::roundf(cycles / (f * t)).max(1.0);

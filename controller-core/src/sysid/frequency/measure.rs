@@ -387,7 +387,8 @@ impl ResponseMeasurement {
                 let w = 2.0 * core::f32::consts::PI * p.freq_hz;
                 let j = 1.0f32.div_or(w * w * p.magnitude(), c.inertia_guess);
                 let g = c.inertia_guess;
-                self.j_est = j.clamp(g / INERTIA_RANGE, g * INERTIA_RANGE);
+                // max/min, not clamp: clamp panics on crossed or NaN bounds
+                self.j_est = j.max(g / INERTIA_RANGE).min(g * INERTIA_RANGE);
                 self.vloop.retune(self.j_est);
             }
         }
