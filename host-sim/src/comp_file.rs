@@ -14,6 +14,7 @@
 
 use anyhow::{bail, Context, Result};
 use controller_core::motion::compensation::{AxisCompensation, CompPoint, MAX_COMP_POINTS};
+use controller_core::motion::feedforward::FeedForwardConfig;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -109,6 +110,48 @@ pub fn read_dir(dir: &Path) -> Result<[AxisCompensation; 3]> {
         }
     }
     Ok(out)
+}
+
+/// The name of the feed-forward file in a compensation folder.
+pub const FEEDFORWARD_FILE: &str = "feedforward.toml";
+
+/// A compensation folder's `feedforward.toml`: a table per axis (`[x]`, `[y]`, `[z]`,
+/// each optional) with the keys of controller-core's `FeedForwardConfig`.
+#[derive(Debug, Default, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FeedForwardFile {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub x: Option<FeedForwardConfig>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub y: Option<FeedForwardConfig>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub z: Option<FeedForwardConfig>,
+}
+
+impl FeedForwardFile {
+    /// The three axes' configurations (an absent one: none).
+    pub fn axes(&self) -> [FeedForwardConfig; 3] {
+        [self.x, self.y, self.z].map(|c| c.unwrap_or(FeedForwardConfig::NONE))
+    }
+}
+
+/// The feed-forward of the folder `dir` (its `feedforward.toml`), if it has one; each
+/// axis validated, errors naming the file and the axis.
+pub fn read_feedforward(dir: &Path) -> Result<Option<[FeedForwardConfig; 3]>> {
+    let path = dir.join(FEEDFORWARD_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("reading feed-forward file {}", path.display()))?;
+    let file: FeedForwardFile =
+        toml::from_str(&text).with_context(|| format!("feed-forward file {}", path.display()))?;
+    let axes = file.axes();
+    for (c, letter) in axes.iter().zip(['x', 'y', 'z']) {
+        c.validate()
+            .map_err(|e| anyhow::anyhow!("{}: [{letter}]: {e}", path.display()))?;
+    }
+    Ok(Some(axes))
 }
 
 /// A type-0 file (`nominal forward-actual reverse-actual`, µm resolution kept to 0.1 µm)

@@ -184,6 +184,10 @@ pub struct AxisSpec {
     /// The axis' holding brake (default: none).
     #[serde(default)]
     pub brake: BrakeSpec,
+    /// Coulomb pre-compensation and the frame's compliance and deflection
+    /// (controller-core `motion::feedforward`; default: none).
+    #[serde(default)]
+    pub feedforward: controller_core::motion::feedforward::FeedForwardConfig,
 }
 
 /// An axis' holding brake: what the servo knows of it (`present`, the timings) and what

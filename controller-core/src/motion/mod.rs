@@ -17,6 +17,7 @@
 //! Nothing here knows the servo: the servo step ([`crate::servo`]) drives these.
 
 pub mod compensation;
+pub mod feedforward;
 pub mod homing;
 pub mod jog;
 pub mod path;

@@ -89,6 +89,7 @@ pub const fn servo_config(rate_hz: u32) -> ServoConfig {
         jog: JogConfig::GANTRY,
         identify: IDENTIFY_DEFAULTS,
         model_known: [true; AXES],
+        feedforward: [crate::motion::feedforward::FeedForwardConfig::NONE; AXES],
     }
 }
 

@@ -19,6 +19,7 @@ use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3};
 use crate::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
 use crate::motion::compensation::CompState;
+use crate::motion::feedforward::FeedForward;
 use crate::motion::path::PathStart;
 use crate::motion::reference::{Clock, ReferenceMode};
 use crate::{Real, Vec3};
@@ -119,6 +120,8 @@ impl<R: Real> Servo<R> {
             path_start,
             motion: ReferenceMode::Hold(Vec3::zero()),
             comp: CompState::NONE,
+            ff: FeedForward::new(&cfg.feedforward)?,
+            ff_effort: Vec3::zero(),
             travel: cfg.travel,
             manual: ManualState {
                 homing: cfg.homing,

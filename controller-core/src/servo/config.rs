@@ -10,6 +10,7 @@ use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::controller::ControllerConfig;
 use crate::estimator::EstimatorBankConfig;
+use crate::motion::feedforward::FeedForwardConfig;
 use crate::motion::homing::HomingConfig;
 use crate::motion::jog::JogConfig;
 use crate::motion::path::{PathConfig, PathStart};
@@ -76,6 +77,10 @@ pub struct ServoConfig {
         serde(default = "default_models_known", with = "crate::axes::per_axis")
     )]
     pub model_known: [bool; AXES],
+    /// Per axis: Coulomb pre-compensation and the frame's compliance and deflection
+    /// ([`crate::motion::feedforward`]; default: none).
+    #[cfg_attr(feature = "serde", serde(default, with = "crate::axes::per_axis"))]
+    pub feedforward: [FeedForwardConfig; AXES],
 }
 
 #[cfg(feature = "serde")]

@@ -25,6 +25,7 @@ use crate::axes::{Axis, AXES};
 use crate::controller::{ControlOutput, Controller3, Measured};
 use crate::estimator::{EstimatorBank, WideCounter};
 use crate::motion::compensation::{CompState, CompTables};
+use crate::motion::feedforward::FeedForward;
 use crate::motion::path::PathStart;
 use crate::motion::planner::PathSample;
 use crate::motion::reference::{Clock, ReferenceMode};
@@ -82,6 +83,10 @@ pub struct Servo<R> {
     /// laws track ([`crate::motion::compensation`]; the tables are the caller's,
     /// [`Self::period_with`]).
     pub(super) comp: CompState,
+    /// Coulomb pre-compensation and the frame's compliance and deflection
+    /// ([`crate::motion::feedforward`]), and this period's Coulomb effort.
+    pub(super) ff: FeedForward<R>,
+    pub(super) ff_effort: Vec3<R>,
     pub(super) travel: TravelConfig,
     /// Homing and jogging: their configuration and the axes referenced.
     pub(super) manual: ManualState,
@@ -328,6 +333,20 @@ impl<R: Real> Servo<R> {
         }
     }
 
+    /// Axes whose laws track a reference (all of them) in the states that have one;
+    /// none while identifying or checking the encoders (the feed-forward's axes).
+    #[inline(always)]
+    fn tracking_mask(&self) -> u8 {
+        match self.state {
+            ServoState::Idle
+            | ServoState::Run
+            | ServoState::Jog
+            | ServoState::Homing
+            | ServoState::Stopping => 0b111,
+            _ => 0,
+        }
+    }
+
     /// Hold the axes where the motor positions `motor` are: at the nominal position
     /// that compensates to them (turned nominal before the next reference is sampled,
     /// when the period has the tables), so that holding there moves nothing.
@@ -434,6 +453,7 @@ impl<R: Real> Servo<R> {
         // the programmed position, before compensation (what stops hold and telemetry
         // shows)
         let nominal = reference.pos;
+        let programmed = reference;
         if let Some(t) = tables {
             let active = self.compensated_mask();
             self.comp
@@ -442,6 +462,11 @@ impl<R: Real> Servo<R> {
             if crossing != 0 {
                 self.monitor.release_due_claims(crossing);
             }
+        }
+        if self.ff.any() {
+            self.ff_effort = self
+                .ff
+                .apply(&programmed, &mut reference, self.tracking_mask());
         }
 
         // 4. Positions and velocities.
@@ -755,6 +780,9 @@ impl<R: Real> Servo<R> {
             );
         }
         let mut u = self.out.u;
+        if self.ff.any() {
+            u = u + self.ff_effort;
+        }
         for i in 0..AXES {
             // finite_or_zero, then clamp_sym (the in-range case first: it is the common
             // one, and the cheapest)

@@ -99,8 +99,12 @@ pub fn run_compensated(machine: Option<&Path>, comp: Option<&Path>) -> Result<Ci
     let mut runs = resolve_all(&file)?;
     if let Some(dir) = comp {
         let tables = crate::comp_file::read_dir(dir)?;
+        let ff = crate::comp_file::read_feedforward(dir)?;
         for r in &mut runs {
             r.compensation = Some(Box::new(tables));
+            if let Some(ff) = ff {
+                r.run.servo.feedforward = ff;
+            }
         }
     }
     let cases = jobs::run_all(&runs, case)?;
