@@ -266,22 +266,25 @@ impl<R: Real> FeedForward<R> {
                 continue;
             }
             let (v, a) = (nominal.vel[i], nominal.acc[i]);
-            let (rho, slope) = reversal_shape(v * t.inv_band);
-            // the Stribeck peak: 1 + (s − 1)/(1 + (v/v_s)²) (its own rate is left out:
-            // a few percent of the deflection's near a reversal)
-            let y = v * t.inv_v_stribeck;
-            let peak = R::ONE + t.stribeck.div_or(R::ONE + y * y, R::ZERO);
-            let rho = rho * peak;
-            let slope = slope * peak;
+            // the friction's shape h(v) = ρ(v/v_band) · P(v/v_s), P the Stribeck peak
+            // 1 + (s − 1)/(1 + y²), and its derivative in v
+            let (rho, d_rho) = reversal_shape(v * t.inv_band);
+            let (p, d_p) = stribeck_peak(v * t.inv_v_stribeck, t.stribeck);
+            let h = rho * p;
+            let d_h = d_rho * t.inv_band * p + rho * d_p * t.inv_v_stribeck;
             let (coulomb, deflection) = if rho > R::ZERO {
                 (t.coulomb_pos, t.deflection_pos)
             } else {
                 (-t.coulomb_neg, -t.deflection_neg)
             };
-            effort[i] = coulomb * rho;
-            r.pos[i] += t.compliance * a + t.lag * v + deflection * rho;
-            // the rates: the lag's, and the deflection's, ρ'(v) · v' = slope / v_band · a
-            r.vel[i] += (t.lag + deflection * slope * t.inv_band) * a;
+            effort[i] = coulomb * h;
+            r.pos[i] += t.compliance * a + t.lag * v + deflection * h;
+            // the position terms' rates, so that the laws see a consistent reference:
+            // the lag's and the deflection's, h'(v)·a. (Not their accelerations: the
+            // deflection's, h''(v)·a², reaches 200 mm/s² as a reversal's friction turns,
+            // and fed to the laws' equivalent control with the whole axis' inertia it
+            // rang the flexible gantry's Y mode: G 6.8 -> 11.0 µm on the circle.)
+            r.vel[i] += t.lag * a + deflection * d_h * a;
         }
         effort
     }
@@ -304,6 +307,22 @@ fn reversal_shape<R: Real>(x: R) -> (R, R) {
     let q = (R::ONE + x * x).sqrt_pos();
     let inv_q = R::ONE.div_or(q, R::ZERO);
     (x * inv_q, inv_q * inv_q * inv_q)
+}
+
+/// The Stribeck peak `P(y) = 1 + e / (1 + y²)` at `y = v / v_s` (`e` = stiction ratio
+/// − 1) and its derivative in `y`.
+#[inline(always)]
+fn stribeck_peak<R: Real>(y: R, e: R) -> (R, R) {
+    if e == R::ZERO {
+        return (R::ONE, R::ZERO);
+    }
+    let big = R::from_f32(SHAPE_SATURATED);
+    if !y.in_range(big) {
+        // far beyond v_s (or not finite): the peak has decayed (within e/4096)
+        return (R::ONE, R::ZERO);
+    }
+    let w = R::ONE.div_or(R::ONE + y * y, R::ZERO);
+    (R::ONE + e * w, -R::from_f32(2.0) * e * y * w * w)
 }
 
 #[cfg(test)]
@@ -370,6 +389,45 @@ mod tests {
         let u = ff.apply(&{ r }, &mut r, 0b001);
         assert_eq!(u, Vec3::zero());
         assert_eq!(r, sample(50.0, 10.0));
+    }
+
+    #[test]
+    fn the_offsets_rate_is_its_derivative_with_the_stribeck_peak() {
+        let mut c = cfg();
+        c.stiction_ratio = 1.3;
+        c.compliance_s2 = 0.0;
+        let ff = FeedForward::<f64>::new(&[c; AXES]).unwrap();
+        let a = 50.0;
+        let at = |v: f64| {
+            let n = RefSample {
+                pos: Vec3::new(0.0, 0.0, 0.0),
+                vel: Vec3::new(v, v, v),
+                acc: Vec3::new(a, a, a),
+            };
+            let mut r = n;
+            let u = ff.apply(&n, &mut r, 0b111);
+            (r.pos[1], r.vel[1] - v, u[1])
+        };
+        for v in [-3.0, -1.0, -0.3, 0.2, 0.7, 2.5, 6.0] {
+            // the reference moves at v and accelerates at a: the offset's rate is
+            // d(offset)/dv · a
+            let dv = 1e-6;
+            let numeric = (at(v + dv).0 - at(v - dv).0) / (2.0 * dv) * a;
+            let (_, rate, u) = at(v);
+            assert!(
+                (rate - numeric).abs() < 1e-6 * numeric.abs().max(1.0),
+                "{v}: {rate} {numeric}"
+            );
+            // the Stribeck peak raises the friction at low speed, up to 1.3 times
+            let level = if v > 0.0 { 60.0 } else { 50.0 };
+            assert!(u.abs() <= 1.3 * level + 1e-9, "{v}: {u}");
+        }
+        assert!(
+            at(1.0).2 > 60.0 * 0.7 && at(20.0).2 < 60.3,
+            "{} {}",
+            at(1.0).2,
+            at(20.0).2
+        );
     }
 
     #[test]
