@@ -265,6 +265,9 @@ pub fn check(m: &MachineSpec) -> Result<(), String> {
         }
         check_physical(n, "initial.pos_mm", a.initial.pos_mm)?;
         check_physical(n, "initial.vel_mm_s", a.initial.vel_mm_s)?;
+        a.feedforward
+            .validate()
+            .map_err(|e| format!("`machine.axes.{name}.feedforward`: {e}"))?;
     }
     // the settings' values, axis by axis, so that a rule broken together names its axis
     let mut s = FACTORY;

@@ -286,3 +286,16 @@ fn a_present_brake_without_holding_torque_is_refused_by_name() {
         "{e}"
     );
 }
+
+#[test]
+fn a_bad_feedforward_is_refused_naming_the_axis_and_the_key() {
+    let e = refusal(
+        "resolution_bits",
+        "12 }",
+        "12 }\nfeedforward = { coulomb_pos_mnm = 40.0, coulomb_neg_mnm = 5.0 }",
+    );
+    assert!(
+        e.contains("machine.axes.x.") && e.contains("feedforward.coulomb_neg_mnm"),
+        "{e}"
+    );
+}

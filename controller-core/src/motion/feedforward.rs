@@ -106,9 +106,8 @@ fn default_v_stribeck() -> f32 {
 }
 
 /// The Stribeck speed when a configuration gives none, mm/s: the simulated plant's
-/// (`plant::physical::DEFAULT_V_STRIBECK_MM_S`, typical of lubricated ball screws and
-/// profile rails).
-pub const DEFAULT_V_STRIBECK_MM_S: f32 = 2.0;
+/// (typical of lubricated ball screws and profile rails).
+pub const DEFAULT_V_STRIBECK_MM_S: f32 = crate::plant::physical::DEFAULT_V_STRIBECK_MM_S;
 
 /// Largest Stribeck peak accepted (friction at rest over friction in motion).
 pub const MAX_STICTION_RATIO: f32 = 3.0;
