@@ -62,8 +62,9 @@ except ImportError as exc:  # pragma: no cover - environment problem
     sys.exit(2)
 
 FLASH = (0x0800_0000, 1024 * 1024)
-# 256 KiB at the SRAM's address: room for every kernel's state at once (kernels/memory.x)
-RAM = (0x2000_0000, 256 * 1024)
+# 512 KiB at the SRAM's address: room for every kernel's state at once and the setups' stack
+# (kernels/memory.x)
+RAM = (0x2000_0000, 512 * 1024)
 # Private peripheral bus (SCB: CPACR for the FPU enable in the reset handler).
 PPB = (0xE000_0000, 0x10_0000)
 # Return address for called functions: an unused, mapped flash word (emulation stops

@@ -13,6 +13,7 @@
 //! the machine's: mm.
 
 use anyhow::{bail, Context, Result};
+use controller_core::filter::AxisFilterConfig;
 use controller_core::motion::compensation::{AxisCompensation, CompPoint, MAX_COMP_POINTS};
 use controller_core::motion::feedforward::FeedForwardConfig;
 use std::fmt::Write as _;
@@ -115,43 +116,94 @@ pub fn read_dir(dir: &Path) -> Result<[AxisCompensation; 3]> {
 /// The name of the feed-forward file in a compensation folder.
 pub const FEEDFORWARD_FILE: &str = "feedforward.toml";
 
-/// A compensation folder's `feedforward.toml`: a table per axis (`[x]`, `[y]`, `[z]`,
-/// each optional) with the keys of controller-core's `FeedForwardConfig`.
-#[derive(Debug, Default, serde::Deserialize, serde::Serialize)]
+/// The name of the output filters' file in a compensation folder.
+pub const FILTERS_FILE: &str = "filters.toml";
+
+/// A per-axis file of a compensation folder (`feedforward.toml`, `filters.toml`): a key
+/// per axis (`x`, `y`, `z`, each optional) holding that axis' configuration.
+#[derive(Debug, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct FeedForwardFile {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub x: Option<FeedForwardConfig>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub y: Option<FeedForwardConfig>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub z: Option<FeedForwardConfig>,
+pub struct PerAxisFile<T> {
+    #[serde(default = "none", skip_serializing_if = "Option::is_none")]
+    pub x: Option<T>,
+    #[serde(default = "none", skip_serializing_if = "Option::is_none")]
+    pub y: Option<T>,
+    #[serde(default = "none", skip_serializing_if = "Option::is_none")]
+    pub z: Option<T>,
 }
 
-impl FeedForwardFile {
-    /// The three axes' configurations (an absent one: none).
-    pub fn axes(&self) -> [FeedForwardConfig; 3] {
-        [self.x, self.y, self.z].map(|c| c.unwrap_or(FeedForwardConfig::NONE))
+fn none<T>() -> Option<T> {
+    None
+}
+
+impl<T: Copy + Default> PerAxisFile<T> {
+    /// The three axes' configurations (an absent one: the default, none).
+    pub fn axes(&self) -> [T; 3] {
+        [self.x, self.y, self.z].map(Option::unwrap_or_default)
     }
+
+    /// The file holding `axes` (an axis equal to the default is left out).
+    pub fn of(axes: [T; 3]) -> Self
+    where
+        T: PartialEq,
+    {
+        let [x, y, z] = axes.map(|a| (a != T::default()).then_some(a));
+        Self { x, y, z }
+    }
+}
+
+/// The feed-forward file: `[x]`, `[y]`, `[z]` tables with the keys of controller-core's
+/// `FeedForwardConfig`.
+pub type FeedForwardFile = PerAxisFile<FeedForwardConfig>;
+
+/// The filters' file: `x`, `y`, `z` lists of stages as controller-core's
+/// `AxisFilterConfig` reads them (`y = [{ notch = { freq_hz = 35.0, ... } }]`).
+pub type FiltersFile = PerAxisFile<AxisFilterConfig>;
+
+/// The file `name` of the folder `dir`, if it has one, each axis checked by `validate`;
+/// errors name the file and the axis.
+fn read_per_axis<T, E: std::fmt::Display>(
+    dir: &Path,
+    name: &str,
+    what: &str,
+    validate: impl Fn(&T) -> Result<(), E>,
+) -> Result<Option<[T; 3]>>
+where
+    T: Copy + Default + serde::de::DeserializeOwned,
+{
+    let path = dir.join(name);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("reading {what} file {}", path.display()))?;
+    let file: PerAxisFile<T> =
+        toml::from_str(&text).with_context(|| format!("{what} file {}", path.display()))?;
+    let axes = file.axes();
+    for (c, letter) in axes.iter().zip(['x', 'y', 'z']) {
+        validate(c).map_err(|e| anyhow::anyhow!("{}: [{letter}]: {e}", path.display()))?;
+    }
+    Ok(Some(axes))
 }
 
 /// The feed-forward of the folder `dir` (its `feedforward.toml`), if it has one; each
 /// axis validated, errors naming the file and the axis.
 pub fn read_feedforward(dir: &Path) -> Result<Option<[FeedForwardConfig; 3]>> {
-    let path = dir.join(FEEDFORWARD_FILE);
-    if !path.exists() {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("reading feed-forward file {}", path.display()))?;
-    let file: FeedForwardFile =
-        toml::from_str(&text).with_context(|| format!("feed-forward file {}", path.display()))?;
-    let axes = file.axes();
-    for (c, letter) in axes.iter().zip(['x', 'y', 'z']) {
-        c.validate()
-            .map_err(|e| anyhow::anyhow!("{}: [{letter}]: {e}", path.display()))?;
-    }
-    Ok(Some(axes))
+    read_per_axis(
+        dir,
+        FEEDFORWARD_FILE,
+        "feed-forward",
+        FeedForwardConfig::validate,
+    )
+}
+
+/// The output filters of the folder `dir` (its `filters.toml`), if it has one; each
+/// axis validated at the control rate `rate_hz`, errors naming the file and the axis.
+pub fn read_filters(dir: &Path, rate_hz: u32) -> Result<Option<[AxisFilterConfig; 3]>> {
+    let period_s = 1.0 / rate_hz.max(1) as f32;
+    read_per_axis(dir, FILTERS_FILE, "filters", |c: &AxisFilterConfig| {
+        c.validate(period_s)
+    })
 }
 
 /// A type-0 file (`nominal forward-actual reverse-actual`, µm resolution kept to 0.1 µm)

@@ -178,6 +178,21 @@ enum Command {
         #[arg(long)]
         no_plots: bool,
     },
+    /// Each axis' output filters: notches placed from its measured resonances and the
+    /// loop's bandwidth, accepted only when the loop measured with them on the running
+    /// machine keeps its margins (gain ≥ 6 dB, phase ≥ 30°) (docs/precision.md §3).
+    Filters {
+        /// Machine file (default: the built-in flexible gantry,
+        /// host-sim/machines/gantry_flexible.toml).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Write the accepted filters to DIR/filters.toml (what `circle --comp DIR` reads).
+        #[arg(long)]
+        write: Option<PathBuf>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run a G-code program on a simulated machine through the planner and the servo step
     /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
     /// completed, 2 when it was rejected (nothing ran), 1 on a fault or an error.
@@ -284,6 +299,11 @@ fn main() -> ExitCode {
             out,
             no_plots,
         }) => run_freqresp(machine.as_deref(), json.as_deref(), &out, no_plots),
+        Some(Command::Filters {
+            machine,
+            write,
+            json,
+        }) => run_filters(machine.as_deref(), write.as_deref(), json.as_deref()),
         Some(Command::Gcode {
             file,
             machine,
@@ -534,6 +554,25 @@ fn run_freqresp(
     if !r.all_done() {
         bail!("not every axis was measured to the end");
     }
+    Ok(())
+}
+
+fn run_filters(machine: Option<&Path>, write: Option<&Path>, json: Option<&Path>) -> Result<()> {
+    let started = Instant::now();
+    let r = host_sim::studies::filters::run(machine)?;
+    print!("{}", host_sim::studies::filters::table(&r));
+    if let Some(j) = json {
+        write_json(j, &r)?;
+        println!("JSON: {}", j.display());
+    }
+    if let Some(dir) = write {
+        create_dir(dir)?;
+        let path = dir.join(host_sim::comp_file::FILTERS_FILE);
+        let text = host_sim::studies::filters::filters_toml(&r);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("filters: {}", path.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
 }
 

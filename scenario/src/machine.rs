@@ -268,6 +268,14 @@ pub fn check(m: &MachineSpec) -> Result<(), String> {
         a.feedforward
             .validate()
             .map_err(|e| format!("`machine.axes.{name}.feedforward`: {e}"))?;
+        a.filters
+            .validate(1.0 / m.rate_hz.max(1) as f32)
+            .map_err(|e| {
+                format!(
+                    "`machine.axes.{name}.filters`: {e} (at rate_hz = {})",
+                    m.rate_hz
+                )
+            })?;
     }
     // the settings' values, axis by axis, so that a rule broken together names its axis
     let mut s = FACTORY;

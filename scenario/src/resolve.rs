@@ -185,6 +185,7 @@ fn resolve(sc: &Scenario) -> Result<(RunConfig, Trajectory<f64>), String> {
         identify: m.identify,
         model_known: m.axes.each_ref().map(|a| a.model_known),
         feedforward: m.axes.each_ref().map(|a| a.feedforward),
+        filters: m.axes.each_ref().map(|a| a.filters),
     };
     let world = WorldConfig {
         plants: m.axes.each_ref().map(|a| a.plant),

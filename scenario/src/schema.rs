@@ -188,6 +188,11 @@ pub struct AxisSpec {
     /// (controller-core `motion::feedforward`; default: none).
     #[serde(default)]
     pub feedforward: controller_core::motion::feedforward::FeedForwardConfig,
+    /// Notch and low-pass biquads on the axis' control output, a list of at most 4
+    /// stages (controller-core `filter`; default: none), e.g.
+    /// `filters = [{ notch = { freq_hz = 35.0, width_hz = 7.0, depth_db = 20.0 } }]`.
+    #[serde(default)]
+    pub filters: controller_core::filter::AxisFilterConfig,
 }
 
 /// An axis' holding brake: what the servo knows of it (`present`, the timings) and what

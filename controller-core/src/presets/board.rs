@@ -90,6 +90,7 @@ pub const fn servo_config(rate_hz: u32) -> ServoConfig {
         identify: IDENTIFY_DEFAULTS,
         model_known: [true; AXES],
         feedforward: [crate::motion::feedforward::FeedForwardConfig::NONE; AXES],
+        filters: [crate::filter::AxisFilterConfig::NONE; AXES],
     }
 }
 

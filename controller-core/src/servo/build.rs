@@ -18,6 +18,7 @@ use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::controller::{ControlOutput, Controller3};
 use crate::estimator::{EstimatorBank, EstimatorTiming, WideCounter};
+use crate::filter::OutputFilters;
 use crate::motion::compensation::CompState;
 use crate::motion::feedforward::FeedForward;
 use crate::motion::path::PathStart;
@@ -122,6 +123,8 @@ impl<R: Real> Servo<R> {
             comp: CompState::NONE,
             ff: FeedForward::new(&cfg.feedforward)?,
             ff_effort: Vec3::zero(),
+            filters: OutputFilters::new(&cfg.filters, period_s as f32)?,
+            filtered: cfg.filters.iter().any(|f| !f.is_empty()),
             travel: cfg.travel,
             manual: ManualState {
                 homing: cfg.homing,

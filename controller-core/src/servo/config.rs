@@ -10,6 +10,7 @@ use crate::axes::AXES;
 use crate::config::ConfigError;
 use crate::controller::ControllerConfig;
 use crate::estimator::EstimatorBankConfig;
+use crate::filter::AxisFilterConfig;
 use crate::motion::feedforward::FeedForwardConfig;
 use crate::motion::homing::HomingConfig;
 use crate::motion::jog::JogConfig;
@@ -81,6 +82,11 @@ pub struct ServoConfig {
     /// ([`crate::motion::feedforward`]; default: none).
     #[cfg_attr(feature = "serde", serde(default, with = "crate::axes::per_axis"))]
     pub feedforward: [FeedForwardConfig; AXES],
+    /// Per axis: notch and low-pass biquads on the control output, after the laws and
+    /// the feed-forward, before the amplifiers' saturation ([`crate::filter`]; default:
+    /// none, the output passes bit for bit).
+    #[cfg_attr(feature = "serde", serde(default, with = "crate::axes::per_axis"))]
+    pub filters: [AxisFilterConfig; AXES],
 }
 
 #[cfg(feature = "serde")]

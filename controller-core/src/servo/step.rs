@@ -24,6 +24,7 @@ use super::travel::TravelConfig;
 use crate::axes::{Axis, AXES};
 use crate::controller::{ControlOutput, Controller3, Measured};
 use crate::estimator::{EstimatorBank, WideCounter};
+use crate::filter::OutputFilters;
 use crate::motion::compensation::{CompState, CompTables};
 use crate::motion::feedforward::FeedForward;
 use crate::motion::path::PathStart;
@@ -87,6 +88,12 @@ pub struct Servo<R> {
     /// ([`crate::motion::feedforward`]), and this period's Coulomb effort.
     pub(super) ff: FeedForward<R>,
     pub(super) ff_effort: Vec3<R>,
+    /// The notch and low-pass filters of the control output ([`crate::filter`]): they
+    /// run while the outputs are driven and rest at 0 otherwise, so that arming never
+    /// replays the effort of before a stop.
+    pub(super) filters: OutputFilters<R>,
+    /// Some axis has a filter (one test in the period when none has).
+    pub(super) filtered: bool,
     pub(super) travel: TravelConfig,
     /// Homing and jogging: their configuration and the axes referenced.
     pub(super) manual: ManualState,
@@ -668,6 +675,10 @@ impl<R: Real> Servo<R> {
                     | ServoState::Identify
                     | ServoState::Stopping
             );
+        if !law && self.filtered {
+            // the outputs are off or under the encoder check: the filters rest at 0
+            self.filters.reset(Vec3::zero());
+        }
         match self.state {
             _ if law => (
                 self.closed_loop(io, s, reference, nominal, index_fault),
@@ -783,6 +794,9 @@ impl<R: Real> Servo<R> {
         if self.ff.any() {
             u = u + self.ff_effort;
         }
+        if self.filtered {
+            u = self.filter_output(u);
+        }
         for i in 0..AXES {
             // finite_or_zero, then clamp_sym (the in-range case first: it is the common
             // one, and the cheapest)
@@ -797,6 +811,18 @@ impl<R: Real> Servo<R> {
             }
         }
         u
+    }
+
+    /// The control output through the axes' filters while the outputs are driven; at
+    /// rest at 0 (and the output passed as it is: it is not applied) while they are not.
+    #[inline(always)]
+    fn filter_output(&mut self, u: Vec3<R>) -> Vec3<R> {
+        if self.state.drives() {
+            self.filters.process(u)
+        } else {
+            self.filters.reset(Vec3::zero());
+            u
+        }
     }
 
     /// The soft limits of the referenced axes, the following error and the speed (not

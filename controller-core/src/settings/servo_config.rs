@@ -105,7 +105,7 @@ impl Settings {
     /// finite) and `Servo::new` itself, so a configuration returned here is one the servo
     /// accepts.
     ///
-    /// This builds a `Servo<f32>` on the stack to validate (3.8 KiB on a 64-bit host,
+    /// This builds a `Servo<f32>` on the stack to validate (4.2 KiB on a 64-bit host,
     /// less on the MCU).
     pub fn servo_config(&self, rate_hz: u32) -> Result<ServoConfig, ServoConfigError> {
         let mut c = factory_config(rate_hz);
@@ -292,6 +292,6 @@ mod tests {
         // servo_config's doc states the stack the validation takes
         let size = core::mem::size_of::<Servo<f32>>();
         std::println!("Servo<f32>: {size} bytes");
-        assert!(size <= 3900, "Servo<f32> is {size} bytes");
+        assert!(size <= 4300, "Servo<f32> is {size} bytes");
     }
 }

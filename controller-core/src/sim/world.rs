@@ -262,6 +262,8 @@ pub struct World {
     noise: [f64; AXES],
     /// Command written last period, applied this period (one period of delay).
     pending: [f64; AXES],
+    /// A torque added at each axis' motor, laws' units ([`World::set_effort_offset`]).
+    effort_offset: [f64; AXES],
     /// Counts at the previous reading (index crossings).
     last_counts: [i64; AXES],
     /// The index pulse of the last period: the count the encoder reported as it passed
@@ -422,6 +424,7 @@ impl World {
             rng: SplitMix64::new(cfg.imperfections.seed),
             noise: [0.0; AXES],
             pending: [0.0; AXES],
+            effort_offset: [0.0; AXES],
             last_counts: [0; AXES],
             index: [None; AXES],
             brakes: WorldBrakes {
@@ -671,6 +674,14 @@ impl World {
         self.inputs.estop = pressed;
     }
 
+    /// A torque at each axis' motor from this period on, in the laws' units (mN·m on a
+    /// physical axis), added to whatever the amplifier gives: the injected signal of a
+    /// loop-response measurement (the servo's effort against the sum it meets at the
+    /// plant is the open loop, host-sim's `filters` study). Non-finite values count as 0.
+    pub fn set_effort_offset(&mut self, offset: [f64; AXES]) {
+        self.effort_offset = offset.map(|d| if d.is_finite() { d } else { 0.0 });
+    }
+
     /// Give the machine a fault (the servo-side ones, `CorruptState`, are the run's).
     pub fn inject(&mut self, inj: &Injection) {
         let reported = self.reported_counts();
@@ -724,6 +735,12 @@ impl World {
         for (u, step) in u.iter_mut().zip(self.effort_step) {
             if step > 0.0 {
                 *u = libm::round(*u / step) * step;
+            }
+        }
+        for (u, d) in u.iter_mut().zip(self.effort_offset) {
+            if d != 0.0 {
+                // (only then: a -0.0 effort stays bit for bit what it was)
+                *u += d;
             }
         }
         let h = self.period_s / f64::from(self.substeps);

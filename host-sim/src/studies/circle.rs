@@ -105,6 +105,9 @@ pub fn run_compensated(machine: Option<&Path>, comp: Option<&Path>) -> Result<Ci
             if let Some(ff) = ff {
                 r.run.servo.feedforward = ff;
             }
+            if let Some(f) = crate::comp_file::read_filters(dir, r.run.servo.rate_hz)? {
+                r.run.servo.filters = f;
+            }
         }
     }
     let cases = jobs::run_all(&runs, case)?;

@@ -8,6 +8,8 @@
 //! - [`circle`]: the ISO 230-4 circular test on a machine, evaluated by [`circular_test`];
 //! - [`freqresp`]: each axis' frequency response through the servo step, its resonances
 //!   and anti-resonances;
+//! - [`filters`]: each axis' output filters placed from its measured response and
+//!   accepted on the loop's margins, measured on the running machine ([`loop_response`]);
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`machine_replay`]: the QEMU link rig's machine replayed in host-sim, bit for bit;
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
@@ -17,9 +19,11 @@ pub mod circular_test;
 pub mod compensation;
 pub mod estimators;
 pub mod faults;
+pub mod filters;
 pub mod freqresp;
 pub mod generic;
 pub mod identify;
+pub mod loop_response;
 pub mod machine_replay;
 pub mod paper;
 pub mod qemu_verdict;

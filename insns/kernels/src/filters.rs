@@ -25,14 +25,18 @@ pub struct Filters3<R> {
     u: Vec3<R>,
 }
 
+/// The kernels' filter set: a notch per axis and a low-pass behind Z's (four biquads).
+pub fn flexible_filters() -> Option<[AxisFilterConfig; 3]> {
+    Some([
+        AxisFilterConfig::new(&[notch(90.0, 20.0, 15.0)]).ok()?,
+        AxisFilterConfig::new(&[notch(35.0, 14.0, 13.0)]).ok()?,
+        AxisFilterConfig::new(&[notch(52.0, 15.0, 18.0), FilterConfig::low_pass(400.0)]).ok()?,
+    ])
+}
+
 impl<R: Real> Filters3<R> {
     pub fn setup() -> Option<Self> {
-        let cfg = [
-            AxisFilterConfig::new(&[notch(90.0, 20.0, 15.0)]).ok()?,
-            AxisFilterConfig::new(&[notch(35.0, 14.0, 13.0)]).ok()?,
-            AxisFilterConfig::new(&[notch(52.0, 15.0, 18.0), FilterConfig::low_pass(400.0)])
-                .ok()?,
-        ];
+        let cfg = flexible_filters()?;
         let mut filters = OutputFilters::new(&cfg, 1.0 / BOARD_RATE_HZ as f32).ok()?;
         let mut u = Vec3::zero();
         for k in 0..WARMUP_PERIODS {

@@ -352,9 +352,21 @@ impl ServoPeriod {
     /// Arms, starts the path and follows it for [`SERVO_SETUP_PERIODS`]; `None` unless
     /// the servo is then enabled and following the path.
     pub fn setup() -> Option<Self> {
+        Self::setup_with(&kernel_servo_config())
+    }
+
+    /// The same with the output filters of the `filters3_f32` kernel on every axis
+    /// (`servo_period_filtered`: the servo step as the interrupt runs it with filters).
+    pub fn setup_filtered() -> Option<Self> {
+        let mut cfg = kernel_servo_config();
+        cfg.filters = filters::flexible_filters()?;
+        Self::setup_with(&cfg)
+    }
+
+    fn setup_with(cfg: &ServoConfig) -> Option<Self> {
         let mut io = StubIo::new()?;
         let raw = io.boot_registers();
-        let mut servo = Servo::<f32>::new(&kernel_servo_config(), raw, [0; AXES]).ok()?;
+        let mut servo = Servo::<f32>::new(cfg, raw, [0; AXES]).ok()?;
         servo.period(&mut io, &[Command::Arm, Command::StartPath]);
         for _ in 1..SERVO_SETUP_PERIODS {
             servo.period(&mut io, &[]);

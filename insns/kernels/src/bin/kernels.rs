@@ -128,6 +128,12 @@ mod cortex_m4 {
     );
     kernel!(servo_period, ServoPeriod, ServoPeriod::setup(), |k| k
         .step());
+    kernel!(
+        servo_period_filtered,
+        ServoPeriod,
+        ServoPeriod::setup_filtered(),
+        |k| k.step()
+    );
     kernel!(filters3_f32, Filters3<f32>, Filters3::<f32>::setup(), |k| k
         .step());
     kernel!(
