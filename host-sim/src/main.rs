@@ -189,9 +189,18 @@ enum Command {
         /// Write the accepted filters to DIR/filters.toml (what `circle --comp DIR` reads).
         #[arg(long)]
         write: Option<PathBuf>,
+        /// Check DIR/filters.toml's filters on the measured loop instead of placing any.
+        #[arg(long, conflicts_with = "write")]
+        check: Option<PathBuf>,
         /// Also write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Output folder for the loops' Bode plots.
+        #[arg(long, default_value = "out/filters")]
+        out: PathBuf,
+        /// Skip the plots.
+        #[arg(long)]
+        no_plots: bool,
     },
     /// Run a G-code program on a simulated machine through the planner and the servo step
     /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
@@ -302,8 +311,19 @@ fn main() -> ExitCode {
         Some(Command::Filters {
             machine,
             write,
+            check,
             json,
-        }) => run_filters(machine.as_deref(), write.as_deref(), json.as_deref()),
+            out,
+            no_plots,
+        }) => run_filters(
+            machine.as_deref(),
+            FiltersOut {
+                write: write.as_deref(),
+                check: check.as_deref(),
+                json: json.as_deref(),
+                plots: (!no_plots).then_some(out.as_path()),
+            },
+        ),
         Some(Command::Gcode {
             file,
             machine,
@@ -557,19 +577,48 @@ fn run_freqresp(
     Ok(())
 }
 
-fn run_filters(machine: Option<&Path>, write: Option<&Path>, json: Option<&Path>) -> Result<()> {
+/// What `filters` reads and writes besides the machine.
+struct FiltersOut<'a> {
+    write: Option<&'a Path>,
+    check: Option<&'a Path>,
+    json: Option<&'a Path>,
+    plots: Option<&'a Path>,
+}
+
+fn run_filters(machine: Option<&Path>, o: FiltersOut<'_>) -> Result<()> {
+    use host_sim::studies::filters;
     let started = Instant::now();
-    let r = host_sim::studies::filters::run(machine)?;
-    print!("{}", host_sim::studies::filters::table(&r));
-    if let Some(j) = json {
+    let given = match o.check {
+        Some(dir) => {
+            let rate = filters::loop_base(machine)?.servo.rate_hz;
+            Some(
+                host_sim::comp_file::read_filters(dir, rate)?.with_context(|| {
+                    format!(
+                        "{} has no {}",
+                        dir.display(),
+                        host_sim::comp_file::FILTERS_FILE
+                    )
+                })?,
+            )
+        }
+        None => None,
+    };
+    let r = filters::run(machine, given.as_ref())?;
+    print!("{}", filters::table(&r));
+    if let Some(j) = o.json {
         write_json(j, &r)?;
         println!("JSON: {}", j.display());
     }
-    if let Some(dir) = write {
+    if let Some(dir) = o.plots {
+        create_dir(dir)?;
+        let n = host_sim::output::loop_plots::figures(dir, &r)?;
+        println!("{n} figures (PNG + SVG) in {}", dir.display());
+    }
+    if let Some(dir) = o.write {
         create_dir(dir)?;
         let path = dir.join(host_sim::comp_file::FILTERS_FILE);
-        let text = host_sim::studies::filters::filters_toml(&r);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        std::fs::write(&path, filters::filters_toml(&r))
+            .with_context(|| format!("writing {}", path.display()))?;
         println!("filters: {}", path.display());
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());

@@ -21,7 +21,7 @@ fn margins(l: &LoopJson) -> (f32, f32, f32) {
 
 #[test]
 fn notches_are_placed_above_the_bandwidth_and_kept_on_the_measured_margins() {
-    let r = run(None).unwrap();
+    let r = run(None, None).unwrap();
     print!("{}", host_sim::studies::filters::table(&r));
     for (name, a) in &r.axes {
         // the DSMC loop of the circle test: crossover 47-61 Hz, 7.5-7.8 dB, 38-44°

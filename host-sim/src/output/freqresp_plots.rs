@@ -4,9 +4,9 @@
 //! and the resonances (red) and anti-resonances (blue) it found, each marked with its
 //! frequency and damping.
 
-use crate::output::plots::register_font;
+use crate::output::plots::{axis_figures, bode_chart, bode_legend, err, AxisFigure};
 use crate::studies::freqresp::{AxisResponse, FreqRespReport, ModeJson};
-use anyhow::{anyhow, Context, Result};
+use anyhow::Result;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -16,10 +16,6 @@ const RIGID: RGBColor = RGBColor(127, 127, 127);
 const RESONANCE: RGBColor = RGBColor(214, 39, 40);
 const ANTI: RGBColor = RGBColor(44, 160, 44);
 const SIZE: (u32, u32) = (1000, 800);
-
-fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow!("plotting failed: {e:?}")
-}
 
 /// The rigid-body line at `f`: (dB, degrees).
 fn rigid(a: &AxisResponse, f: f64) -> (f64, f64) {
@@ -64,25 +60,7 @@ fn panel<DB: DrawingBackend>(
 ) -> Result<()> {
     let f_lo = a.points.first().map_or(1.0, |p| p.freq_hz);
     let f_hi = a.points.last().map_or(10.0, |p| p.freq_hz).max(f_lo * 1.01);
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(42)
-        .y_label_area_size(70)
-        .build_cartesian_2d((f_lo..f_hi).log_scale(), y.0..y.1)
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency (Hz, log)")
-        .x_labels(8)
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .y_desc(y_desc)
-        .label_style(("sans-serif", 12))
-        .axis_desc_style(("sans-serif", 14))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(err)?;
+    let mut chart = bode_chart(area, title, y_desc, (f_lo, f_hi), y)?;
     chart
         .draw_series(DashedLineSeries::new(
             rigid_line,
@@ -124,14 +102,7 @@ fn panel<DB: DrawingBackend>(
         }
     }
     if legend {
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(200, 200, 200))
-            .label_font(("sans-serif", 13))
-            .position(SeriesLabelPosition::LowerLeft)
-            .draw()
-            .map_err(err)?;
+        bode_legend(&mut chart)?;
     }
     Ok(())
 }
@@ -180,34 +151,18 @@ fn draw<DB: DrawingBackend>(
     )
 }
 
-/// Axis `name`'s Bode plot as `freqresp_<name>.png` and `.svg`.
-fn axis_figure(dir: &Path, name: &str, a: &AxisResponse) -> Result<usize> {
-    if a.points.len() < 2 {
-        return Ok(0);
+impl AxisFigure for AxisResponse {
+    fn drawable(&self) -> bool {
+        self.points.len() >= 2
     }
-    let png = dir.join(format!("freqresp_{name}.png"));
-    let svg = dir.join(format!("freqresp_{name}.svg"));
-    {
-        let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
-        draw(&root, name, a)?;
-        root.present()
-            .with_context(|| format!("writing {}", png.display()))?;
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, name: &str) -> Result<()> {
+        draw(root, name, self)
     }
-    {
-        let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
-        draw(&root, name, a)?;
-        root.present()
-            .with_context(|| format!("writing {}", svg.display()))?;
-    }
-    Ok(2)
 }
 
-/// Every axis' Bode plot into `dir`; the number of files written.
+/// Every axis' plot into `dir` as `freqresp_<axis>.png` and `.svg`; the number of files
+/// written.
 pub fn figures(dir: &Path, r: &FreqRespReport) -> Result<usize> {
-    register_font()?;
-    let mut n = 0;
-    for (name, a) in &r.axes {
-        n += axis_figure(dir, name, a)?;
-    }
-    Ok(n)
+    axis_figures(dir, "freqresp", SIZE, &r.axes)
 }

@@ -35,7 +35,7 @@ fn law_color(name: &str) -> RGBColor {
     }
 }
 
-fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+pub(crate) fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow!("plotting failed: {e:?}")
 }
 
@@ -622,6 +622,98 @@ pub(crate) fn both(dir: &Path, stem: &str, size: (u32, u32), draw: Draw) -> Resu
             .with_context(|| format!("writing {}", svg.display()))?;
     }
     Ok(2)
+}
+
+/// One axis' figure drawn by hand on any backend (the Bode plots), written by
+/// [`axis_figures`].
+pub(crate) trait AxisFigure {
+    /// Enough data to draw.
+    fn drawable(&self) -> bool;
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, name: &str) -> Result<()>;
+}
+
+/// A Bode panel's chart: log frequency against a linear value.
+pub(crate) type BodeChart<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<
+        plotters::coord::combinators::LogCoord<f64>,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
+/// A Bode panel's chart: frequency `f` (Hz) on a log axis, `y` linear, its mesh drawn.
+pub(crate) fn bode_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    title: &str,
+    y_desc: &str,
+    f: (f64, f64),
+    y: (f64, f64),
+) -> Result<BodeChart<'a, DB>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(42)
+        .y_label_area_size(70)
+        .build_cartesian_2d((f.0..f.1.max(f.0 * 1.01)).log_scale(), y.0..y.1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("frequency (Hz, log)")
+        .x_labels(8)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .y_desc(y_desc)
+        .label_style(("sans-serif", 12))
+        .axis_desc_style(("sans-serif", 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(err)?;
+    Ok(chart)
+}
+
+/// A Bode panel's legend, in its lower left corner.
+pub(crate) fn bode_legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut BodeChart<'a, DB>,
+) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(200, 200, 200))
+        .label_font(("sans-serif", 13))
+        .position(SeriesLabelPosition::LowerLeft)
+        .draw()
+        .map_err(err)
+}
+
+/// Every axis' figure as `<stem>_<axis>.png` and `.svg` in `dir` (an axis without enough
+/// data: none); the number of files written.
+pub(crate) fn axis_figures<T: AxisFigure>(
+    dir: &Path,
+    stem: &str,
+    size: (u32, u32),
+    axes: &std::collections::BTreeMap<String, T>,
+) -> Result<usize> {
+    register_font()?;
+    let mut n = 0;
+    for (name, a) in axes.iter().filter(|(_, a)| a.drawable()) {
+        let png = dir.join(format!("{stem}_{name}.png"));
+        let svg = dir.join(format!("{stem}_{name}.svg"));
+        {
+            let root = BitMapBackend::new(&png, size).into_drawing_area();
+            a.draw(&root, name)?;
+            root.present()
+                .with_context(|| format!("writing {}", png.display()))?;
+        }
+        {
+            let root = SVGBackend::new(&svg, size).into_drawing_area();
+            a.draw(&root, name)?;
+            root.present()
+                .with_context(|| format!("writing {}", svg.display()))?;
+        }
+        n += 2;
+    }
+    Ok(n)
 }
 
 /// Curves against a shared x axis, or an XY path at equal scales.

@@ -14,7 +14,9 @@
 //!    the measurement stayed in its jog.
 //!
 //! `--write DIR` writes the accepted axes' filters to `DIR/filters.toml`, the file
-//! `circle --comp DIR` reads.
+//! `circle --comp DIR` reads. `--check DIR` measures the loop with `DIR/filters.toml`'s
+//! filters (entered by hand, or written before) instead of placing any, and gives each
+//! axis the same verdict.
 
 use super::freqresp::{self, AxisResponse};
 use super::loop_response::{self, LoopFailure, LoopPoint};
@@ -68,7 +70,8 @@ pub struct LoopJson {
     /// `Ok` margins, or why there are none.
     pub margins: Option<MarginsJson>,
     pub error: Option<String>,
-    /// Frequency, gain (dB), phase (degrees, wrapped) of each point.
+    /// Frequency, gain (dB), phase (degrees, unwrapped along the frequencies from the
+    /// first point's value in (-360, 0]) of each point.
     pub points: Vec<[f32; 3]>,
     /// Runs that left the jog (a fault, an unstable loop), with why.
     pub failed: Vec<(f32, String)>,
@@ -113,10 +116,15 @@ fn loop_json(points: &[LoopPoint], failed: Vec<LoopFailure>) -> (LoopJson, Optio
         error: m.as_ref().err().map(|e| format!("{e:?}")),
         points: points
             .iter()
-            .map(|p| {
+            .zip(freqresp::unwrap_phases(
+                points
+                    .iter()
+                    .map(|p| f64::from(p.gain.1.atan2(p.gain.0).to_degrees())),
+            ))
+            .map(|(p, phase)| {
                 let (re, im) = p.gain;
                 let db = 20.0 * re.hypot(im).max(1e-30).log10();
-                [p.freq_hz, db, im.atan2(re).to_degrees()]
+                [p.freq_hz, db, phase as f32]
             })
             .collect(),
         failed: failed.into_iter().map(|f| (f.freq_hz, f.why)).collect(),
@@ -125,37 +133,73 @@ fn loop_json(points: &[LoopPoint], failed: Vec<LoopFailure>) -> (LoopJson, Optio
 }
 
 /// The loop of `axis` measured over the study's grid with `filters` on the outputs: its
-/// points, its margins if it has them, and whether some run left its jog.
+/// points (with the runs that left their jog) and its margins if it has them.
 fn measured(
     base: &RunConfig,
     axis: Axis,
     filters: &[AxisFilterConfig; 3],
     inertia: f64,
-) -> Result<(LoopJson, Option<Margins>, bool)> {
+) -> Result<(LoopJson, Option<Margins>)> {
     let grid = loop_response::log_grid(GRID_LO_HZ, GRID_HI_HZ, GRID_POINTS);
     let (pts, failed) = loop_response::measure(base, axis, filters, &grid, inertia)?;
-    let any_failed = !failed.is_empty();
-    let (json, m) = loop_json(&pts, failed);
-    Ok((json, m, any_failed))
+    Ok(loop_json(&pts, failed))
 }
 
 /// The loop of `axis` measured with `filters` on the outputs, and the verdict on them:
 /// `accepted` when every run stayed in its jog and the margins pass `filter::accept`,
-/// else `refused: ...` with why.
+/// else `refused: ...` with every reason (the margin short of its bound, the runs that
+/// faulted).
 pub fn check(
     base: &RunConfig,
     axis: Axis,
     filters: &[AxisFilterConfig; 3],
     inertia: f64,
 ) -> Result<(LoopJson, String)> {
-    let (with, m, any_failed) = measured(base, axis, filters, inertia)?;
-    let verdict = match m {
-        _ if any_failed => "refused: runs left the jog with the filters".into(),
-        None => "refused: the loop with the filters has no margins".into(),
-        Some(m) => match accept(&m, MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG) {
-            Ok(()) => "accepted".into(),
-            Err(r) => format!("refused: {r:?}"),
-        },
+    let (with, m) = measured(base, axis, filters, inertia)?;
+    let mut why = Vec::new();
+    match m {
+        None => why.push("the loop has no margins".to_string()),
+        Some(m) => {
+            if !m.stable {
+                why.push("the loop is unstable".into());
+            }
+            for (name, v, min, unit) in [
+                ("gain margin", m.gain_margin_db, MIN_GAIN_MARGIN_DB, " dB"),
+                (
+                    "lower gain margin",
+                    m.lower_gain_margin_db,
+                    MIN_GAIN_MARGIN_DB,
+                    " dB",
+                ),
+                (
+                    "phase margin",
+                    m.phase_margin_deg,
+                    MIN_PHASE_MARGIN_DEG,
+                    "°",
+                ),
+            ] {
+                if !(v >= min) {
+                    why.push(format!("{name} {v:.1}{unit} < {min}{unit}"));
+                }
+            }
+            // (the same rule as `filter::accept`, every reason named)
+            debug_assert_eq!(
+                why.is_empty(),
+                accept(&m, MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG).is_ok()
+            );
+        }
+    }
+    if let Some((f, first)) = with.failed.first() {
+        why.push(format!(
+            "{} of {} runs left the jog (at {f:.1} Hz: {first})",
+            with.failed.len(),
+            GRID_POINTS
+        ));
+    }
+    let verdict = if why.is_empty() {
+        "accepted".to_string()
+    } else {
+        format!("refused: {}", why.join("; "))
     };
     Ok((with, verdict))
 }
@@ -163,7 +207,7 @@ pub fn check(
 /// Place and check one axis' filters.
 fn axis_filters(base: &RunConfig, axis: Axis, p: &AxisResponse) -> Result<AxisFilters> {
     let none = [AxisFilterConfig::NONE; 3];
-    let (without, m0, _) = measured(base, axis, &none, p.inertia)?;
+    let (without, m0) = measured(base, axis, &none, p.inertia)?;
     let mut out = AxisFilters {
         resonances: p.resonances.clone(),
         without,
@@ -217,8 +261,10 @@ pub fn loop_base(machine: Option<&Path>) -> Result<RunConfig> {
         .run)
 }
 
-/// Run the study on the built-in flexible gantry (or `machine`).
-pub fn run(machine: Option<&Path>) -> Result<FiltersReport> {
+/// Run the study on the built-in flexible gantry (or `machine`): place each axis'
+/// filters and check them; with `given` (a `filters.toml`'s axes), check those instead
+/// of placing (an axis without filters is measured without).
+pub fn run(machine: Option<&Path>, given: Option<&[AxisFilterConfig; 3]>) -> Result<FiltersReport> {
     let open = freqresp::run(machine)?;
     let base = loop_base(machine)?;
     let mut axes = BTreeMap::new();
@@ -228,12 +274,43 @@ pub fn run(machine: Option<&Path>) -> Result<FiltersReport> {
             .axes
             .get(&name)
             .ok_or_else(|| anyhow!("axis {name}: no open-loop response"))?;
-        axes.insert(name, axis_filters(&base, axis, p)?);
+        let a = match given {
+            None => axis_filters(&base, axis, p)?,
+            Some(g) => given_filters(&base, axis, p, &g[axis.index()])?,
+        };
+        axes.insert(name, a);
     }
     Ok(FiltersReport {
         machine: open.machine,
         axes,
     })
+}
+
+/// One axis' given filters checked on the measured loop.
+fn given_filters(
+    base: &RunConfig,
+    axis: Axis,
+    p: &AxisResponse,
+    given: &AxisFilterConfig,
+) -> Result<AxisFilters> {
+    let none = [AxisFilterConfig::NONE; 3];
+    let (without, _) = measured(base, axis, &none, p.inertia)?;
+    let mut out = AxisFilters {
+        resonances: p.resonances.clone(),
+        without,
+        placed: given.stages().to_vec(),
+        near_bandwidth: 0,
+        with: None,
+        verdict: "none given".into(),
+    };
+    if !given.is_empty() {
+        let mut filters = none;
+        filters[axis.index()] = *given;
+        let (with, verdict) = check(base, axis, &filters, p.inertia)?;
+        out.with = Some(with);
+        out.verdict = verdict;
+    }
+    Ok(out)
 }
 
 fn margins_cell(l: &LoopJson) -> String {
@@ -259,7 +336,9 @@ pub fn table(r: &FiltersReport) -> String {
         "axis", "loop without (fc, GM, PM)", "placed", "loop with (fc, GM, PM)"
     );
     for (name, a) in &r.axes {
-        let placed = if a.placed.is_empty() {
+        let placed = if a.placed.is_empty() && a.verdict == "none given" {
+            "-".to_string()
+        } else if a.placed.is_empty() {
             format!("- ({} near the bandwidth)", a.near_bandwidth)
         } else {
             a.placed.iter().map(describe).collect::<Vec<_>>().join(", ")

@@ -14,8 +14,8 @@ use anyhow::{anyhow, bail, Result};
 use controller_core::axes::Axis;
 use controller_core::plant::physical::PhysicalAxisConfig;
 use controller_core::servo::{Command, ServoState};
-use controller_core::sim::run::{RunConfig, SimRun};
-use controller_core::sim::world::{InitialState, PlantConfig};
+use controller_core::sim::run::RunConfig;
+use controller_core::sim::world::PlantConfig;
 use controller_core::sysid::frequency::{
     find_modes, FrequencyResponse, Mode, ModeReport, MODE_DEFAULTS,
 };
@@ -209,11 +209,7 @@ fn measure(base: &RunConfig, axis: Axis) -> Result<Measured> {
     let mut cfg = *base;
     // nothing else runs: the measured axis alone is driven (from Disabled)
     cfg.servo.model_known = [false; 3];
-    cfg.world.initial = [InitialState::default(); 3];
-    cfg.periods = u32::MAX;
-    cfg.hold = true;
-    cfg.inject = None;
-    let mut run = SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    let mut run = super::driven_run(cfg)?;
     let i = axis.index();
     let start = run.world().state()[i].pos;
     let at = start as f32;
@@ -268,6 +264,22 @@ fn measure(base: &RunConfig, axis: Axis) -> Result<Measured> {
     })
 }
 
+/// Phases (degrees) unwrapped along the frequencies: the first in (-360, 0], each next
+/// one the nearest turn to its predecessor.
+pub fn unwrap_phases(raw: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut last: Option<f64> = None;
+    raw.map(|raw| {
+        let phase = match last {
+            Some(prev) => raw - 360.0 * ((raw - prev) / 360.0).round(),
+            None if raw > 0.0 => raw - 360.0,
+            None => raw,
+        };
+        last = Some(phase);
+        phase
+    })
+    .collect()
+}
+
 /// Measure `axis` and find its modes; compare them with the machine file's `truth`.
 pub fn measure_axis(base: &RunConfig, axis: Axis, truth: &PlantConfig) -> Result<AxisResponse> {
     let m = measure(base, axis)?;
@@ -276,22 +288,15 @@ pub fn measure_axis(base: &RunConfig, axis: Axis, truth: &PlantConfig) -> Result
         other => format!("{other:?}"),
     };
     let modes: ModeReport = find_modes(&m.frf, &MODE_DEFAULTS).unwrap_or_default();
-    let mut last_phase: Option<f64> = None;
+    let phases = unwrap_phases(m.frf.points().iter().map(|p| f64::from(p.phase_deg())));
     let points = m
         .frf
         .points()
         .iter()
-        .map(|p| {
+        .zip(phases)
+        .map(|(p, phase)| {
             let (rr, ri) = modes.rigid.response(p.freq_hz);
             let rigid_db = 10.0 * f64::from(rr * rr + ri * ri).max(1e-300).log10();
-            let raw = f64::from(p.phase_deg());
-            let phase = match last_phase {
-                // the nearest turn to the previous point's phase
-                Some(prev) => raw - 360.0 * ((raw - prev) / 360.0).round(),
-                None if raw > 0.0 => raw - 360.0,
-                None => raw,
-            };
-            last_phase = Some(phase);
             PointJson {
                 freq_hz: f64::from(p.freq_hz),
                 magnitude_db: f64::from(p.magnitude_db()),

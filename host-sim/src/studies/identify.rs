@@ -23,8 +23,8 @@ use controller_core::plant::physical::PhysicalAxisConfig;
 use controller_core::plant::AxisModel;
 use controller_core::presets::gantry::{gantry_safety, tuning_for};
 use controller_core::servo::{Command, ServoState};
-use controller_core::sim::run::{RunConfig, SimRun};
-use controller_core::sim::world::{InitialState, PlantConfig};
+use controller_core::sim::run::RunConfig;
+use controller_core::sim::world::PlantConfig;
 use controller_core::sysid::{tuning, IdentifyStatus};
 use gantry_scenario::Resolved;
 use serde::Serialize;
@@ -171,11 +171,7 @@ pub fn identify_axis(
     let mut cfg = *base;
     // the identification does not know the models; nothing but identification can run
     cfg.servo.model_known = [false; 3];
-    cfg.world.initial = [InitialState::default(); 3];
-    cfg.periods = u32::MAX;
-    cfg.hold = true;
-    cfg.inject = None;
-    let mut run = SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    let mut run = super::driven_run(cfg)?;
     let i = axis.index();
     let start = run.world().state()[i].pos;
     let at = start as f32;

@@ -22,8 +22,7 @@ use anyhow::{anyhow, Result};
 use controller_core::axes::Axis;
 use controller_core::filter::AxisFilterConfig;
 use controller_core::servo::{Command, ServoState};
-use controller_core::sim::run::{RunConfig, SimRun};
-use controller_core::sim::world::InitialState;
+use controller_core::sim::run::RunConfig;
 use std::f64::consts::PI;
 
 /// The jog the sine rides on, mm/s (above the Stribeck region, well above the sine's
@@ -104,11 +103,7 @@ pub fn measure_point(
 ) -> Result<LoopPoint> {
     let mut cfg = *base;
     cfg.servo.filters = *filters;
-    cfg.world.initial = [InitialState::default(); 3];
-    cfg.periods = u32::MAX;
-    cfg.hold = true;
-    cfg.inject = None;
-    let mut run = SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))?;
+    let mut run = super::driven_run(cfg)?;
     let i = axis.index();
     let rate = f64::from(cfg.servo.rate_hz);
     let f = f64::from(freq_hz);
@@ -143,12 +138,15 @@ pub fn measure_point(
         run.world_mut().set_effort_offset(offset);
         let s = *run.control_with(cmds);
         if !matches!(s.state, ServoState::Idle | ServoState::Jog) && k > 0 {
-            return Err(anyhow!(
-                "the servo left the jog ({:?}, fault {:?}) after {:.3} s",
-                s.state,
-                run.servo().faults().first(),
-                f64::from(k) / rate
-            ));
+            let why = match run.servo().faults().first() {
+                Some(r) => format!(
+                    "{:?} fault on {}",
+                    r.fault.kind,
+                    r.fault.axis.map_or("the system", |a| a.name())
+                ),
+                None => format!("{:?}", s.state),
+            };
+            return Err(anyhow!("{why} after {:.3} s", f64::from(k) / rate));
         }
         let u = f64::from(s.effort[i]);
         // what the plant receives this period: the servo's effort (a period late when

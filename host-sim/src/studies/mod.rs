@@ -28,3 +28,17 @@ pub mod machine_replay;
 pub mod paper;
 pub mod qemu_verdict;
 pub mod seeds;
+
+use anyhow::{anyhow, Result};
+use controller_core::sim::run::{RunConfig, SimRun};
+use controller_core::sim::world::InitialState;
+
+/// A run of `base`'s machine that the study drives itself: every axis at rest at its
+/// origin, no end, no scripted start or injection (the servo holds until commanded).
+pub fn driven_run(mut cfg: RunConfig) -> Result<SimRun<f32>> {
+    cfg.world.initial = [InitialState::default(); 3];
+    cfg.periods = u32::MAX;
+    cfg.hold = true;
+    cfg.inject = None;
+    SimRun::<f32>::new(&cfg).map_err(|e| anyhow!("invalid machine: {e}"))
+}
