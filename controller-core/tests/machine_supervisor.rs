@@ -591,6 +591,7 @@ mod split {
                 planner: exec,
                 scope: Scope::new(),
                 comp: controller_core::motion::compensation::CompTables::NONE,
+                shaper: controller_core::motion::shaper::ShaperStage::NONE,
             }),
         )
         .unwrap();

@@ -65,6 +65,7 @@ mod tests {
                 planner: MachinePlanner::BLANK,
                 scope: Scope::new(),
                 comp: controller_core::motion::compensation::CompTables::NONE,
+                shaper: controller_core::motion::shaper::ShaperStage::NONE,
             });
             let planner = factory_planner(decoded.servo.rate_hz);
             let mut run = SimRun::<f32, _, _>::with_memory(&decoded, &planner, memory).unwrap();

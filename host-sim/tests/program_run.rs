@@ -112,6 +112,7 @@ fn the_program_completes_on_the_square_and_the_split_planner_plans_the_same() {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
         comp: controller_core::motion::compensation::CompTables::NONE,
+        shaper: controller_core::motion::shaper::ShaperStage::NONE,
     });
     let run = SimRun::with_memory(&cfg, &planner, memory).unwrap();
     let (whole, end, _, _) = drive(run, || {});

@@ -30,5 +30,5 @@ pub use save::{save_blocking, save_due_into, write_blocking};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{
     Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, Seen,
-    MACHINE_SEGMENTS, MACHINE_SPANS,
+    ShaperChangeError, MACHINE_SEGMENTS, MACHINE_SPANS,
 };

@@ -35,6 +35,7 @@ use crate::motion::planner::{
     MotionPlanner, Offer, PathSample, Planner, PlannerConfig, PlannerConfigError, PlannerHandle,
     RestartError, Segment, SegmentError,
 };
+use crate::motion::shaper::{AxisShapers, ShaperStage};
 use crate::servo::io::ServoIo;
 use crate::servo::{Command, Servo, ServoConfig, ServoState};
 use crate::settings::{Apply, ServoConfigError, Settings};
@@ -64,6 +65,9 @@ pub struct MachineMemory<M = MachinePlanner> {
     pub scope: Scope,
     /// The backlash and lead-screw compensation tables (6 KiB; all zeros: none).
     pub comp: crate::motion::compensation::CompTables,
+    /// The input shapers between the planner and the servo, with their history (9 KiB;
+    /// all zeros: off).
+    pub shaper: ShaperStage,
 }
 
 impl MachineMemory<MachinePlanner> {
@@ -71,7 +75,25 @@ impl MachineMemory<MachinePlanner> {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
         comp: crate::motion::compensation::CompTables::NONE,
+        shaper: ShaperStage::NONE,
     };
+}
+
+/// The control period the shapers are built for, as the settings validate them
+/// (`Settings::servo_config`).
+fn shaper_period_s(rate_hz: u32) -> f32 {
+    1.0 / rate_hz.max(1) as f32
+}
+
+/// Why [`Machine::set_shapers`] refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShaperChangeError {
+    /// The outputs are on: change shapers with the machine disarmed.
+    OutputsOn,
+    /// A shaper is invalid (the key is named).
+    Config(crate::config::ConfigError),
+    /// The shapers leave the planner no path tolerance.
+    Tolerance(crate::motion::shaper::ShapedPlannerError),
 }
 
 /// What [`Machine::linked_period_seen`] shows of the link's events it takes.
@@ -223,7 +245,8 @@ where
             .map_err(MachineError::Settings)?;
         // (validated with the rest of the tree by `servo_config` above)
         let pc = settings.planner_config(rate_hz);
-        Self::build(&cfg, &pc, *settings, true, raw, start_counts, mem)
+        let shapers = settings.shaper.shapers();
+        Self::build(&cfg, &pc, &shapers, *settings, true, raw, start_counts, mem)
     }
 
     /// A machine that runs `servo` and `planner` as given, without a settings tree: a
@@ -239,14 +262,27 @@ where
         mem: P,
     ) -> Result<Self, MachineError> {
         let settings = Settings::default();
-        Self::build(servo, planner, settings, false, raw, start_counts, mem)
+        let none = AxisShapers::NONE;
+        Self::build(
+            servo,
+            planner,
+            &none,
+            settings,
+            false,
+            raw,
+            start_counts,
+            mem,
+        )
     }
 
-    /// The servo built from `cfg`, the planner in `mem` restarted with `pc`, the scope
-    /// disarmed; `settings` is the tree the machine answers with (`tree`: it runs it).
+    /// The servo built from `cfg`, the planner in `mem` restarted with `pc` (shaped by
+    /// `shapers`), the scope disarmed; `settings` is the tree the machine answers with
+    /// (`tree`: it runs it).
+    #[allow(clippy::too_many_arguments)]
     fn build(
         cfg: &ServoConfig,
         pc: &PlannerConfig,
+        shapers: &AxisShapers,
         settings: Settings,
         tree: bool,
         raw: [u32; 3],
@@ -257,7 +293,15 @@ where
         let servo = Servo::new(cfg, raw, start_counts).map_err(MachineError::Servo)?;
         let pc = *pc;
         let start = servo.snapshot().pos;
-        mem.planner.restart(&pc, start).map_err(|e| match e {
+        mem.shaper
+            .configure(shapers, shaper_period_s(rate_hz))
+            .map_err(MachineError::Servo)?;
+        let shaped = mem.shaper.planner_config(&pc).map_err(|_| {
+            MachineError::Planner(PlannerConfigError::NotPositive(
+                "tolerance_mm (the input shapers leave no path tolerance)",
+            ))
+        })?;
+        mem.planner.restart(&shaped, start).map_err(|e| match e {
             RestartError::Config(e) => MachineError::Planner(e),
             RestartError::Detached => MachineError::PlannerDetached,
         })?;
@@ -414,6 +458,38 @@ where
     /// The compensation tables in use.
     pub fn compensation(&self) -> &crate::motion::compensation::CompTables {
         &self.mem.comp
+    }
+
+    /// Shape the planner's reference with `shapers` from the next program on
+    /// ([`crate::motion::shaper::ShaperStage`]): refused while the outputs are on, and
+    /// when a shaper is invalid or leaves the planner no path tolerance (nothing changes
+    /// then). A machine with a settings tree takes them from its `shaper.*` keys.
+    pub fn set_shapers(&mut self, shapers: &AxisShapers) -> Result<(), ShaperChangeError> {
+        if self.servo.state().drives() {
+            return Err(ShaperChangeError::OutputsOn);
+        }
+        let mut next = crate::motion::shaper::ShaperStage::NONE;
+        next.configure(shapers, shaper_period_s(self.rate_hz))
+            .map_err(ShaperChangeError::Config)?;
+        next.planner_config(&self.planner_cfg)
+            .map_err(ShaperChangeError::Tolerance)?;
+        self.mem
+            .shaper
+            .configure(shapers, shaper_period_s(self.rate_hz))
+            .map_err(ShaperChangeError::Config)
+    }
+
+    /// The shapers in use.
+    pub fn shaper(&self) -> &ShaperStage {
+        &self.mem.shaper
+    }
+
+    /// The planner's configuration the next program runs with: the configured one with
+    /// the shapers' contour deviation counted inside its tolerance.
+    pub fn planner_config(
+        &self,
+    ) -> Result<PlannerConfig, crate::motion::shaper::ShapedPlannerError> {
+        self.mem.shaper.planner_config(&self.planner_cfg)
     }
 
     /// The settings tree it runs (the factory tree for a machine built
@@ -642,7 +718,9 @@ where
         // the program's clock stands still while the servo holds its start for the brakes
         let ticked = self.program && !self.servo.motion_held();
         if ticked {
-            self.sample = self.mem.planner.tick();
+            // (shaped: the servo follows the planner's reference through the shapers)
+            let raw = self.mem.planner.tick();
+            self.sample = self.mem.shaper.shape(raw);
             self.servo.set_planner_reference(&self.sample);
             // the executor's place in the program, for the status
             self.program_tag = self.sample.tag;
@@ -667,6 +745,7 @@ where
                     if ticked
                         && self.program_ended
                         && self.mem.planner.is_idle()
+                        && self.mem.shaper.settled()
                         && !self.held
                         && !self.servo.motion_held()
                     {
@@ -765,8 +844,13 @@ where
                 if self.servo.state() != ServoState::Idle {
                     return Step::Done(refused("run: a program is already running"));
                 }
+                let Ok(pc) = self.mem.shaper.planner_config(&self.planner_cfg) else {
+                    return Step::Done(refused(
+                        "run: the input shapers leave no path tolerance (planner.tolerance_mm)",
+                    ));
+                };
                 // in place: a planner is 40 KiB, too much for the interrupt's stack
-                match self.mem.planner.restart(&self.planner_cfg, start) {
+                match self.mem.planner.restart(&pc, start) {
                     Ok(()) => {}
                     Err(RestartError::Config(_)) => {
                         return Step::Done(refused("run: planner configuration invalid"))
@@ -775,6 +859,7 @@ where
                         return Step::Done(refused("run: the planning task is not connected"))
                     }
                 }
+                self.mem.shaper.prime(start);
                 self.program = true;
                 self.program_ended = false;
                 self.program_end = ProgramEnd::Running;
@@ -885,6 +970,12 @@ where
 
     /// The new settings; the planner's take effect with the next program.
     fn take(&mut self, next: Settings) {
+        // (validated with the tree on the link side; taken only with the outputs off,
+        // the keys' apply class, so no program runs through the change)
+        let _ = self
+            .mem
+            .shaper
+            .configure(&next.shaper.shapers(), shaper_period_s(self.rate_hz));
         self.settings = next;
         self.settings_changed = true;
         self.planner_cfg = next.planner_config(self.rate_hz);

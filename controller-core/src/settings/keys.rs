@@ -19,6 +19,7 @@ use core::fmt;
 use crate::axes::{Axis, AXES};
 use crate::link::watchdog::{MAX_WATCHDOG_TIMEOUT_MS, MIN_WATCHDOG_TIMEOUT_MS};
 use crate::motion::homing::HomeDirection;
+use crate::motion::shaper::ShaperKind;
 
 use super::offsets::{TOOL_COUNT, WORK_SYSTEMS};
 use super::servo_config::{ServoConfigError, PLACEHOLDER_MODELS};
@@ -232,6 +233,25 @@ impl Field for CouplingKind {
     fn from_value(v: Value) -> Option<Self> {
         match v {
             Value::Choice(n) => Self::from_name(n),
+            _ => None,
+        }
+    }
+}
+
+/// Names of an input shaper's kind in keys: `none`, then Klipper's ([`ShaperKind::name`]).
+const SHAPER_NAMES: &[&str] = &["none", "zv", "mzv", "zvd", "ei", "2hump_ei", "3hump_ei"];
+
+impl Field for Option<ShaperKind> {
+    fn value(&self) -> Value {
+        Value::Choice(self.map_or("none", ShaperKind::name))
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Choice("none") => Some(None),
+            Value::Choice(n) => ShaperKind::ALL
+                .into_iter()
+                .find(|k| k.name() == n)
+                .map(Some),
             _ => None,
         }
     }
@@ -455,6 +475,7 @@ mod unit {
     pub const MNM: &str = "mN·m";
     pub const RAD_S: &str = "rad/s";
     pub const S: &str = "s";
+    pub const HZ: &str = "Hz";
     pub const NONE: &str = "";
 }
 
@@ -479,6 +500,9 @@ const TOOL_DIAMETER: Range = f32_range(0.0, 1_000.0);
 /// Brake engage and release times 0..=1 s: the servo's own bound
 /// ([`crate::servo::brake::MAX_BRAKE_TIME_S`], checked again by the servo).
 const BRAKE_TIME: Range = f32_range(0.0, crate::servo::brake::MAX_BRAKE_TIME_S);
+/// Shaped modes 1..200 Hz: a frame's modes are tens of Hz; the shaper's own bound
+/// (1/100 of the control rate, its history's length) is checked with the whole tree.
+const SHAPER_FREQ: Range = f32_range(1.0, 200.0);
 
 /// The per-axis keys, in the tree's field order.
 static AXIS_KEYS: &[AxisDef] = &[
@@ -851,6 +875,69 @@ static GLOBAL_KEYS: &[GlobalDef] = &[
         Range::Bool,
         OutputsOff,
         "Arming checks every encoder first: each axis' hold point moves 16 counts out and back both ways, and a reading that goes the wrong way (swapped A/B) or not at all faults"
+    ),
+    global_key!(
+        shaper.x.kind,
+        unit::NONE,
+        Range::Choice(SHAPER_NAMES),
+        OutputsOff,
+        "Input shaper of the planner's X reference (Klipper's kinds; none: not shaped); its contour deviation is counted inside planner.tolerance_mm"
+    ),
+    global_key!(
+        shaper.x.freq_hz,
+        unit::HZ,
+        SHAPER_FREQ,
+        OutputsOff,
+        "Frequency of the X mode the shaper cancels (cargo sim freqresp measures it); at most 1/100 of the control rate"
+    ),
+    global_key!(
+        shaper.x.damping_ratio,
+        unit::NONE,
+        f32_range(0.0, 0.99),
+        OutputsOff,
+        "Damping ratio of the X mode (Klipper's default 0.1; ei 0.4, 2hump_ei 0.3, 3hump_ei 0.2 at most)"
+    ),
+    global_key!(
+        shaper.y.kind,
+        unit::NONE,
+        Range::Choice(SHAPER_NAMES),
+        OutputsOff,
+        "Input shaper of the planner's Y reference (Klipper's kinds; none: not shaped); its contour deviation is counted inside planner.tolerance_mm"
+    ),
+    global_key!(
+        shaper.y.freq_hz,
+        unit::HZ,
+        SHAPER_FREQ,
+        OutputsOff,
+        "Frequency of the Y mode the shaper cancels (cargo sim freqresp measures it); at most 1/100 of the control rate"
+    ),
+    global_key!(
+        shaper.y.damping_ratio,
+        unit::NONE,
+        f32_range(0.0, 0.99),
+        OutputsOff,
+        "Damping ratio of the Y mode (Klipper's default 0.1; ei 0.4, 2hump_ei 0.3, 3hump_ei 0.2 at most)"
+    ),
+    global_key!(
+        shaper.z.kind,
+        unit::NONE,
+        Range::Choice(SHAPER_NAMES),
+        OutputsOff,
+        "Input shaper of the planner's Z reference (Klipper's kinds; none: not shaped); its contour deviation is counted inside planner.tolerance_mm"
+    ),
+    global_key!(
+        shaper.z.freq_hz,
+        unit::HZ,
+        SHAPER_FREQ,
+        OutputsOff,
+        "Frequency of the Z mode the shaper cancels (cargo sim freqresp measures it); at most 1/100 of the control rate"
+    ),
+    global_key!(
+        shaper.z.damping_ratio,
+        unit::NONE,
+        f32_range(0.0, 0.99),
+        OutputsOff,
+        "Damping ratio of the Z mode (Klipper's default 0.1; ei 0.4, 2hump_ei 0.3, 3hump_ei 0.2 at most)"
     ),
 ];
 

@@ -8,6 +8,7 @@ use crate::coupling::{ContourCouplingConfig, CouplingConfig};
 use crate::estimator::{EstimatorBankConfig, EstimatorConfig};
 use crate::law::LawConfig;
 use crate::link::LinkConfigError;
+use crate::motion::shaper::{shaped_planner_config, InputShaper, BOARD_SHAPER_HISTORY};
 use crate::plant::AxisModel;
 use crate::presets::board::factory_config;
 use crate::presets::gantry::{GANTRY_X, GANTRY_Y, GANTRY_Z};
@@ -42,6 +43,12 @@ pub enum ServoConfigError {
     Planner(crate::motion::planner::PlannerConfigError),
     /// The planner would command the axis faster than its overspeed limit.
     PlannerSpeed { axis: Axis },
+    /// An axis' input shaper is invalid, or too long for the board's history (the key is
+    /// named: `shaper.y.freq_hz`, `shaper.y (zvd) longer than the shaper history …`).
+    Shaper(ConfigError),
+    /// The shapers leave no path tolerance for the planner's blends
+    /// ([`crate::motion::shaper::ShapedPlannerError`]).
+    ShaperTolerance(crate::motion::shaper::ShapedPlannerError),
     /// The servo rejected the configuration (its own validation, e.g. an estimator
     /// bandwidth unstable at the control rate, a following error below its at-rest value,
     /// a home position outside the travel).
@@ -58,6 +65,8 @@ impl core::fmt::Display for ServoConfigError {
             Self::PlannerSpeed { axis } => {
                 write!(f, "planner speed above axis.{}.vel_max_mm_s", axis.name())
             }
+            Self::Shaper(e) => write!(f, "{e}"),
+            Self::ShaperTolerance(e) => f.write_str(e.message()),
             Self::Servo(e) => write!(f, "servo configuration: {e}"),
         }
     }
@@ -167,8 +176,14 @@ impl Settings {
             .watchdog()
             .validate()
             .map_err(ServoConfigError::Link)?;
-        crate::motion::planner::ValidPlannerConfig::new(&self.planner_config(rate_hz))
-            .map_err(ServoConfigError::Planner)?;
+        let pc = self.planner_config(rate_hz);
+        crate::motion::planner::ValidPlannerConfig::new(&pc).map_err(ServoConfigError::Planner)?;
+        let shaper = InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(
+            &self.shaper.shapers(),
+            1.0 / rate_hz.max(1) as f32,
+        )
+        .map_err(ServoConfigError::Shaper)?;
+        shaped_planner_config(&shaper.bound(), &pc).map_err(ServoConfigError::ShaperTolerance)?;
         for (a, axis) in self.axis.iter().zip(Axis::ALL) {
             if !(a.planner.vel_max_mm_s <= a.vel_max_mm_s) {
                 return Err(ServoConfigError::PlannerSpeed { axis });

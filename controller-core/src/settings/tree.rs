@@ -18,6 +18,8 @@ use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
 use crate::motion::homing::AxisHomingConfig;
 use crate::motion::jog::{AxisJogConfig, JogConfig};
 use crate::motion::planner::{PlannerConfig, GANTRY_PLANNER};
+use crate::motion::shaper::impulses::{DEFAULT_DAMPING_RATIO, DEFAULT_VIBRATION_TOLERANCE};
+use crate::motion::shaper::{AxisShapers, ShaperConfig, ShaperKind};
 use crate::plant::AxisModel;
 use crate::presets::board::{BOARD_LAMBDA, BOARD_PLL};
 use crate::presets::gantry::{
@@ -33,8 +35,9 @@ use super::offsets::{ToolTable, WorkOffsets};
 /// Version of the tree's layout, stored with every record (see the module docs). 3: the
 /// work offsets, the tool table and the planner's servo reserve; 4: the holding brakes
 /// (`axis.<a>.brake`); 5: the machine's safety switches (`safety.*`); 6: the motor's and
-/// the encoder's direction (`axis.<a>.motor.invert`, `axis.<a>.encoder.invert`).
-pub const SETTINGS_VERSION: u16 = 6;
+/// the encoder's direction (`axis.<a>.motor.invert`, `axis.<a>.encoder.invert`); 7: the
+/// input shapers (`shaper.<a>.*`).
+pub const SETTINGS_VERSION: u16 = 7;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -224,6 +227,74 @@ pub struct SafetySettings {
     pub arm_encoder_check: bool,
 }
 
+/// One axis' input shaper ([`crate::motion::shaper`]): the mode it cancels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct AxisShaperSettings {
+    /// Klipper's kind (`zv`, `mzv`, `zvd`, `ei`, `2hump_ei`, `3hump_ei`); `None` (key
+    /// value `none`): the axis is not shaped.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub kind: Option<ShaperKind>,
+    /// Frequency of the mode, Hz (`cargo sim freqresp` measures it).
+    pub freq_hz: f32,
+    /// Damping ratio of the mode (Klipper's default 0.1).
+    pub damping_ratio: f32,
+}
+
+/// The input shapers of the planner's reference, `shaper.x`, `shaper.y`, `shaper.z`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct ShaperSettings {
+    pub x: AxisShaperSettings,
+    pub y: AxisShaperSettings,
+    pub z: AxisShaperSettings,
+}
+
+/// No shaping; a mode at 50 Hz with Klipper's damping once a kind is chosen.
+const NO_SHAPER: AxisShaperSettings = AxisShaperSettings {
+    kind: None,
+    freq_hz: 50.0,
+    damping_ratio: DEFAULT_DAMPING_RATIO,
+};
+
+/// The factory's shapers: none (shaping costs contour tolerance and acceleration; it is
+/// tuned from a machine's measured modes).
+pub const FACTORY_SHAPERS: ShaperSettings = ShaperSettings {
+    x: NO_SHAPER,
+    y: NO_SHAPER,
+    z: NO_SHAPER,
+};
+
+#[cfg(feature = "serde")]
+fn factory_shapers() -> ShaperSettings {
+    FACTORY_SHAPERS
+}
+
+impl AxisShaperSettings {
+    /// The shaper this describes (`None`: not shaped).
+    pub fn config(&self) -> Option<ShaperConfig> {
+        self.kind.map(|kind| ShaperConfig {
+            kind,
+            freq_hz: self.freq_hz,
+            damping_ratio: self.damping_ratio,
+            vibration_tolerance: DEFAULT_VIBRATION_TOLERANCE,
+        })
+    }
+}
+
+impl ShaperSettings {
+    /// The shapers of the three axes, for [`crate::motion::shaper::ShaperStage`].
+    pub fn shapers(&self) -> AxisShapers {
+        AxisShapers {
+            x: self.x.config(),
+            y: self.y.config(),
+            z: self.z.config(),
+        }
+    }
+}
+
 /// Jog settings shared by the axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -298,6 +369,9 @@ pub struct Settings {
     pub work: WorkOffsets,
     /// The tool table (`tool.1` .. `tool.8`).
     pub tool: ToolTable,
+    /// The input shapers (absent from files written before they existed: none).
+    #[cfg_attr(feature = "serde", serde(default = "factory_shapers"))]
+    pub shaper: ShaperSettings,
 }
 
 /// One axis' factory settings: the designed gantry ([`crate::presets::gantry`]), no
@@ -381,6 +455,7 @@ pub const FACTORY: Settings = Settings {
     safety: FACTORY_SAFETY,
     work: WorkOffsets::ZERO,
     tool: ToolTable::EMPTY,
+    shaper: FACTORY_SHAPERS,
 };
 
 impl Settings {

@@ -67,6 +67,7 @@ impl RunMemory {
             planner: NoPlanner { start_mm: [0.0; 3] },
             scope: Scope::new(),
             comp: crate::motion::compensation::CompTables::NONE,
+            shaper: crate::motion::shaper::ShaperStage::NONE,
         })
     }
 }

@@ -38,6 +38,7 @@ impl SplitParts {
             planner: exec,
             scope: Scope::new(),
             comp: controller_core::motion::compensation::CompTables::NONE,
+            shaper: controller_core::motion::shaper::ShaperStage::NONE,
         });
         (memory, SplitPlanner::new(&mut self.planner, pl))
     }

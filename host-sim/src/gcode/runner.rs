@@ -66,6 +66,7 @@ fn program_run(cfg: &mut RunConfig, pcfg: &PlannerConfig) -> Result<ProgramRun> 
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
         comp: controller_core::motion::compensation::CompTables::NONE,
+        shaper: controller_core::motion::shaper::ShaperStage::NONE,
     });
     SimRun::with_memory(cfg, pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))
 }

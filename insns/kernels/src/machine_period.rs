@@ -63,6 +63,7 @@ static mut MEMORY: MachineMemory<Executor> = MachineMemory {
     planner: SplitExecutor::DETACHED,
     scope: Scope::new(),
     comp: controller_core::motion::compensation::CompTables::NONE,
+    shaper: controller_core::motion::shaper::ShaperStage::NONE,
 };
 static mut PLANNER: MachineTaskPlanner = MachineTaskPlanner::BLANK;
 static mut PLANNER_CHANNELS: PlannerChannels = PlannerChannels::new();

@@ -82,6 +82,18 @@ pub struct ShaperState<R, const N: usize> {
 }
 
 impl<R: Real, const N: usize> InputShaper<R, N> {
+    /// No taps at all, for a static ([`super::ShaperStage::NONE`]); never processed.
+    pub const ZERO: Self = Self {
+        taps: [[Tap { off: 0, w: R::ZERO }; MAX_TAPS]; AXES],
+        n_taps: [0; AXES],
+        window: 0,
+        delay_periods: 0,
+        period_s: 0.0,
+        bound: DeviationBound {
+            second_moment_s2: [0.0; AXES],
+        },
+    };
+
     /// Validates the shapers for a control period `period_s` and a history of `N`
     /// periods. Refused: a bad shaper parameter (named with its axis), a mode above
     /// [`MAX_FREQ_OF_RATE`] of the rate, a set of shapers whose window (common delay

@@ -84,21 +84,23 @@
 //! also keeps every read in range without a bound check) of the reference sample as the
 //! planner gives it (`RefSample`: positions, velocities, accelerations): `36·N` bytes in
 //! `f32`, one 36-byte copy per period. The board's capacity is [`BOARD_SHAPER_HISTORY`]
-//! = 512 periods = 51.2 ms at 10 kHz, 18 432 bytes, a quarter of the ~70 KB of SRAM the
-//! firmware leaves free. It holds every kind down to Klipper's own minimum frequency of
-//! the kind (`min_freq` in shaper_defs.py: zv 21, mzv 23, zvd/ei 29, 2hump_ei 39,
-//! 3hump_ei 48 Hz; the longest, 3hump_ei at 48 Hz, lasts 41 ms), and every kind but
-//! 3hump_ei at this gantry's lowest mode (Y, 35 Hz; the modes are 35 Hz Y, 55 Hz Z, 90 Hz
-//! X). Half of it (256 periods, 9 216 bytes) holds the board's set (its window is 183
-//! periods: ZVD's 1/55 Hz on Z) but not the more robust kinds at Y's 35 Hz: ZVD and EI
-//! last one damped period there, 287 periods, 2hump_ei 429. 1024 (36 KB) would take half
-//! the free SRAM for 3hump_ei below 39 Hz, which Klipper does not recommend below 48 Hz
-//! anyway. The capacity hardly matters per period (the index is masked whatever `N`; at
-//! 256 the compiler's byte form of the mask is one instruction more per index).
+//! = 256 periods = 25.6 ms at 10 kHz, 9 216 bytes, in the machine's memory
+//! (`MachineMemory::shaper`, [`stage`]). It holds the board's set (its window is 183
+//! periods: ZVD's 1/55 Hz on Z), ZV and MZV at this gantry's lowest mode (Y, 35 Hz; the
+//! modes are 35 Hz Y, 55 Hz Z, 90 Hz X), ZVD and EI from 39.4 Hz, 2hump_ei from
+//! 58.4 Hz. Twice that (512 periods, 18 432 bytes) would hold ZVD and EI at 35 Hz (they
+//! last one damped period there, 287 periods) and every kind down to Klipper's own
+//! minimum frequencies (`min_freq` in shaper_defs.py: zv 21, mzv 23, zvd/ei 29, 2hump_ei
+//! 39, 3hump_ei 48 Hz), but the board's SRAM is allotted (40 KiB of stack, the statics,
+//! the planner in the CCM): with 512 the QEMU build's RAM overflowed by 4.9 KiB. The
+//! capacity hardly matters per period (the index is masked whatever `N`; at 256 the
+//! compiler's byte form of the mask is one instruction more per index).
 //!
-//! Lowest frequency of each kind in that history (ζ = 0.1, 10 kHz, one shaped axis:
-//! its duration within `N − 1` periods; [`min_freq_hz`], checked by the tests; the
-//! frequencies scale with the control rate, double them at 20 kHz):
+//! Lowest frequency of each kind in a 512-period history (ζ = 0.1, 10 kHz, one shaped
+//! axis: its duration within `N − 1` periods; [`min_freq_hz`], checked by the tests; the
+//! frequencies scale with the control rate, double them at 20 kHz; in the board's 256
+//! periods they are 2.004 times these: zv 19.7, mzv 29.6, zvd and ei 39.4, 2hump_ei
+//! 58.4, 3hump_ei 77.8 Hz):
 //!
 //! | kind | zv | mzv | zvd | ei | 2hump_ei | 3hump_ei |
 //! |---|---|---|---|---|---|---|
@@ -163,14 +165,17 @@
 pub mod block;
 pub mod bound;
 pub mod impulses;
+pub mod stage;
 
 pub use block::{AxisShapers, InputShaper, ShaperState, MAX_TAPS};
 pub use bound::DeviationBound;
 pub use impulses::{min_freq_hz, Impulses, ShaperConfig, ShaperKind};
+pub use stage::{shaped_planner_config, ShapedPlannerError, ShaperStage};
 
-/// The board's history capacity (periods): 51.2 ms at 10 kHz, 18 432 bytes in `f32`
-/// (module docs, "The history": 256 would not hold ZVD or EI at Y's 35 Hz).
-pub const BOARD_SHAPER_HISTORY: usize = 512;
+/// The board's history capacity (periods): 25.6 ms at 10 kHz, 9 216 bytes in `f32`
+/// (module docs, "The history": it holds ZV and MZV at Y's 35 Hz, ZVD and EI from
+/// 39.4 Hz; 512 does not fit the board's SRAM).
+pub const BOARD_SHAPER_HISTORY: usize = 256;
 
 #[cfg(test)]
 mod tests;

@@ -30,18 +30,28 @@ fn sample(p: [f64; 3], v: [f64; 3], a: [f64; 3]) -> RefSample<f64> {
 }
 
 #[test]
+fn the_boards_history_holds_the_documented_kinds() {
+    // (module docs: the 512-period table times 2.004)
+    let table = [19.71f32, 29.57, 39.42, 39.42, 58.39, 77.77];
+    for (kind, want) in ShaperKind::ALL.into_iter().zip(table) {
+        let f = min_freq_hz(kind, 0.1, PERIOD_S, BOARD_SHAPER_HISTORY).unwrap();
+        assert!(f <= want && f > want - 0.02, "{kind:?}: {f} (docs {want})");
+    }
+}
+
+#[test]
 fn minimum_frequencies_are_the_documented_ones_and_hold() {
     let table = [9.84f32, 14.76, 19.67, 19.67, 29.14, 38.81];
     for (kind, want) in ShaperKind::ALL.into_iter().zip(table) {
-        let f = min_freq_hz(kind, 0.1, PERIOD_S, BOARD_SHAPER_HISTORY).unwrap();
+        let f = min_freq_hz(kind, 0.1, PERIOD_S, 512).unwrap();
         // the table rounds up to 0.01 Hz: a frequency it names always fits
         assert!(f <= want && f > want - 0.01, "{kind:?}: {f} (docs {want})");
         let on_y = |freq_hz| AxisShapers {
             y: Some(ShaperConfig::new(kind, freq_hz)),
             ..AxisShapers::NONE
         };
-        assert!(InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(&on_y(f), PERIOD_S).is_ok());
-        match InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(&on_y(0.99 * f), PERIOD_S) {
+        assert!(InputShaper::<f32, 512>::new(&on_y(f), PERIOD_S).is_ok());
+        match InputShaper::<f32, 512>::new(&on_y(0.99 * f), PERIOD_S) {
             Err(ConfigError::OutOfRange(name)) => {
                 assert!(name.starts_with("shaper.y ("), "{name}");
                 assert!(name.contains(kind.name()), "{name}");
