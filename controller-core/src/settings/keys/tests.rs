@@ -18,8 +18,9 @@ use crate::sysid::tuning;
 
 const RATE: u32 = BOARD_RATE_HZ;
 
-/// Number of keys: 39 per axis, 12 others, 3 per work coordinate system, 2 per tool.
-const KEY_COUNT: usize = 39 * 3 + 12 + 3 * WORK_SYSTEMS + 2 * TOOL_COUNT;
+/// Number of keys: 39 per axis, 12 others, 3 per axis' input shaper, 3 per work
+/// coordinate system, 2 per tool.
+const KEY_COUNT: usize = 39 * 3 + 12 + 3 * 3 + 3 * WORK_SYSTEMS + 2 * TOOL_COUNT;
 
 /// The factory tree with every axis' model known (so every key has a value).
 fn with_models() -> Settings {
@@ -73,6 +74,7 @@ fn keys_are_unique_named_by_their_axis_and_counted() {
                 // (dimensionless: damping ratio, tangential share, servo reserve)
                 !k.unit.is_empty()
                     || k.name.ends_with("damping")
+                    || k.name.ends_with("damping_ratio")
                     || k.name.ends_with("share")
                     || k.name.ends_with("reserve"),
                 "{} has no unit",
@@ -326,6 +328,64 @@ fn wrong_types_and_unknown_keys_are_refused_and_change_nothing() {
 }
 
 #[test]
+fn shaper_keys_are_validated_with_the_tree_and_their_deviation_with_the_planner() {
+    let mut s = FACTORY;
+    assert_eq!(s.shaper.shapers(), crate::motion::shaper::AxisShapers::NONE);
+    s.set_text("shaper.y.freq_hz", "35", RATE).unwrap();
+    // ZVD lasts one damped period, 287 periods at 35 Hz: longer than the board's history
+    let e = s.set_text("shaper.y.kind", "zvd", RATE).unwrap_err();
+    let SetError::Rejected { error, .. } = &e else {
+        panic!("{e}")
+    };
+    match error {
+        ServoConfigError::Shaper(ConfigError::OutOfRange(name)) => {
+            assert!(name.starts_with("shaper.y (zvd) longer"), "{name}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        e.to_string()
+            .starts_with("shaper.y.kind = zvd rejected: parameter `shaper.y (zvd) longer"),
+        "{e}"
+    );
+    assert_eq!(s.shaper.y.kind, None, "a refused change changes nothing");
+    s.set_text("shaper.y.kind", "zv", RATE).unwrap();
+    assert_eq!(
+        s.shaper.shapers().y,
+        Some(crate::motion::shaper::ShaperConfig::new(
+            crate::motion::shaper::ShaperKind::Zv,
+            35.0
+        ))
+    );
+    assert_eq!(FACTORY.change_class(&s), Some(Apply::OutputsOff));
+    // above 1/100 of the control rate
+    let e = s.set_text("shaper.y.freq_hz", "150", RATE).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("shaper.y.freq_hz (<= 1/100 of the control rate)"),
+        "{e}"
+    );
+    // no path tolerance left for the shaper's deviation
+    let e = s.set_text("planner.tolerance_mm", "0", RATE).unwrap_err();
+    let SetError::Rejected { error, .. } = &e else {
+        panic!("{e}")
+    };
+    assert_eq!(
+        *error,
+        ServoConfigError::ShaperTolerance(crate::motion::shaper::ShapedPlannerError::NoTolerance)
+    );
+    assert!(
+        e.to_string()
+            .contains("planner.tolerance_mm must be > 0 with input shaping"),
+        "{e}"
+    );
+    // "none" switches it off again, keeping the mode's values
+    s.set_text("shaper.y.kind", "none", RATE).unwrap();
+    assert_eq!(s.shaper.y.freq_hz, 35.0);
+    s.set_text("planner.tolerance_mm", "0", RATE).unwrap();
+}
+
+#[test]
 fn values_valid_alone_but_rejected_by_the_servo_are_refused_with_its_reason() {
     let s0 = FACTORY;
     let cases: [(&str, Value, ServoConfigError); 5] = [
@@ -559,7 +619,7 @@ fn change_classes() {
 
 #[test]
 fn work_offsets_and_tools_are_keys_taken_at_any_time() {
-    assert_eq!(KEY_COUNT, 172);
+    assert_eq!(KEY_COUNT, 181);
     let names: Vec<&str> = keys().map(|k| k.name).collect();
     // the tables come last, row by row: G54's three coordinates, ..., then the tools
     let work = names.iter().position(|n| *n == "work.g54.x_mm").unwrap();

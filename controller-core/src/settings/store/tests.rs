@@ -372,10 +372,10 @@ fn interrupted_first_save_gives_factory() {
         counts[3]
     );
     // every cut inside the record leaves no intact record (factory and a fault; in this
-    // model even the cut before the first byte leaves some of its bits cleared); the cuts
-    // before the record's padding byte (0xFF: nothing left to program), and the complete
-    // save load it
-    assert_eq!(counts, [4, 0, 0, ops - 3]);
+    // model even the cut before the first byte leaves some of its bits cleared); only the
+    // complete save loads it (the record fills its last word since the input shapers: no
+    // padding bytes left to program)
+    assert_eq!(counts, [1, 0, 0, ops]);
 }
 
 #[test]
@@ -389,8 +389,8 @@ fn interrupted_save_keeps_the_previous_record() {
         counts[1],
         counts[3]
     );
-    // every cut before the last 3 bytes (the padding) keeps the previous record
-    assert_eq!(counts, [4, ops - 3, 0, 0]);
+    // every cut keeps the previous record (no padding: see above)
+    assert_eq!(counts, [1, ops, 0, 0]);
 }
 
 #[test]
@@ -417,9 +417,9 @@ fn interrupted_save_that_erases_a_page_keeps_the_previous_record() {
         counts[3]
     );
     // the 2048 byte erases are part of it (the page is random bytes after a cut in
-    // them); every cut before the padding keeps the previous record
-    assert_eq!(ops, 2048 + 588);
-    assert_eq!(counts, [4, ops - 3, 0, 0]);
+    // them); every cut keeps the previous record
+    assert_eq!(ops, 2048 + 612);
+    assert_eq!(counts, [1, ops, 0, 0]);
 }
 
 #[test]
@@ -439,8 +439,8 @@ fn record_size() {
     assert_eq!(with_models, factory + 3 * 16);
     // 345 before the work offsets (9 × 3 × 4 bytes), the tool table (8 × 2 × 4 bytes),
     // the brakes (3 × (1 + 4 + 4) bytes), the safety switch (1 byte) and the motors' and
-    // encoders' directions (3 × 2 bytes)
-    assert_eq!(factory, 345 + 108 + 64 + 27 + 1 + 6);
+    // encoders' directions (3 × 2 bytes) and the input shapers (3 × (1 + 4 + 4) bytes)
+    assert_eq!(factory, 345 + 108 + 64 + 27 + 1 + 6 + 27);
     // in flash on the STM32 (1-byte words): header + version + tree
     type F4 = BlockingFlash<RamFlash<8192, 4096>>;
     assert_eq!(
@@ -456,7 +456,7 @@ fn record_layout_is_pinned() {
     // If this fails, the stored record changed. Changed layout (a field added, removed,
     // retyped or moved): bump SETTINGS_VERSION. Only factory values changed: update the
     // pin. Either way old records must not be misread.
-    const PIN: (u16, u32) = (6, 2_035_395_593);
+    const PIN: (u16, u32) = (7, 3_621_479_029);
     let mut all_models = FACTORY;
     for (a, m) in all_models.axis.iter_mut().zip(PLACEHOLDER_MODELS) {
         a.model = Some(m);
