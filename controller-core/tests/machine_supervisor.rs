@@ -592,6 +592,9 @@ mod split {
                 scope: Scope::new(),
                 comp: controller_core::motion::compensation::CompTables::NONE,
                 shaper: controller_core::motion::shaper::ShaperStage::NONE,
+                queue: controller_core::machine::RequestQueue::new(),
+                next_servo: None,
+                settings: controller_core::settings::FACTORY,
             }),
         )
         .unwrap();

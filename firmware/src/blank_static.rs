@@ -5,7 +5,8 @@
 //! cost 71 KiB of flash and a copy at every boot; as constants
 //! written whole they would be copied through the stack, which cannot hold them.
 //!
-//! Zero bytes are a valid planner, executor and scope (numbers, bools, heapless queues'
+//! Zero bytes are a valid planner, executor, scope, request queue, compensation tables and
+//! input shaper (switched off) (numbers, bools, heapless queues'
 //! indices over uninitialised storage, `None` references, enums with a variant at
 //! zero); each is then set to its blank value with the core's in-place `blank`
 //! (`Planner::blank`, `Scope::blank`) or, for the small executor, a plain write. The host
@@ -42,6 +43,9 @@ pub unsafe fn memory<'a>(
     let m = p.cast::<MachineMemory<SplitExecutor<'a>>>();
     // (the executor is small: written whole; nothing in the zero bytes is dropped)
     addr_of_mut!((*m).planner).write(SplitExecutor::DETACHED);
+    // (an `Option<ServoConfig>` is not `None` as zero bytes, nor a settings tree valid)
+    addr_of_mut!((*m).next_servo).write(None);
+    addr_of_mut!((*m).settings).write(controller_core::settings::FACTORY);
     // SAFETY: zero bytes are a valid scope (module docs), the executor was just written
     let m = &mut *m;
     m.scope.blank();
@@ -86,5 +90,8 @@ mod tests {
         assert_eq!(m.scope.state(), ScopeState::Off);
         assert!(m.scope.read(0).is_err(), "a blank scope has no capture");
         assert_eq!(*m.planner.report(), *SplitExecutor::DETACHED.report());
+        assert!(m.next_servo.is_none());
+        assert!(m.queue.is_empty());
+        assert!(!m.shaper.active());
     }
 }

@@ -66,6 +66,9 @@ mod tests {
                 scope: Scope::new(),
                 comp: controller_core::motion::compensation::CompTables::NONE,
                 shaper: controller_core::motion::shaper::ShaperStage::NONE,
+                queue: controller_core::machine::RequestQueue::new(),
+                next_servo: None,
+                settings: controller_core::settings::FACTORY,
             });
             let planner = factory_planner(decoded.servo.rate_hz);
             let mut run = SimRun::<f32, _, _>::with_memory(&decoded, &planner, memory).unwrap();

@@ -29,6 +29,6 @@ pub use port::{
 pub use save::{save_blocking, save_due_into, write_blocking};
 pub use settings_agent::{Resolution, SettingsAgent};
 pub use supervisor::{
-    Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, Seen,
+    Machine, MachineError, MachineMemory, MachinePlanner, MachineTaskPlanner, RequestQueue, Seen,
     ShaperChangeError, MACHINE_SEGMENTS, MACHINE_SPANS,
 };

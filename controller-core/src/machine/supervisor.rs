@@ -68,6 +68,41 @@ pub struct MachineMemory<M = MachinePlanner> {
     /// The input shapers between the planner and the servo, with their history (9 KiB;
     /// all zeros: off).
     pub shaper: ShaperStage,
+    /// The machine's request queue (11.5 KiB; all zeros: empty).
+    pub queue: RequestQueue,
+    /// The servo configuration the link side derived for the settings change in the
+    /// queue ([`super::port::PreparedSettings`]): at most one is queued, since a settings
+    /// request goes down only once every request before it was executed.
+    /// (1.2 KiB, here rather than in the machine, which is built and moved on the boot
+    /// stack; not valid as zero bytes: a blank memory sets it to `None`.)
+    pub next_servo: Option<ServoConfig>,
+    /// The settings tree the machine runs (the factory tree for a machine built from a
+    /// servo configuration); set when the machine is built (here for the same reason).
+    pub settings: Settings,
+}
+
+/// The machine's request queue: [`REQUEST_QUEUE`] requests as they came or as the link
+/// side resolved them (a settings tree is the largest). It lives in the machine's memory,
+/// not in the machine, so that the machine stays small (6 KiB) where it is built and
+/// moved: on the board's boot stack. Zero bytes are an empty queue (`heapless::Deque`'s
+/// indices and flag; the board's memory is a zero-filled static).
+pub struct RequestQueue(Deque<Queued, REQUEST_QUEUE>);
+
+impl RequestQueue {
+    pub const fn new() -> Self {
+        Self(Deque::new())
+    }
+
+    /// No request waits.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+impl Default for RequestQueue {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl MachineMemory<MachinePlanner> {
@@ -76,6 +111,9 @@ impl MachineMemory<MachinePlanner> {
         scope: Scope::new(),
         comp: crate::motion::compensation::CompTables::NONE,
         shaper: ShaperStage::NONE,
+        queue: RequestQueue::new(),
+        next_servo: None,
+        settings: crate::settings::FACTORY,
     };
 }
 
@@ -125,11 +163,9 @@ where
     servo: Servo<R>,
     mem: P,
     planner_cfg: PlannerConfig,
-    settings: Settings,
     /// It runs `settings` (false: built from a servo configuration, it takes no change).
     tree: bool,
     rate_hz: u32,
-    queue: Deque<Queued, REQUEST_QUEUE>,
     /// The settings changed in this period (echoed to the link side).
     settings_changed: bool,
     executed: u32,
@@ -153,10 +189,6 @@ where
     pending: heapless::Vec<Command, 2>,
     sample: PathSample,
     held: bool,
-    /// The servo configuration the link side derived for the settings change in the
-    /// queue ([`super::port::PreparedSettings`]): at most one is queued, since a settings
-    /// request goes down only once every request before it was executed.
-    next_servo: Option<ServoConfig>,
     /// A settings save is writing the flash (its token): the outputs stay off, nothing
     /// queued or pending runs, until the link side's `SaveDone`.
     save_lock: Option<u32>,
@@ -306,6 +338,8 @@ where
             RestartError::Detached => MachineError::PlannerDetached,
         })?;
         mem.scope.disarm();
+        mem.next_servo = None;
+        mem.settings = settings;
         let sample = PathSample {
             pos_mm: crate::Vec3::from_array(start),
             vel_mm_s: crate::Vec3::zero(),
@@ -321,10 +355,8 @@ where
             servo,
             mem,
             planner_cfg: pc,
-            settings,
             tree,
             rate_hz,
-            queue: Deque::new(),
             settings_changed: false,
             executed: 0,
             retired: 0,
@@ -340,7 +372,6 @@ where
             pending: heapless::Vec::new(),
             sample,
             held: false,
-            next_servo: None,
             save_lock: None,
             save_echo: None,
         })
@@ -348,7 +379,7 @@ where
 
     /// Room in the request queue (the credit the link advertises).
     pub fn free_slots(&self) -> u16 {
-        (REQUEST_QUEUE - self.queue.len()) as u16
+        (REQUEST_QUEUE - self.mem.queue.0.len()) as u16
     }
 
     /// Queue a request (the link promised room: a request beyond it is dropped and
@@ -358,7 +389,7 @@ where
     }
 
     fn enqueue(&mut self, q: Queued) {
-        if self.queue.push_back(q).is_err() {
+        if self.mem.queue.0.push_back(q).is_err() {
             self.executed = self.executed.wrapping_add(1);
             self.retired = self.retired.wrapping_add(1);
             self.last = refused("request queue full (the host ignored the link's credit)");
@@ -495,7 +526,7 @@ where
     /// The settings tree it runs (the factory tree for a machine built
     /// [`Self::from_config`], which runs no tree).
     pub fn settings(&self) -> &Settings {
-        &self.settings
+        &self.mem.settings
     }
 
     /// The control rate, Hz.
@@ -543,8 +574,8 @@ where
 
     /// Flush the request queue (counted as retired for the link's credit).
     fn retire_queue(&mut self) {
-        self.retired = self.retired.wrapping_add(self.queue.len() as u32);
-        self.queue.clear();
+        self.retired = self.retired.wrapping_add(self.mem.queue.0.len() as u32);
+        self.mem.queue.0.clear();
     }
 
     /// Requests retired so far (executed, refused or flushed).
@@ -588,7 +619,7 @@ where
                 Down::Apply { class } => match link.take_settings() {
                     Some(prepared) => {
                         seen(Seen::Settings(&prepared.settings));
-                        self.next_servo = prepared.servo;
+                        self.mem.next_servo = prepared.servo;
                         self.enqueue(Queued::Apply {
                             settings: prepared.settings,
                             class,
@@ -627,7 +658,7 @@ where
         self.period(io);
         if self.settings_changed {
             self.settings_changed = false;
-            link.echo(&self.settings);
+            link.echo(&self.mem.settings);
         }
         if let Some((token, locked)) = self.save_echo.take() {
             link.echo_save(token, locked);
@@ -680,7 +711,7 @@ where
         // a servo command's outcome is known after the servo step: one per period
         let mut servo_request = false;
         let mut segments = 0;
-        while let Some(r) = self.queue.front() {
+        while let Some(r) = self.mem.queue.0.front() {
             if servo_request || self.save_lock.is_some() {
                 break;
             }
@@ -711,7 +742,7 @@ where
                 Step::Locked => {}
                 Step::Wait => break,
             }
-            if self.queue.pop_front().is_some() {
+            if self.mem.queue.0.pop_front().is_some() {
                 self.retired = self.retired.wrapping_add(1);
             }
         }
@@ -937,10 +968,10 @@ where
     }
 
     /// Swap in `next` (validated on the link side; `class` and the servo configuration
-    /// derived from it, [`Self::next_servo`], from there too) at this period boundary, if
+    /// derived from it, [`MachineMemory::next_servo`], from there too) at this period boundary, if
     /// the servo takes it now.
     fn apply(&mut self, next: Settings, class: Option<Apply>) -> Outcome {
-        let Some(cfg) = self.next_servo.take() else {
+        let Some(cfg) = self.mem.next_servo.take() else {
             return refused("rejected: the settings give no servo configuration");
         };
         if !self.tree {
@@ -976,7 +1007,7 @@ where
             .mem
             .shaper
             .configure(&next.shaper.shapers(), shaper_period_s(self.rate_hz));
-        self.settings = next;
+        self.mem.settings = next;
         self.settings_changed = true;
         self.planner_cfg = next.planner_config(self.rate_hz);
     }
@@ -1009,9 +1040,9 @@ where
             pos_mm: s.pos,
             vel_mm_s: s.vel,
             planner_free: self.mem.planner.free_slots() as u16,
-            queued: self.queue.len() as u16,
+            queued: self.mem.queue.0.len() as u16,
             program_done: !self.program
-                && self.queue.is_empty()
+                && self.mem.queue.0.is_empty()
                 && self.pending.is_empty()
                 && !self.program_end.aborted(),
             program: ProgramProgress {

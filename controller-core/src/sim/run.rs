@@ -129,6 +129,22 @@ where
         planner: &PlannerConfig,
         mem: P,
     ) -> Result<Self, ConfigError> {
+        let mut slot = None;
+        Self::with_memory_in(&mut slot, cfg, planner, mem)?;
+        slot.ok_or(ConfigError::Unsupported("a simulated run"))
+    }
+
+    /// [`Self::with_memory`] built in `slot` (the QEMU rig's static): the run (the
+    /// machine, 6 KiB, and the world) is written there once instead of being returned
+    /// through the caller's frame, which on the board's 40 KiB boot stack could not hold
+    /// its copies. Never inlined, so that its frame is not added to its caller's.
+    #[inline(never)]
+    pub fn with_memory_in<'s>(
+        slot: &'s mut Option<Self>,
+        cfg: &RunConfig,
+        planner: &PlannerConfig,
+        mem: P,
+    ) -> Result<&'s mut Self, ConfigError> {
         let world = World::new(&cfg.world, &cfg.servo)?;
         let plan = cfg
             .servo
@@ -172,7 +188,7 @@ where
             Some(_) => return Err(ConfigError::Negative("inject.at_s")),
             None => None,
         };
-        Ok(Self {
+        Ok(slot.insert(Self {
             machine,
             world,
             truth: Truth::new(cfg.truth),
@@ -184,7 +200,7 @@ where
             inject,
             injected_at: None,
             path_from: None,
-        })
+        }))
     }
 
     /// A run of `machine` (built elsewhere, e.g. with its settings tree) in `world`,

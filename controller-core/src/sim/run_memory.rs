@@ -68,6 +68,9 @@ impl RunMemory {
             scope: Scope::new(),
             comp: crate::motion::compensation::CompTables::NONE,
             shaper: crate::motion::shaper::ShaperStage::NONE,
+            queue: crate::machine::RequestQueue::new(),
+            next_servo: None,
+            settings: crate::settings::FACTORY,
         })
     }
 }

@@ -100,6 +100,9 @@ impl LinkDriver {
     /// The linked run built in `slot` (in place: it is too large to pass around on the
     /// stack), its operator panel on `panel_usart`; exits QEMU with [`EXIT_CONFIG`] if
     /// the machine description is rejected.
+    // (never inlined into `Rig::boot` with the other rig's: their frames would add up
+    // on the boot stack)
+    #[inline(never)]
     pub fn boot(
         slot: &'static mut Option<FwRun>,
         control: ControlSide<'static>,

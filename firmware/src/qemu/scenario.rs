@@ -118,6 +118,9 @@ impl ScenarioDriver {
     /// The scenario named on the semihosting command line, decoded, validated and built
     /// in `slot` (in place: it is too large to pass around on the stack); exits QEMU with
     /// [`EXIT_CONFIG`] if it is unknown or rejected.
+    // (never inlined into `Rig::boot` with the other rig's: their frames would add up
+    // on the boot stack)
+    #[inline(never)]
     pub fn boot(
         slot: &'static mut Option<FwRun>,
         safety: SafetyPins,
@@ -144,8 +147,8 @@ impl ScenarioDriver {
             exit(EXIT_CONFIG)
         };
         let planner = factory_planner(cfg.servo.rate_hz);
-        let run = match SimRun::with_memory(&cfg, &planner, memory) {
-            Ok(r) => slot.insert(r),
+        let run = match SimRun::with_memory_in(slot, &cfg, &planner, memory) {
+            Ok(r) => r,
             Err(e) => {
                 defmt::error!(
                     "scenario `{=str}`: invalid configuration: {}",

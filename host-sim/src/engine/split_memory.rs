@@ -39,6 +39,9 @@ impl SplitParts {
             scope: Scope::new(),
             comp: controller_core::motion::compensation::CompTables::NONE,
             shaper: controller_core::motion::shaper::ShaperStage::NONE,
+            queue: controller_core::machine::RequestQueue::new(),
+            next_servo: None,
+            settings: controller_core::settings::FACTORY,
         });
         (memory, SplitPlanner::new(&mut self.planner, pl))
     }

@@ -10,6 +10,9 @@
 //!   sample is due (1 kHz, `gantry`'s default): the link's queue taken, the supervisor's
 //!   request queue and program, the executor's sample, the servo step, the scope, the
 //!   credit and the telemetry sample sent up;
+//! - `machine_period_shaped`: `machine_period_program` with the board's set of input
+//!   shapers on (settings `shaper.*`: MZV on X at 90 Hz, ZV on Y at 35 Hz, ZVD on Z at
+//!   55 Hz, 8 taps): the planner's sample shaped before the servo follows it;
 //! - `machine_period_idle`: the same machine after boot, outputs off, nothing queued, no
 //!   sample due.
 //!
@@ -64,6 +67,9 @@ static mut MEMORY: MachineMemory<Executor> = MachineMemory {
     scope: Scope::new(),
     comp: controller_core::motion::compensation::CompTables::NONE,
     shaper: controller_core::motion::shaper::ShaperStage::NONE,
+    queue: controller_core::machine::RequestQueue::new(),
+    next_servo: None,
+    settings: controller_core::settings::FACTORY,
 };
 static mut PLANNER: MachineTaskPlanner = MachineTaskPlanner::BLANK;
 static mut PLANNER_CHANNELS: PlannerChannels = PlannerChannels::new();
@@ -145,12 +151,30 @@ struct Rig {
 }
 
 impl Rig {
-    /// The link rig's machine at boot, built as the firmware builds it.
-    fn boot() -> Option<Self> {
+    /// The link rig's machine at boot, built as the firmware builds it (`shaped`: with
+    /// the board's set of input shapers in its settings).
+    fn boot(shaped: bool) -> Option<Self> {
         let run: RunConfig = postcard::from_bytes(LINK_RUN).ok()?;
         let mut settings = designed_settings();
         for a in &mut settings.axis {
             a.homing.enabled = false;
+        }
+        if shaped {
+            use controller_core::motion::shaper::ShaperKind;
+            for (sh, (kind, freq_hz)) in [
+                &mut settings.shaper.x,
+                &mut settings.shaper.y,
+                &mut settings.shaper.z,
+            ]
+            .into_iter()
+            .zip([
+                (ShaperKind::Mzv, 90.0),
+                (ShaperKind::Zv, 35.0),
+                (ShaperKind::Zvd, 55.0),
+            ]) {
+                sh.kind = Some(kind);
+                sh.freq_hz = freq_hz;
+            }
         }
         let rate_hz = run.servo.rate_hz;
         // the link rig's world (no index pulses; no switches, homing being off)
@@ -310,7 +334,16 @@ impl MachinePeriod {
     /// is due, send it, and stop before that period. `None` unless the machine runs the
     /// program at feed then.
     pub fn setup_program() -> Option<Self> {
-        let mut rig = Rig::boot()?;
+        Self::setup_streaming(false)
+    }
+
+    /// [`Self::setup_program`] with the board's set of input shapers on.
+    pub fn setup_shaped() -> Option<Self> {
+        Self::setup_streaming(true)
+    }
+
+    fn setup_streaming(shaped: bool) -> Option<Self> {
+        let mut rig = Rig::boot(shaped)?;
         rig.request(Request::Arm)?;
         rig.until_state(MachineState::Idle, ARM_PERIODS)?;
         let start_mm = rig.machine.servo().planner_start_mm()?;
@@ -351,7 +384,7 @@ impl MachinePeriod {
     /// The machine after boot, disarmed (outputs off), with a host connected and
     /// subscribed, nothing queued; the counted period sends no sample.
     pub fn setup_idle() -> Option<Self> {
-        let mut rig = Rig::boot()?;
+        let mut rig = Rig::boot(false)?;
         for _ in 0..IDLE_PERIODS {
             rig.period();
         }

@@ -64,6 +64,9 @@ impl ShaperStage {
     /// Take `cfg` for a control period `period_s` (validated whole: on an error nothing
     /// changes). No shaper on any axis switches the stage off. The history is refilled at
     /// the next [`Self::prime`]: change shapers only while no program runs.
+    // (never inlined: its f64 design is not added to the frame of the machine's
+    // construction on the board's boot stack)
+    #[inline(never)]
     pub fn configure(&mut self, cfg: &AxisShapers, period_s: f32) -> Result<(), ConfigError> {
         if *cfg == AxisShapers::NONE {
             self.active = false;

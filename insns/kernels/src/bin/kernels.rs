@@ -198,6 +198,12 @@ mod cortex_m4 {
         |k| k.step()
     );
     kernel!(
+        machine_period_shaped,
+        MachinePeriod,
+        MachinePeriod::setup_shaped(),
+        |k| k.step()
+    );
+    kernel!(
         machine_period_idle,
         MachinePeriod,
         MachinePeriod::setup_idle(),
