@@ -202,6 +202,17 @@ enum Command {
         #[arg(long)]
         no_plots: bool,
     },
+    /// Residual vibration at the tool after a 200 mm/s rapid stop on each axis, unshaped
+    /// and with every input shaper that fits at the axis' measured mode, with a stiff
+    /// (jerk 1e6 mm/s³) and the factory planner (docs/precision.md "Input shaping").
+    Vibration {
+        /// Machine file (default: host-sim/machines/gantry_flexible.toml).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+        /// Also write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run a G-code program on a simulated machine through the planner and the servo step
     /// the board runs (host-sim/scenarios/gcode.toml, docs/planner.md). Exit 0 when it
     /// completed, 2 when it was rejected (nothing ran), 1 on a fault or an error.
@@ -324,6 +335,9 @@ fn main() -> ExitCode {
                 plots: (!no_plots).then_some(out.as_path()),
             },
         ),
+        Some(Command::Vibration { machine, json }) => {
+            run_vibration(machine.as_deref(), json.as_deref())
+        }
         Some(Command::Gcode {
             file,
             machine,
@@ -544,6 +558,18 @@ fn run_compensation(
     if let Some(w) = write {
         println!("COMP_FILEs: {}", w.display());
     }
+    if let Some(j) = json {
+        write_json(j, &r)?;
+        println!("JSON: {}", j.display());
+    }
+    println!("finished in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn run_vibration(machine: Option<&Path>, json: Option<&Path>) -> Result<()> {
+    let started = Instant::now();
+    let r = host_sim::studies::vibration::run(machine)?;
+    print!("{}", host_sim::studies::vibration::table(&r));
     if let Some(j) = json {
         write_json(j, &r)?;
         println!("JSON: {}", j.display());

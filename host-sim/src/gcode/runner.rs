@@ -42,7 +42,7 @@ use std::time::Instant;
 /// The simulated run of a program: the machine with its planner (the board's sizes:
 /// `MACHINE_SEGMENTS` segment slots, `MACHINE_SPANS` spans, the split channels' spans and
 /// steps between the halves, both halves in the period), boxed.
-type ProgramRun = SimRun<f32, Box<MachineMemory<MachinePlanner>>, MachinePlanner>;
+pub type ProgramRun = SimRun<f32, Box<MachineMemory<MachinePlanner>>, MachinePlanner>;
 
 /// Simulated time allowed for homing a machine that homes, s.
 const HOMING_TIMEOUT_S: f64 = 120.0;
@@ -57,7 +57,7 @@ const PLOT_POINTS: u64 = 20_000;
 /// The simulated run of a program on the machine `cfg` (made to hold until commanded and
 /// to run until stopped) with the planner `pcfg`: its memory (planner, scope, no
 /// compensation tables) boxed.
-fn program_run(cfg: &mut RunConfig, pcfg: &PlannerConfig) -> Result<ProgramRun> {
+pub fn program_run(cfg: &mut RunConfig, pcfg: &PlannerConfig) -> Result<ProgramRun> {
     cfg.hold = true;
     cfg.periods = u32::MAX;
     cfg.inject = None;
@@ -106,7 +106,7 @@ fn request(run: &mut ProgramRun, r: Request, what: &str) -> Result<()> {
 
 /// Arm; `Run` (a machine that homes refuses it before: home, then `Run`): the machine
 /// then runs its planner.
-fn arm_home_and_run(run: &mut ProgramRun) -> Result<()> {
+pub fn arm_home_and_run(run: &mut ProgramRun) -> Result<()> {
     request(run, Request::Arm, "arming")?;
     if request(run, Request::Run, "running the program").is_ok() {
         return Ok(());
@@ -137,7 +137,7 @@ fn progress_bar(segments: usize) -> ProgressBar {
 /// Segments from `segs[next..]` into the machine's request queue while it has room, as
 /// the link streams them, then the end of the program; the index of the next one to send
 /// (`segs.len() + 1` once the end was sent).
-fn stream(run: &mut ProgramRun, segs: &[PlanSegment], mut next: usize) -> usize {
+pub fn stream(run: &mut ProgramRun, segs: &[PlanSegment], mut next: usize) -> usize {
     while next <= segs.len() && run.machine().free_slots() > 0 {
         let r = match segs.get(next) {
             Some(s) => Request::Segment(s.seg),
@@ -152,7 +152,7 @@ fn stream(run: &mut ProgramRun, segs: &[PlanSegment], mut next: usize) -> usize 
 /// The periods a program may take at most (a generous bound on its machine time: every
 /// move at 1 mm/s plus its dwells), and an estimate of those it takes (for the progress
 /// bar and the plots' decimation).
-fn period_bounds(program: &Program, dt: f64) -> (u64, u64) {
+pub fn period_bounds(program: &Program, dt: f64) -> (u64, u64) {
     let path_length_mm: f64 = program.moves.iter().map(length).sum();
     let dwell_s: f64 = program
         .moves
@@ -183,7 +183,7 @@ fn metric_sample(sample: &PathSample, t_s: f64, truth_mm: [f64; 3], along_mm: f6
 
 /// The machine stopped on a fault (its supervisor aborted the program): run until the
 /// servo has stopped; the fault, as the report names it.
-fn stop_on_fault(run: &mut ProgramRun) -> Result<String> {
+pub fn stop_on_fault(run: &mut ProgramRun) -> Result<String> {
     let f = run.servo().faults().first();
     let fault = format!("{f:?}");
     run_while(run, ServoState::Stopping, 1_000_000)?;
@@ -192,7 +192,7 @@ fn stop_on_fault(run: &mut ProgramRun) -> Result<String> {
 
 /// Why the machine stopped the program before its end, with the G-code line of the
 /// segment it was on.
-fn refusal(run: &ProgramRun, program: &Program, name: &str) -> anyhow::Error {
+pub fn refusal(run: &ProgramRun, program: &Program, name: &str) -> anyhow::Error {
     let tag = run.machine().path_sample().tag as usize;
     let line = program.moves.get(tag).map_or(0, |m| m.line);
     match run.machine().last() {

@@ -10,6 +10,8 @@
 //!   and anti-resonances;
 //! - [`filters`]: each axis' output filters placed from its measured response and
 //!   accepted on the loop's margins, measured on the running machine ([`loop_response`]);
+//! - [`vibration`]: the residual vibration at the tool after a rapid stop, unshaped and
+//!   with the input shapers tuned to each axis' measured mode;
 //! - [`generic`]: any scenario file, every run, the common figures (`host-sim run FILE`);
 //! - [`machine_replay`]: the QEMU link rig's machine replayed in host-sim, bit for bit;
 //! - [`qemu_verdict`]: a scenario's host-sim figures against the firmware's in QEMU.
@@ -28,6 +30,7 @@ pub mod machine_replay;
 pub mod paper;
 pub mod qemu_verdict;
 pub mod seeds;
+pub mod vibration;
 
 use anyhow::{anyhow, Result};
 use controller_core::sim::run::{RunConfig, SimRun};
