@@ -214,6 +214,56 @@ fn the_shaped_reference_stays_within_the_path_tolerance_and_the_planners_limits(
     }
 }
 
+/// An explicit tolerance (G64 P) counts the shapers' deviation too; one below the bound
+/// (G61: 0) is met within the bound.
+#[test]
+fn explicit_tolerances_count_the_deviation_and_exact_path_is_met_within_the_bound() {
+    // a square, twice round: 90° corners blended at speed
+    let mut pts = vec![[0.0f32; 3]];
+    let mut segs = Vec::new();
+    for k in 0..8u32 {
+        let p = [
+            [20.0, 0.0, 0.0],
+            [20.0, 20.0, 0.0],
+            [0.0, 20.0, 0.0],
+            [0.0, 0.0, 0.0],
+        ][k as usize % 4];
+        segs.push(Segment::line(p, 100.0, k + 1));
+        pts.push(p);
+    }
+    let s = settings(&[(0, ShaperKind::Mzv, 90.0), (1, ShaperKind::Zv, 35.0)]);
+    let worst_with = |p: f32| {
+        let (mut m, mut w) = machine(&s);
+        let b = m
+            .shaper()
+            .bound()
+            .deviation_bound_axes_mm(m.planner_config().unwrap().acc_max_mm_s2);
+        let segs: Vec<Segment> = segs
+            .iter()
+            .map(|g| Segment {
+                blend: controller_core::motion::planner::Blend::Tolerance(p),
+                ..*g
+            })
+            .collect();
+        let r = run(&mut m, &mut w, &segs);
+        assert_eq!(r.end, ProgramEnd::Completed);
+        let worst = r
+            .refs
+            .iter()
+            .map(|s| dist_to_path(s.pos_mm.to_array(), &pts))
+            .fold(0.0, f64::max);
+        (worst, f64::from(b))
+    };
+    // G64 P0.02: twice the default, counted as the default is
+    let (worst, b) = worst_with(0.02);
+    println!("G64 P0.02: worst {worst:.6} mm, bound {b:.6} mm");
+    assert!(worst <= 0.02 * 1.001, "{worst}");
+    // G61: the corners are met within the shapers' bound
+    let (worst, b) = worst_with(0.0);
+    println!("G61: worst {worst:.6} mm, bound {b:.6} mm");
+    assert!(worst <= b * 1.001 && worst > 0.0, "{worst} {b}");
+}
+
 /// On a circle the centripetal acceleration lasts the whole window: the shaped circle
 /// shrinks by `½ a M` on a shaped axis (module `motion::shaper::bound`), the case the
 /// bound is tight for. Shaping Y alone, the path moves by that, within the tolerance.

@@ -14,13 +14,15 @@ use anyhow::{anyhow, bail, Result};
 use controller_core::settings::Settings;
 
 /// Key prefixes `cargo sim gcode` takes from the settings: the planner's own
-/// (`planner.*`) and the work offsets and tools the program is interpreted in.
-const GCODE_RUN_PREFIXES: [&str; 3] = ["planner.", "work.", "tool."];
+/// (`planner.*`), the input shapers of its reference (`shaper.*`) and the work offsets and
+/// tools the program is interpreted in.
+const GCODE_RUN_PREFIXES: [&str; 4] = ["planner.", "shaper.", "work.", "tool."];
 /// Per-axis keys `cargo sim gcode` takes: `axis.<a>.planner.*`, the planner's limits.
 const GCODE_RUN_AXIS_INFIX: &str = ".planner.";
 
 /// Whether `cargo sim gcode` uses the setting `key`: the planner's (`planner.*`,
-/// `axis.<a>.planner.*`), the work offsets (`work.*`) and the tool table (`tool.*`).
+/// `axis.<a>.planner.*`), the input shapers (`shaper.*`), the work offsets (`work.*`) and
+/// the tool table (`tool.*`).
 pub fn used_by_gcode_run(key: &str) -> bool {
     GCODE_RUN_PREFIXES.iter().any(|p| key.starts_with(p))
         || (key.starts_with("axis.") && key.contains(GCODE_RUN_AXIS_INFIX))
@@ -56,8 +58,8 @@ pub fn gcode_run_settings(
         if !used_by_gcode_run(key) {
             bail!(
                 "--set `{a}`: {key} is not used by `cargo sim gcode` (it takes planner.*, \
-                 axis.<a>.planner.*, work.* and tool.*; the servo and the machine come from \
-                 the scenario and machine files)"
+                 axis.<a>.planner.*, shaper.*, work.* and tool.*; the servo and the machine \
+                 come from the scenario and machine files)"
             );
         }
     }

@@ -189,6 +189,9 @@ where
     pending: heapless::Vec<Command, 2>,
     sample: PathSample,
     held: bool,
+    /// The input shapers' contour deviation bound in the running program (mm; 0: none),
+    /// taken from a program's explicit blend tolerances (`G64 P`).
+    shaper_dev_mm: f32,
     /// A settings save is writing the flash (its token): the outputs stay off, nothing
     /// queued or pending runs, until the link side's `SaveDone`.
     save_lock: Option<u32>,
@@ -372,6 +375,7 @@ where
             pending: heapless::Vec::new(),
             sample,
             held: false,
+            shaper_dev_mm: 0.0,
             save_lock: None,
             save_echo: None,
         })
@@ -824,7 +828,17 @@ where
         if !self.program {
             return Step::Done(refused("segment: no program running (send run first)"));
         }
-        match self.mem.planner.offer(seg) {
+        // an explicit tolerance (G64 P) counts the shapers' deviation as the default one
+        // does: blends within P − B (0 when B takes all of it: the corner is then met
+        // within B, the shapers' bound, not within P)
+        let mut seg = *seg;
+        if let crate::motion::planner::Blend::Tolerance(p) = seg.blend {
+            if self.shaper_dev_mm > 0.0 {
+                seg.blend =
+                    crate::motion::planner::Blend::Tolerance((p - self.shaper_dev_mm).max(0.0));
+            }
+        }
+        match self.mem.planner.offer(&seg) {
             Offer::Taken => Step::Done(Outcome::Done),
             Offer::Later => Step::Wait,
             Offer::Refused(e) => {
@@ -880,6 +894,11 @@ where
                         "run: the input shapers leave no path tolerance (planner.tolerance_mm)",
                     ));
                 };
+                self.shaper_dev_mm = self
+                    .mem
+                    .shaper
+                    .bound()
+                    .deviation_bound_axes_mm(pc.acc_max_mm_s2);
                 // in place: a planner is 40 KiB, too much for the interrupt's stack
                 match self.mem.planner.restart(&pc, start) {
                     Ok(()) => {}

@@ -222,6 +222,11 @@ pub fn run_with_settings(
     let name = program_path.display().to_string();
     let travel = travel_of(&cfg)?;
     let mut run = program_run(&mut cfg, &pcfg)?;
+    // the input shapers (`--set shaper.y.kind=zv`), their deviation counted inside the
+    // planner's tolerance by the machine
+    run.machine_mut()
+        .set_shapers(&settings.shaper.shapers())
+        .map_err(|e| anyhow!("input shapers: {e:?}"))?;
     let start = run.world().state().map(|s| s.pos);
     // rejected before any motion
     if let Err(e) = load_program_with(program_path, &parse_options(settings, start), &travel) {
