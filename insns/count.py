@@ -78,8 +78,9 @@ REFILL = 3
 MAX_INSNS = 50_000_000
 # Instructions an uncounted setup may run: setups run without the counting hook, at the
 # emulator's own speed (the `machine_period_*` setups run the machine closed-loop on the
-# simulated world, its physics in soft-float f64, for thousands of periods).
-SETUP_MAX_INSNS = 2_000_000_000
+# simulated world, its physics in soft-float f64, for thousands of periods; the shaped
+# one twice as many, its program reaching feed later).
+SETUP_MAX_INSNS = 4_000_000_000
 
 
 def load(path):

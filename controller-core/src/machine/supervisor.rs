@@ -267,7 +267,7 @@ where
 {
     /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder
     /// registers now, standing for wide counts `start_counts` (0 on a board at boot);
-    /// the planner in `mem` is restarted in place, its scope disarmed.
+    /// the planner in `mem` is restarted in place, its scope disarmed, its request queue emptied.
     pub fn new(
         settings: &Settings,
         rate_hz: u32,
@@ -341,6 +341,8 @@ where
             RestartError::Detached => MachineError::PlannerDetached,
         })?;
         mem.scope.disarm();
+        // (a memory a machine ran on before may hold its requests)
+        mem.queue.0.clear();
         mem.next_servo = None;
         mem.settings = settings;
         let sample = PathSample {
@@ -754,8 +756,8 @@ where
         let ticked = self.program && !self.servo.motion_held();
         if ticked {
             // (shaped: the servo follows the planner's reference through the shapers)
-            let raw = self.mem.planner.tick();
-            self.sample = self.mem.shaper.shape(raw);
+            self.sample = self.mem.planner.tick();
+            self.mem.shaper.shape(&mut self.sample);
             self.servo.set_planner_reference(&self.sample);
             // the executor's place in the program, for the status
             self.program_tag = self.sample.tag;
@@ -831,14 +833,16 @@ where
         // an explicit tolerance (G64 P) counts the shapers' deviation as the default one
         // does: blends within P − B (0 when B takes all of it: the corner is then met
         // within B, the shapers' bound, not within P)
-        let mut seg = *seg;
-        if let crate::motion::planner::Blend::Tolerance(p) = seg.blend {
-            if self.shaper_dev_mm > 0.0 {
+        let offer = match seg.blend {
+            crate::motion::planner::Blend::Tolerance(p) if self.shaper_dev_mm > 0.0 => {
+                let mut seg = *seg;
                 seg.blend =
                     crate::motion::planner::Blend::Tolerance((p - self.shaper_dev_mm).max(0.0));
+                self.mem.planner.offer(&seg)
             }
-        }
-        match self.mem.planner.offer(&seg) {
+            _ => self.mem.planner.offer(seg),
+        };
+        match offer {
             Offer::Taken => Step::Done(Outcome::Done),
             Offer::Later => Step::Wait,
             Offer::Refused(e) => {

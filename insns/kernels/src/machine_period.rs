@@ -349,7 +349,14 @@ impl MachinePeriod {
         let start_mm = rig.machine.servo().planner_start_mm()?;
         rig.request(Request::Run)?;
         let mut stream = Stream { start_mm, next: 1 };
-        for _ in 0..PROGRAM_PERIODS {
+        // (shaped, the path's acceleration is lowered to keep the shapers' deviation in
+        // the tolerance, and the reference comes one delay later: longer to reach feed)
+        let periods = if shaped {
+            2 * PROGRAM_PERIODS
+        } else {
+            PROGRAM_PERIODS
+        };
+        for _ in 0..periods {
             stream.top_up(&mut rig);
             rig.period();
         }

@@ -120,10 +120,10 @@ impl ShaperStage {
         }
     }
 
-    /// This period's planner sample, shaped: position, velocity and acceleration; its
-    /// tag, mode, tangent and path speed stay the executor's (what it executes).
+    /// Shape this period's planner sample in place: position, velocity and acceleration;
+    /// its tag, mode, tangent and path speed stay the executor's (what it executes).
     #[inline]
-    pub fn shape(&mut self, mut sample: PathSample) -> PathSample {
+    pub fn shape(&mut self, sample: &mut PathSample) {
         if self.active {
             let input = RefSample {
                 pos: sample.pos_mm,
@@ -135,7 +135,6 @@ impl ShaperStage {
             sample.vel_mm_s = out.vel;
             sample.acc_mm_s2 = out.acc;
         }
-        sample
     }
 
     /// The shaped reference has caught up with the planner's (always when off): a
