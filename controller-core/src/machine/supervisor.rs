@@ -267,7 +267,8 @@ where
 {
     /// A machine with `settings` (servo and planner) at `rate_hz`; `raw` are the encoder
     /// registers now, standing for wide counts `start_counts` (0 on a board at boot);
-    /// the planner in `mem` is restarted in place, its scope disarmed, its request queue emptied.
+    /// the planner in `mem` is restarted in place, its scope disarmed, its request queue
+    /// emptied.
     pub fn new(
         settings: &Settings,
         rate_hz: u32,
