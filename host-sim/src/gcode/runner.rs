@@ -192,6 +192,28 @@ pub fn stop_on_fault(run: &mut ProgramRun) -> Result<String> {
 
 /// Why the machine stopped the program before its end, with the G-code line of the
 /// segment it was on.
+/// A positioning or study run's program after period `k`: completed (`true`), still
+/// running (`false`), or the error: a fault (the machine brought to rest first), a
+/// refusal, or no end within `max_periods`.
+pub fn program_completed(
+    run: &mut ProgramRun,
+    program: &Program,
+    name: &str,
+    k: u64,
+    max_periods: u64,
+) -> Result<bool> {
+    match run.machine().program_end() {
+        ProgramEnd::Running => {}
+        ProgramEnd::Completed => return Ok(true),
+        ProgramEnd::Fault(_) => bail!("{name}: {}", stop_on_fault(run)?),
+        _ => return Err(refusal(run, program, name)),
+    }
+    if k >= max_periods {
+        bail!("{name}: the program did not finish within {max_periods} periods");
+    }
+    Ok(false)
+}
+
 pub fn refusal(run: &ProgramRun, program: &Program, name: &str) -> anyhow::Error {
     let tag = run.machine().path_sample().tag as usize;
     let line = program.moves.get(tag).map_or(0, |m| m.line);
@@ -388,14 +410,8 @@ pub fn run_positioning(
                 });
             }
         }
-        match run.machine().program_end() {
-            ProgramEnd::Running => {}
-            ProgramEnd::Completed => break,
-            ProgramEnd::Fault(_) => bail!("{name}: {}", stop_on_fault(&mut run)?),
-            _ => return Err(refusal(&run, &program, &name)),
-        }
-        if k >= max_periods {
-            bail!("{name}: the program did not finish within {max_periods} periods");
+        if program_completed(&mut run, &program, &name, k, max_periods)? {
+            break;
         }
     }
     Ok(readings.into_iter().flatten().collect())

@@ -37,14 +37,13 @@
 use super::freqresp::{self, ModeJson};
 use crate::gcode::program::{decimal, parse_options, segments, travel_of};
 use crate::gcode::runner::{
-    arm_home_and_run, period_bounds, program_run, refusal, stop_on_fault, stream,
+    arm_home_and_run, period_bounds, program_completed, program_run, stream,
 };
 use crate::gcode::{self, check_travel, MoveKind};
 use crate::jobs;
 use crate::sim_gantry::machine_and_planner_with;
 use anyhow::{anyhow, bail, Result};
 use controller_core::axes::Axis;
-use controller_core::machine::messages::ProgramEnd;
 use controller_core::motion::planner::PlannerConfig;
 use controller_core::motion::shaper::{AxisShapers, ShaperConfig, ShaperKind, ShaperStage};
 use controller_core::settings::FACTORY;
@@ -355,14 +354,8 @@ fn run_stop(
                 .push(s.path_speed_mm_s.abs() > STOPPED_MM_S as f32);
             trace.tool_mm.push(tool);
         }
-        match run.machine().program_end() {
-            ProgramEnd::Running => {}
-            ProgramEnd::Completed => break,
-            ProgramEnd::Fault(_) => bail!("{name}: {}", stop_on_fault(&mut run)?),
-            _ => return Err(refusal(&run, &program, &name)),
-        }
-        if k >= max_periods {
-            bail!("{name}: the program did not finish within {max_periods} periods");
+        if program_completed(&mut run, &program, &name, k, max_periods)? {
+            break;
         }
     }
     Ok(trace)
