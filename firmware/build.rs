@@ -44,6 +44,18 @@ fn main() {
         "CCMRAM : ORIGIN = 0x10000000",
         "CCMRAM : ORIGIN = 0x20020000",
     );
+    // and its rig's statics (the simulated run, the scenario's state) need 85 KiB above
+    // the stack: 40 KiB of stack there, against the board's 44 (memory.x)
+    #[cfg(feature = "qemu")]
+    let layout = layout
+        .replace(
+            "STACK : ORIGIN = 0x20000000, LENGTH = 44K",
+            "STACK : ORIGIN = 0x20000000, LENGTH = 40K",
+        )
+        .replace(
+            "RAM   : ORIGIN = 0x2000B000, LENGTH = 84K",
+            "RAM   : ORIGIN = 0x2000A000, LENGTH = 88K",
+        );
     fs::write(out.join("memory.x"), layout).expect("write memory.x into OUT_DIR");
     board_expect::table(&manifest_dir, &out);
     println!("cargo:rustc-link-search={}", out.display());

@@ -8,6 +8,7 @@ use crate::coupling::{ContourCouplingConfig, CouplingConfig};
 use crate::estimator::{EstimatorBankConfig, EstimatorConfig};
 use crate::law::LawConfig;
 use crate::link::LinkConfigError;
+use crate::motion::planner::PlannerConfig;
 use crate::motion::shaper::{shaped_planner_config, InputShaper, BOARD_SHAPER_HISTORY};
 use crate::plant::AxisModel;
 use crate::presets::board::factory_config;
@@ -105,6 +106,21 @@ fn law(
 }
 
 impl Settings {
+    /// The input shapers valid at `rate_hz` and their deviation within the planner `pc`'s
+    /// tolerance. Apart and never inlined: the link task validates settings on its stack,
+    /// which the control interrupt preempts, and the shapers' f64 design must not add to
+    /// the frame that also builds a servo.
+    #[inline(never)]
+    fn check_shapers(&self, pc: &PlannerConfig, rate_hz: u32) -> Result<(), ServoConfigError> {
+        let shaper = InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(
+            &self.shaper.shapers(),
+            1.0 / rate_hz.max(1) as f32,
+        )
+        .map_err(ServoConfigError::Shaper)?;
+        shaped_planner_config(&shaper.bound(), pc).map_err(ServoConfigError::ShaperTolerance)?;
+        Ok(())
+    }
+
     /// The servo configuration these settings describe at control rate `rate_hz`: the
     /// board's [`factory_config`] (counter widths, amplifier resolution, fault-check
     /// timings, the demo path, identification's template) with every value the tree holds
@@ -178,12 +194,7 @@ impl Settings {
             .map_err(ServoConfigError::Link)?;
         let pc = self.planner_config(rate_hz);
         crate::motion::planner::ValidPlannerConfig::new(&pc).map_err(ServoConfigError::Planner)?;
-        let shaper = InputShaper::<f32, BOARD_SHAPER_HISTORY>::new(
-            &self.shaper.shapers(),
-            1.0 / rate_hz.max(1) as f32,
-        )
-        .map_err(ServoConfigError::Shaper)?;
-        shaped_planner_config(&shaper.bound(), &pc).map_err(ServoConfigError::ShaperTolerance)?;
+        self.check_shapers(&pc, rate_hz)?;
         for (a, axis) in self.axis.iter().zip(Axis::ALL) {
             if !(a.planner.vel_max_mm_s <= a.vel_max_mm_s) {
                 return Err(ServoConfigError::PlannerSpeed { axis });
