@@ -122,6 +122,14 @@ fn dist_to_path(p: [f32; 3], pts: &[[f32; 3]]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// The largest distance of the run's shaped reference to the polyline through `pts`.
+fn worst_distance(r: &Run, pts: &[[f32; 3]]) -> f64 {
+    r.refs
+        .iter()
+        .map(|s| dist_to_path(s.pos_mm.to_array(), pts))
+        .fold(0.0, f64::max)
+}
+
 /// A zigzag in X and Y with sharp corners: every corner blended.
 fn zigzag() -> (Vec<Segment>, Vec<[f32; 3]>) {
     let mut pts = vec![[0.0f32; 3]];
@@ -196,11 +204,7 @@ fn the_shaped_reference_stays_within_the_path_tolerance_and_the_planners_limits(
     assert!((f64::from(pc.tolerance_mm) - eps / 2.0).abs() < 1e-6 * eps);
     let r = run(&mut m, &mut w, &segs);
     assert_eq!(r.end, ProgramEnd::Completed);
-    let worst = r
-        .refs
-        .iter()
-        .map(|s| dist_to_path(s.pos_mm.to_array(), &pts))
-        .fold(0.0, f64::max);
+    let worst = worst_distance(&r, &pts);
     println!("worst distance to the programmed path {worst:.6} mm (tolerance {eps})");
     assert!(worst <= eps * 1.001, "{worst} > {eps}");
     for s in &r.refs {
@@ -247,12 +251,7 @@ fn explicit_tolerances_count_the_deviation_and_exact_path_is_met_within_the_boun
             .collect();
         let r = run(&mut m, &mut w, &segs);
         assert_eq!(r.end, ProgramEnd::Completed);
-        let worst = r
-            .refs
-            .iter()
-            .map(|s| dist_to_path(s.pos_mm.to_array(), &pts))
-            .fold(0.0, f64::max);
-        (worst, f64::from(b))
+        (worst_distance(&r, &pts), f64::from(b))
     };
     // G64 P0.02: twice the default, counted as the default is
     let (worst, b) = worst_with(0.02);
