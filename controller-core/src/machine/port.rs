@@ -348,6 +348,15 @@ impl<'a, 's> LinkSide<'a, 's> {
     /// Pass held requests down in order while the machine's queue has room; a settings
     /// request only once everything before it was executed (it is resolved then); nothing
     /// while a save is under way.
+    /// Enqueue `tree` with the servo configuration derived from it here, in the link
+    /// task: the control interrupt only swaps it in. Never inlined, for the stack, as
+    /// [`SettingsAgent::resolve`].
+    #[inline(never)]
+    fn hand_down(&mut self, tree: Settings) {
+        let prepared = PreparedSettings::new(tree, self.state.rate_hz());
+        let _ = self.ends.applies.enqueue(prepared);
+    }
+
     fn flush(&mut self) {
         let retired = self.ends.retired.load(Ordering::Acquire);
         // (after `retired`: every tree the retired requests applied is in the queue)
@@ -409,10 +418,7 @@ impl<'a, 's> LinkSide<'a, 's> {
                 break;
             }
             if let Some(t) = tree {
-                // the servo configuration derived here, in the link task: the control
-                // interrupt only swaps it in
-                let prepared = PreparedSettings::new(t, self.state.rate_hz());
-                let _ = self.ends.applies.enqueue(prepared);
+                self.hand_down(t);
             }
             let _ = self.ends.down.enqueue(d);
             if let Some((token, repair)) = lock {

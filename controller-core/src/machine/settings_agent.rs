@@ -135,6 +135,10 @@ impl SettingsAgent {
     }
 
     /// Resolve a settings request (see [`Self::handles`]); any other request is refused.
+    /// Never inlined: its copies of the tree are on the link task's stack only while it
+    /// runs, not under the rest of the link side's flush (the control interrupt preempts
+    /// that task, and both share the board's one stack).
+    #[inline(never)]
     pub fn resolve(&mut self, r: &Request) -> Resolution {
         if let Some(t) = self.txn.as_mut() {
             match r {

@@ -203,7 +203,7 @@ impl Settings {
         c.safety
             .check_for_machine()
             .map_err(ServoConfigError::Servo)?;
-        Servo::<f32>::new(&c, [0; AXES], [0; AXES]).map_err(ServoConfigError::Servo)?;
+        Servo::<f32>::check(&c).map_err(ServoConfigError::Servo)?;
         Ok(c)
     }
 }
