@@ -43,8 +43,8 @@ pub unsafe fn memory<'a>(
     let m = p.cast::<MachineMemory<SplitExecutor<'a>>>();
     // (the executor is small: written whole; nothing in the zero bytes is dropped)
     addr_of_mut!((*m).planner).write(SplitExecutor::DETACHED);
-    // (an `Option<ServoConfig>` is not `None` as zero bytes, nor a settings tree valid)
-    addr_of_mut!((*m).next_servo).write(None);
+    // (an `Option<PreparedSettings>` is not `None` as zero bytes, nor a settings tree valid)
+    addr_of_mut!((*m).next_settings).write(None);
     addr_of_mut!((*m).settings).write(controller_core::settings::FACTORY);
     // SAFETY: zero bytes are a valid scope (module docs), the executor was just written
     let m = &mut *m;
@@ -90,7 +90,7 @@ mod tests {
         assert_eq!(m.scope.state(), ScopeState::Off);
         assert!(m.scope.read(0).is_err(), "a blank scope has no capture");
         assert_eq!(*m.planner.report(), *SplitExecutor::DETACHED.report());
-        assert!(m.next_servo.is_none());
+        assert!(m.next_settings.is_none());
         assert!(m.queue.is_empty());
         assert!(!m.shaper.active());
     }

@@ -67,7 +67,7 @@ mod tests {
                 comp: controller_core::motion::compensation::CompTables::NONE,
                 shaper: controller_core::motion::shaper::ShaperStage::NONE,
                 queue: controller_core::machine::RequestQueue::new(),
-                next_servo: None,
+                next_settings: None,
                 settings: controller_core::settings::FACTORY,
             });
             let planner = factory_planner(decoded.servo.rate_hz);

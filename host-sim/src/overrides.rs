@@ -6,8 +6,8 @@
 //! nothing is applied.
 //!
 //! A run only takes some of the keys: [`used_by_gcode_run`] says which for `cargo sim
-//! gcode` (its servo, estimator and machine come from the scenario and machine files, not
-//! from settings). A key it would silently ignore is an error too, so that a benchmark
+//! gcode` (its laws, estimator and machine come from the scenario and machine files, not
+//! from settings; the feed-forward and the output filters do come from the settings). A key it would silently ignore is an error too, so that a benchmark
 //! never reports figures for a setting that did not apply.
 
 use anyhow::{anyhow, bail, Result};
@@ -17,15 +17,18 @@ use controller_core::settings::Settings;
 /// (`planner.*`), the input shapers of its reference (`shaper.*`) and the work offsets and
 /// tools the program is interpreted in.
 const GCODE_RUN_PREFIXES: [&str; 4] = ["planner.", "shaper.", "work.", "tool."];
-/// Per-axis keys `cargo sim gcode` takes: `axis.<a>.planner.*`, the planner's limits.
-const GCODE_RUN_AXIS_INFIX: &str = ".planner.";
+/// Per-axis keys `cargo sim gcode` takes: `axis.<a>.planner.*`, the planner's limits,
+/// `axis.<a>.feedforward.*` and `axis.<a>.filter.*`, the servo's feed-forward and output
+/// filters.
+const GCODE_RUN_AXIS_INFIXES: [&str; 3] = [".planner.", ".feedforward.", ".filter."];
 
 /// Whether `cargo sim gcode` uses the setting `key`: the planner's (`planner.*`,
-/// `axis.<a>.planner.*`), the input shapers (`shaper.*`), the work offsets (`work.*`) and
-/// the tool table (`tool.*`).
+/// `axis.<a>.planner.*`), the input shapers (`shaper.*`), the feed-forward and the output
+/// filters (`axis.<a>.feedforward.*`, `axis.<a>.filter.*`), the work offsets (`work.*`)
+/// and the tool table (`tool.*`).
 pub fn used_by_gcode_run(key: &str) -> bool {
     GCODE_RUN_PREFIXES.iter().any(|p| key.starts_with(p))
-        || (key.starts_with("axis.") && key.contains(GCODE_RUN_AXIS_INFIX))
+        || (key.starts_with("axis.") && GCODE_RUN_AXIS_INFIXES.iter().any(|i| key.contains(i)))
 }
 
 /// `KEY=VALUE` split at the first `=`, both trimmed and not empty.
@@ -58,8 +61,9 @@ pub fn gcode_run_settings(
         if !used_by_gcode_run(key) {
             bail!(
                 "--set `{a}`: {key} is not used by `cargo sim gcode` (it takes planner.*, \
-                 axis.<a>.planner.*, shaper.*, work.* and tool.*; the servo and the machine \
-                 come from the scenario and machine files)"
+                 axis.<a>.planner.*, axis.<a>.feedforward.*, axis.<a>.filter.*, shaper.*, \
+                 work.* and tool.*; the laws and the machine come from the scenario and \
+                 machine files)"
             );
         }
     }

@@ -7,6 +7,7 @@
 
 use crate::builtin::{self, resolve_all};
 use anyhow::{anyhow, bail, Result};
+use controller_core::axes::Axis;
 use controller_core::motion::planner::PlannerConfig;
 use controller_core::settings::{Settings, FACTORY};
 use controller_core::sim::gantry::{self, GantryError, GantryOptions};
@@ -46,7 +47,17 @@ pub fn machine_and_planner_with(
     if r.study.is_some() {
         bail!("gcode.toml: no study table expected (the planner's limits are settings)");
     }
-    Ok((r.run, cfg))
+    // the settings' feed-forward and output filters (the factory's: none), each stage
+    // designed at the run's rate
+    let mut run = r.run;
+    let period_s = 1.0 / run.servo.rate_hz.max(1) as f32;
+    for (i, (a, axis)) in settings.axis.iter().zip(Axis::ALL).enumerate() {
+        run.servo.feedforward[i] = a.feedforward;
+        run.servo.filters[i] = a
+            .filter_config(axis, period_s)
+            .map_err(|e| anyhow!("settings: {e}"))?;
+    }
+    Ok((run, cfg))
 }
 
 /// The simulated physical gantry of `gantry --sim` (host-sim/scenarios/gcode.toml: travel

@@ -242,8 +242,9 @@ fn settings_export_round_trips_and_a_bad_import_changes_nothing() {
     let mut c = connect(SimModels::Designed);
     let all = cli::read_settings(&mut c).unwrap();
     // 123 + the work offsets (27), the tool table (16), the motors' and encoders'
-    // directions (6) and the input shapers (9)
-    assert_eq!(all.len(), 181);
+    // directions (6), the input shapers (9), the feed-forward (27) and the output
+    // filters (60)
+    assert_eq!(all.len(), 268);
     let text = cli::export_toml(&all);
     let back = cli::parse_settings_toml("export.toml", &text).unwrap();
     assert_eq!(

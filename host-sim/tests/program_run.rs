@@ -114,7 +114,7 @@ fn the_program_completes_on_the_square_and_the_split_planner_plans_the_same() {
         comp: controller_core::motion::compensation::CompTables::NONE,
         shaper: controller_core::motion::shaper::ShaperStage::NONE,
         queue: controller_core::machine::RequestQueue::new(),
-        next_servo: None,
+        next_settings: None,
         settings: controller_core::settings::FACTORY,
     });
     let run = SimRun::with_memory(&cfg, &planner, memory).unwrap();

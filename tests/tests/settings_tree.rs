@@ -40,8 +40,9 @@ fn every_field_has_a_key_and_every_key_a_field() {
     assert_eq!(fields, names);
     // 109 before the work offsets (27), the tool table (16), `planner.servo_reserve` (1)
     // the brakes (3 × 3), `safety.arm_encoder_check` (1) and the motors' and encoders'
-    // directions (3 × 2), the input shapers (3 × 3)
-    assert_eq!(fields.len(), 109 + 27 + 16 + 1 + 9 + 1 + 6 + 9);
+    // directions (3 × 2), the input shapers (3 × 3), the feed-forward (3 × 9) and the
+    // output filters (3 × 4 stages × 5)
+    assert_eq!(fields.len(), 109 + 27 + 16 + 1 + 9 + 1 + 6 + 9 + 27 + 60);
 }
 
 #[test]

@@ -39,7 +39,7 @@ mod tests;
 pub use biquad::Biquad;
 pub use chain::{FilterChain, OutputFilters};
 pub use cookbook::Coefficients;
-pub use design::{AxisFilterConfig, FilterConfig, MAX_STAGES};
+pub use design::{AxisFilterConfig, FilterConfig, BUTTERWORTH_Q, MAX_STAGES};
 pub use margins::{
     accept, loop_margins, margins_of_samples, pid_response, Margins, Rejection, SampleError,
     MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG,

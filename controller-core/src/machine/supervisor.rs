@@ -26,7 +26,7 @@ use super::messages::{
     FaultCode, IdentifyMsg, MachineState, ModelMsg, Outcome, ProgramEnd, ProgramProgress, Request,
     Status, Telemetry, TELEMETRY_SIGNALS, VALUE_MAX,
 };
-use super::port::{ControlSide, Down, Up, REQUEST_QUEUE};
+use super::port::{ControlSide, Down, PreparedSettings, Up, REQUEST_QUEUE};
 use super::scope::{Scope, Signal};
 use crate::axes::Axis;
 use crate::link::RealtimeRequest;
@@ -70,12 +70,13 @@ pub struct MachineMemory<M = MachinePlanner> {
     pub shaper: ShaperStage,
     /// The machine's request queue (11.5 KiB; all zeros: empty).
     pub queue: RequestQueue,
-    /// The servo configuration the link side derived for the settings change in the
-    /// queue ([`super::port::PreparedSettings`]): at most one is queued, since a settings
-    /// request goes down only once every request before it was executed.
-    /// (1.2 KiB, here rather than in the machine, which is built and moved on the boot
-    /// stack; not valid as zero bytes: a blank memory sets it to `None`.)
-    pub next_servo: Option<ServoConfig>,
+    /// The settings change in the queue, its tree and the servo configuration the link
+    /// side derived from it ([`super::port::PreparedSettings`]): at most one is queued,
+    /// since a settings request goes down only once every request before it was executed,
+    /// so the queue's entry holds only its class. (2.3 KiB, here rather than in the
+    /// machine, which is built and moved on the boot stack, or in each of the queue's 16
+    /// entries; not valid as zero bytes: a blank memory sets it to `None`.)
+    pub next_settings: Option<PreparedSettings>,
     /// The settings tree the machine runs (the factory tree for a machine built from a
     /// servo configuration); set when the machine is built (here for the same reason).
     pub settings: Settings,
@@ -112,7 +113,7 @@ impl MachineMemory<MachinePlanner> {
         comp: crate::motion::compensation::CompTables::NONE,
         shaper: ShaperStage::NONE,
         queue: RequestQueue::new(),
-        next_servo: None,
+        next_settings: None,
         settings: crate::settings::FACTORY,
     };
 }
@@ -223,8 +224,8 @@ fn refused(s: &str) -> Outcome {
 enum Queued {
     Request(Request),
     Resolved(Outcome),
+    /// The settings change in [`MachineMemory::next_settings`].
     Apply {
-        settings: Settings,
         class: Option<Apply>,
     },
     /// A settings save or repair (`Down::SaveLock`).
@@ -344,7 +345,7 @@ where
         mem.scope.disarm();
         // (a memory a machine ran on before may hold its requests)
         mem.queue.0.clear();
-        mem.next_servo = None;
+        mem.next_settings = None;
         mem.settings = settings;
         let sample = PathSample {
             pos_mm: crate::Vec3::from_array(start),
@@ -626,11 +627,8 @@ where
                 Down::Apply { class } => match link.take_settings() {
                     Some(prepared) => {
                         seen(Seen::Settings(&prepared.settings));
-                        self.mem.next_servo = prepared.servo;
-                        self.enqueue(Queued::Apply {
-                            settings: prepared.settings,
-                            class,
-                        })
+                        self.mem.next_settings = Some(prepared);
+                        self.enqueue(Queued::Apply { class })
                     }
                     // (cannot happen: the tree is enqueued before its event) the
                     // request still retires, refused
@@ -858,7 +856,7 @@ where
         let r = match q {
             Queued::Request(r) => r,
             Queued::Resolved(o) => return Step::Done(o.clone()),
-            Queued::Apply { settings, class } => return Step::Done(self.apply(*settings, *class)),
+            Queued::Apply { class } => return Step::Done(self.apply(*class)),
             Queued::SaveLock { token, repair } => return self.lock_for_save(*token, *repair, cmds),
         };
         let mut servo = |c: Command| {
@@ -992,10 +990,18 @@ where
     }
 
     /// Swap in `next` (validated on the link side; `class` and the servo configuration
-    /// derived from it, [`MachineMemory::next_servo`], from there too) at this period boundary, if
-    /// the servo takes it now.
-    fn apply(&mut self, next: Settings, class: Option<Apply>) -> Outcome {
-        let Some(cfg) = self.mem.next_servo.take() else {
+    /// derived from it, both in [`MachineMemory::next_settings`]) at this period boundary,
+    /// if the servo takes it now.
+    fn apply(&mut self, class: Option<Apply>) -> Outcome {
+        let Some(PreparedSettings {
+            settings: next,
+            servo,
+        }) = self.mem.next_settings.take()
+        else {
+            // (cannot happen: the tree is in the memory before its request is queued)
+            return refused("settings change lost");
+        };
+        let Some(cfg) = servo else {
             return refused("rejected: the settings give no servo configuration");
         };
         if !self.tree {

@@ -23,7 +23,7 @@ use crate::motion::shaper::ShaperKind;
 
 use super::offsets::{TOOL_COUNT, WORK_SYSTEMS};
 use super::servo_config::{ServoConfigError, PLACEHOLDER_MODELS};
-use super::tree::{AxisSettings, CouplingKind, LawKind, Settings};
+use super::tree::{AxisSettings, CouplingKind, FilterKind, LawKind, Settings};
 
 /// A setting's value. Choices are the static names of [`Range::Choice`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -249,6 +249,25 @@ impl Field for Option<ShaperKind> {
         match v {
             Value::Choice("none") => Some(None),
             Value::Choice(n) => ShaperKind::ALL
+                .into_iter()
+                .find(|k| k.name() == n)
+                .map(Some),
+            _ => None,
+        }
+    }
+}
+
+/// Names of a filter stage's kind in keys: `none`, then [`FilterKind::name`]'s.
+const FILTER_NAMES: &[&str] = &["none", "notch", "low_pass"];
+
+impl Field for Option<FilterKind> {
+    fn value(&self) -> Value {
+        Value::Choice(self.map_or("none", FilterKind::name))
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Choice("none") => Some(None),
+            Value::Choice(n) => FilterKind::ALL
                 .into_iter()
                 .find(|k| k.name() == n)
                 .map(Some),
@@ -503,6 +522,14 @@ const BRAKE_TIME: Range = f32_range(0.0, crate::servo::brake::MAX_BRAKE_TIME_S);
 /// Shaped modes 1..200 Hz: a frame's modes are tens of Hz; the shaper's own bound
 /// (1/100 of the control rate, its history's length) is checked with the whole tree.
 const SHAPER_FREQ: Range = f32_range(1.0, 200.0);
+
+/// Filter frequencies 0.1 Hz..25 kHz; the filters' own bounds (1/10⁴ to 0.45 of the
+/// control rate) are checked with the whole tree.
+const FILTER_FREQ: Range = f32_range(0.1, 25_000.0);
+/// Notch depths up to the design's [`crate::filter::design::MAX_DEPTH_DB`].
+const FILTER_DEPTH: Range = f32_range(0.1, crate::filter::design::MAX_DEPTH_DB);
+/// Low-pass qualities up to the design's [`crate::filter::design::MAX_LOW_PASS_Q`].
+const FILTER_Q: Range = f32_range(0.1, crate::filter::design::MAX_LOW_PASS_Q);
 
 /// The per-axis keys, in the tree's field order.
 static AXIS_KEYS: &[AxisDef] = &[
@@ -784,6 +811,208 @@ static AXIS_KEYS: &[AxisDef] = &[
         BRAKE_TIME,
         OutputsOff,
         "Time the brake needs to open after its coil is switched on: motion after arming waits this long"
+    ),    axis_key!(
+        feedforward.coulomb_pos_mnm,
+        unit::MNM,
+        f32_range(0.0, 100_000.0),
+        OutputsOff,
+        "Coulomb torque added while the reference moves forward (the model's coulomb_pos_mnm; 0: none): removes the quadrant spike at reversals"
+    ),
+    axis_key!(
+        feedforward.coulomb_neg_mnm,
+        unit::MNM,
+        f32_range(-100_000.0, 0.0),
+        OutputsOff,
+        "Coulomb torque added while the reference moves backward (the model's coulomb_neg_mnm, <= 0; 0: none)"
+    ),
+    axis_key!(
+        feedforward.compliance_s2,
+        "s²",
+        f32_range(0.0, crate::motion::feedforward::MAX_COMPLIANCE_S2),
+        OutputsOff,
+        "Frame compliance as a lag per acceleration, 1/ω_a² of the axis' anti-resonance (cargo sim freqresp measures it; 0: a rigid axis): the motor is sent ahead by compliance_s2 · a"
+    ),
+    axis_key!(
+        feedforward.lag_s,
+        unit::S,
+        f32_range(0.0, crate::motion::feedforward::MAX_LAG_S),
+        OutputsOff,
+        "Frame deflection under the tool side's viscous friction as a lag, B_tool/k (0: none): the motor is sent ahead by lag_s · v"
+    ),
+    axis_key!(
+        feedforward.deflection_pos_mm,
+        unit::MM,
+        f32_range(0.0, crate::motion::feedforward::MAX_DEFLECTION_MM),
+        OutputsOff,
+        "Frame deflection under the tool side's friction while moving forward (cargo sim compensation measures it; 0: none)"
+    ),
+    axis_key!(
+        feedforward.deflection_neg_mm,
+        unit::MM,
+        f32_range(-crate::motion::feedforward::MAX_DEFLECTION_MM, 0.0),
+        OutputsOff,
+        "The same while moving backward (<= 0; 0: none)"
+    ),
+    axis_key!(
+        feedforward.reversal_band_mm_s,
+        unit::MM_S,
+        f32_range(0.001, 100.0),
+        OutputsOff,
+        "Reference speed over which the friction terms change sign (default 0.5: the guides' pre-sliding range at a circle's reversal)"
+    ),
+    axis_key!(
+        feedforward.stiction_ratio,
+        unit::NONE,
+        f32_range(1.0, crate::motion::feedforward::MAX_STICTION_RATIO),
+        OutputsOff,
+        "Friction at rest over friction in motion (the Stribeck peak; 1: none): the friction terms grow by it near rest"
+    ),
+    axis_key!(
+        feedforward.v_stribeck_mm_s,
+        unit::MM_S,
+        f32_range(0.001, 1_000.0),
+        OutputsOff,
+        "Speed over which the Stribeck peak decays"
+    ),
+    axis_key!(
+        filter.stage1.kind,
+        unit::NONE,
+        Range::Choice(FILTER_NAMES),
+        OutputsOff,
+        "Filter stage 1 on the axis' control output (none: off; stages run in order, cargo sim filters places them from the measured response)"
+    ),
+    axis_key!(
+        filter.stage1.freq_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 1's notch centre or low-pass cutoff (below 0.45 of the control rate)"
+    ),
+    axis_key!(
+        filter.stage1.width_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 1's notch width, between the frequencies attenuated by half its depth in dB"
+    ),
+    axis_key!(
+        filter.stage1.depth_db,
+        "dB",
+        FILTER_DEPTH,
+        OutputsOff,
+        "Stage 1's notch attenuation at its centre"
+    ),
+    axis_key!(
+        filter.stage1.q,
+        unit::NONE,
+        FILTER_Q,
+        OutputsOff,
+        "Stage 1's low-pass quality (0.707: Butterworth; the gain at the cutoff)"
+    ),
+    axis_key!(
+        filter.stage2.kind,
+        unit::NONE,
+        Range::Choice(FILTER_NAMES),
+        OutputsOff,
+        "Filter stage 2 on the axis' control output (none: off; stages run in order, cargo sim filters places them from the measured response)"
+    ),
+    axis_key!(
+        filter.stage2.freq_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 2's notch centre or low-pass cutoff (below 0.45 of the control rate)"
+    ),
+    axis_key!(
+        filter.stage2.width_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 2's notch width, between the frequencies attenuated by half its depth in dB"
+    ),
+    axis_key!(
+        filter.stage2.depth_db,
+        "dB",
+        FILTER_DEPTH,
+        OutputsOff,
+        "Stage 2's notch attenuation at its centre"
+    ),
+    axis_key!(
+        filter.stage2.q,
+        unit::NONE,
+        FILTER_Q,
+        OutputsOff,
+        "Stage 2's low-pass quality (0.707: Butterworth; the gain at the cutoff)"
+    ),
+    axis_key!(
+        filter.stage3.kind,
+        unit::NONE,
+        Range::Choice(FILTER_NAMES),
+        OutputsOff,
+        "Filter stage 3 on the axis' control output (none: off; stages run in order, cargo sim filters places them from the measured response)"
+    ),
+    axis_key!(
+        filter.stage3.freq_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 3's notch centre or low-pass cutoff (below 0.45 of the control rate)"
+    ),
+    axis_key!(
+        filter.stage3.width_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 3's notch width, between the frequencies attenuated by half its depth in dB"
+    ),
+    axis_key!(
+        filter.stage3.depth_db,
+        "dB",
+        FILTER_DEPTH,
+        OutputsOff,
+        "Stage 3's notch attenuation at its centre"
+    ),
+    axis_key!(
+        filter.stage3.q,
+        unit::NONE,
+        FILTER_Q,
+        OutputsOff,
+        "Stage 3's low-pass quality (0.707: Butterworth; the gain at the cutoff)"
+    ),
+    axis_key!(
+        filter.stage4.kind,
+        unit::NONE,
+        Range::Choice(FILTER_NAMES),
+        OutputsOff,
+        "Filter stage 4 on the axis' control output (none: off; stages run in order, cargo sim filters places them from the measured response)"
+    ),
+    axis_key!(
+        filter.stage4.freq_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 4's notch centre or low-pass cutoff (below 0.45 of the control rate)"
+    ),
+    axis_key!(
+        filter.stage4.width_hz,
+        unit::HZ,
+        FILTER_FREQ,
+        OutputsOff,
+        "Stage 4's notch width, between the frequencies attenuated by half its depth in dB"
+    ),
+    axis_key!(
+        filter.stage4.depth_db,
+        "dB",
+        FILTER_DEPTH,
+        OutputsOff,
+        "Stage 4's notch attenuation at its centre"
+    ),
+    axis_key!(
+        filter.stage4.q,
+        unit::NONE,
+        FILTER_Q,
+        OutputsOff,
+        "Stage 4's low-pass quality (0.707: Butterworth; the gain at the cutoff)"
     ),
 ];
 

@@ -30,7 +30,8 @@ pub use keys::{Apply, Key, KeyError, Range, SetError, Value};
 pub use offsets::{ToolSettings, ToolTable, WorkOffset, WorkOffsets, TOOL_COUNT, WORK_SYSTEMS};
 pub use servo_config::{ServoConfigError, PLACEHOLDER_MODELS};
 pub use tree::{
-    AmplifierSettings, AxisSettings, CouplingKind, CouplingSettings, EncoderSettings,
-    EstimatorSettings, IdentifySettings, JogSettings, LawKind, LawSettings, LinkSettings,
-    MotorSettings, Settings, FACTORY, SETTINGS_VERSION,
+    AmplifierSettings, AxisFilterSettings, AxisSettings, CouplingKind, CouplingSettings,
+    EncoderSettings, EstimatorSettings, FilterKind, FilterStageSettings, IdentifySettings,
+    JogSettings, LawKind, LawSettings, LinkSettings, MotorSettings, Settings, FACTORY, NO_FILTERS,
+    SETTINGS_VERSION,
 };

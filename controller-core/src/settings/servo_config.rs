@@ -6,6 +6,7 @@ use crate::axes::{Axis, AXES};
 use crate::config::{positive, ConfigError};
 use crate::coupling::{ContourCouplingConfig, CouplingConfig};
 use crate::estimator::{EstimatorBankConfig, EstimatorConfig};
+use crate::filter::AxisFilterConfig;
 use crate::law::LawConfig;
 use crate::link::LinkConfigError;
 use crate::motion::planner::PlannerConfig;
@@ -38,6 +39,15 @@ pub enum ServoConfigError {
     Model { axis: Axis, error: ConfigError },
     /// The axis' tuning (bandwidth, full scale, counts per mm) is invalid.
     Tuning { axis: Axis, error: ConfigError },
+    /// The axis' feed-forward is invalid (the field is named).
+    FeedForward { axis: Axis, error: ConfigError },
+    /// A filter stage of the axis is invalid at the control rate (`stage`: 1-4; the field
+    /// is named).
+    Filter {
+        axis: Axis,
+        stage: u8,
+        error: ConfigError,
+    },
     /// The link watchdog's timeout is outside its range.
     Link(LinkConfigError),
     /// The motion planner's settings are invalid (the field is named).
@@ -61,6 +71,16 @@ impl core::fmt::Display for ServoConfigError {
         match self {
             Self::Model { axis, error } => write!(f, "axis.{}.model: {error}", axis.name()),
             Self::Tuning { axis, error } => write!(f, "axis.{} tuning: {error}", axis.name()),
+            Self::FeedForward { axis, error } => write!(f, "axis.{}.{error}", axis.name()),
+            Self::Filter { axis, stage, error } => {
+                write!(f, "axis.{}.filter.stage{stage}: {error}", axis.name())?;
+                match error {
+                    ConfigError::OutOfRange(name) if name.ends_with("_hz") => {
+                        f.write_str(" (frequencies lie from 1/10000 to 0.45 of the control rate)")
+                    }
+                    _ => Ok(()),
+                }
+            }
             Self::Link(e) => write!(f, "{e}"),
             Self::Planner(e) => write!(f, "planner: {e:?}"),
             Self::PlannerSpeed { axis } => {
@@ -103,6 +123,27 @@ fn law(
         LawKind::DobSmc => LawConfig::DobSmc(tuning::dob_smc(model, &t)),
         LawKind::AdaptiveSmc => LawConfig::AdaptiveSmc(tuning::adaptive_smc(model, &t)),
     })
+}
+
+impl AxisSettings {
+    /// The axis' filter stages that are on, in order, each designed at `period_s` (so a
+    /// refusal names the axis and the stage; the servo designs them again when it is
+    /// built).
+    pub fn filter_config(
+        &self,
+        axis: Axis,
+        period_s: f32,
+    ) -> Result<AxisFilterConfig, ServoConfigError> {
+        let mut f = AxisFilterConfig::NONE;
+        for (stage, s) in (1u8..).zip(self.filter.stages()) {
+            if let Some(c) = s.config() {
+                let error = |error| ServoConfigError::Filter { axis, stage, error };
+                c.design(period_s).map_err(error)?;
+                f.push(c).map_err(error)?;
+            }
+        }
+        Ok(f)
+    }
 }
 
 impl Settings {
@@ -175,6 +216,16 @@ impl Settings {
             }
             if let Some(k) = c.model_known.get_mut(i) {
                 *k = a.model.is_some();
+            }
+            a.feedforward
+                .validate()
+                .map_err(|error| ServoConfigError::FeedForward { axis, error })?;
+            if let Some(ff) = c.feedforward.get_mut(i) {
+                *ff = a.feedforward;
+            }
+            let f = a.filter_config(axis, 1.0 / rate_hz.max(1) as f32)?;
+            if let Some(slot) = c.filters.get_mut(i) {
+                *slot = f;
             }
         }
         c.jog.timeout_s = self.jog.timeout_s;

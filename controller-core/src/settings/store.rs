@@ -72,9 +72,9 @@ pub const STORE_MAGIC: [u8; 4] = [b'G', b'S', b'T', STORE_FORMAT];
 pub const RECORD_HEADER: usize = 16;
 
 /// Bytes of the record buffer: the header (16), the version (2) and the postcard tree
-/// (517 bytes, 565 with three axis models, see the `record_size` test), with a quarter of
+/// (890 bytes, 938 with three axis models, see the `record_size` test), with a quarter of
 /// the buffer kept free for settings to come.
-pub const RECORD_BUFFER: usize = 1024;
+pub const RECORD_BUFFER: usize = 1536;
 
 /// Largest flash word (read or write size) the store supports: the header is one or more
 /// whole words.

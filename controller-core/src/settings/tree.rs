@@ -14,7 +14,9 @@
 
 use crate::axes::AXES;
 use crate::estimator::PllConfig;
+use crate::filter::{FilterConfig, BUTTERWORTH_Q, MAX_STAGES};
 use crate::link::watchdog::DEFAULT_WATCHDOG_CONFIG;
+use crate::motion::feedforward::FeedForwardConfig;
 use crate::motion::homing::AxisHomingConfig;
 use crate::motion::jog::{AxisJogConfig, JogConfig};
 use crate::motion::planner::{PlannerConfig, GANTRY_PLANNER};
@@ -36,8 +38,9 @@ use super::offsets::{ToolTable, WorkOffsets};
 /// work offsets, the tool table and the planner's servo reserve; 4: the holding brakes
 /// (`axis.<a>.brake`); 5: the machine's safety switches (`safety.*`); 6: the motor's and
 /// the encoder's direction (`axis.<a>.motor.invert`, `axis.<a>.encoder.invert`); 7: the
-/// input shapers (`shaper.<a>.*`).
-pub const SETTINGS_VERSION: u16 = 7;
+/// input shapers (`shaper.<a>.*`); 8: the output filters and the feed-forward
+/// (`axis.<a>.filter.*`, `axis.<a>.feedforward.*`).
+pub const SETTINGS_VERSION: u16 = 8;
 
 /// Which law an axis runs; its gains follow from the axis' model and the bandwidth
 /// ([`crate::sysid::tuning`]).
@@ -185,6 +188,119 @@ pub struct AxisSettings {
     /// The axis' holding brake (absent from files written before brakes existed: none).
     #[cfg_attr(feature = "serde", serde(default))]
     pub brake: BrakeConfig,
+    /// Feed-forward from the reference: Coulomb pre-compensation and the frame's
+    /// compliance and deflection ([`crate::motion::feedforward`]; absent from files
+    /// written before it existed: none).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub feedforward: FeedForwardConfig,
+    /// Notch and low-pass filters on the control output ([`crate::filter`]; absent from
+    /// files written before they existed: none).
+    #[cfg_attr(feature = "serde", serde(default = "no_filters"))]
+    pub filter: AxisFilterSettings,
+}
+
+/// What one filter stage on an axis' control output is ([`FilterConfig`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum FilterKind {
+    /// A notch of finite depth at `freq_hz`, `width_hz` wide, `depth_db` deep.
+    Notch,
+    /// A second-order low-pass at `freq_hz` with quality `q`.
+    LowPass,
+}
+
+impl FilterKind {
+    pub const ALL: [FilterKind; 2] = [Self::Notch, Self::LowPass];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Notch => "notch",
+            Self::LowPass => "low_pass",
+        }
+    }
+}
+
+/// One filter stage of an axis (`axis.<a>.filter.stage<n>`). The fields a kind does not
+/// use keep their values (a low-pass has no width or depth, a notch no `q`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct FilterStageSettings {
+    /// `notch` or `low_pass`; `None` (key value `none`): the stage is off.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub kind: Option<FilterKind>,
+    /// The notch's centre or the low-pass' cutoff, Hz (`cargo sim filters` places them
+    /// from the measured response).
+    pub freq_hz: f32,
+    /// The notch's width (between the frequencies attenuated by half its depth in dB), Hz.
+    pub width_hz: f32,
+    /// The notch's attenuation at its centre, dB.
+    pub depth_db: f32,
+    /// The low-pass' quality (0.707: Butterworth).
+    pub q: f32,
+}
+
+/// An axis' output filter stages, applied in order; stages that are off are skipped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct AxisFilterSettings {
+    pub stage1: FilterStageSettings,
+    pub stage2: FilterStageSettings,
+    pub stage3: FilterStageSettings,
+    pub stage4: FilterStageSettings,
+}
+
+// (one settings stage per stage the servo runs)
+const _: () = assert!(MAX_STAGES == 4);
+
+/// A stage that is off; a 100 Hz, 20 Hz wide, 20 dB notch or a Butterworth low-pass at
+/// 100 Hz once a kind is chosen.
+const NO_FILTER_STAGE: FilterStageSettings = FilterStageSettings {
+    kind: None,
+    freq_hz: 100.0,
+    width_hz: 20.0,
+    depth_db: 20.0,
+    q: BUTTERWORTH_Q,
+};
+
+/// The factory's filters: none (a notch or a low-pass costs phase; they are placed from a
+/// machine's measured response).
+pub const NO_FILTERS: AxisFilterSettings = AxisFilterSettings {
+    stage1: NO_FILTER_STAGE,
+    stage2: NO_FILTER_STAGE,
+    stage3: NO_FILTER_STAGE,
+    stage4: NO_FILTER_STAGE,
+};
+
+#[cfg(feature = "serde")]
+fn no_filters() -> AxisFilterSettings {
+    NO_FILTERS
+}
+
+impl FilterStageSettings {
+    /// The stage this describes (`None`: off).
+    pub fn config(&self) -> Option<FilterConfig> {
+        self.kind.map(|kind| match kind {
+            FilterKind::Notch => FilterConfig::Notch {
+                freq_hz: self.freq_hz,
+                width_hz: self.width_hz,
+                depth_db: self.depth_db,
+            },
+            FilterKind::LowPass => FilterConfig::LowPass {
+                cutoff_hz: self.freq_hz,
+                q: self.q,
+            },
+        })
+    }
+}
+
+impl AxisFilterSettings {
+    /// The stages in order, `stage1` first.
+    pub fn stages(&self) -> [&FilterStageSettings; MAX_STAGES] {
+        [&self.stage1, &self.stage2, &self.stage3, &self.stage4]
+    }
 }
 
 /// The motion planner's limits of one axis (its velocity at most the axis' `vel_max_mm_s`,
@@ -407,6 +523,8 @@ const fn factory_axis(i: usize) -> AxisSettings {
             jerk_max_mm_s3: GANTRY_PLANNER.jerk_max_mm_s3[i],
         },
         brake: GANTRY_BRAKES[i],
+        feedforward: FeedForwardConfig::NONE,
+        filter: NO_FILTERS,
     }
 }
 

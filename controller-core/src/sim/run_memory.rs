@@ -69,7 +69,7 @@ impl RunMemory {
             comp: crate::motion::compensation::CompTables::NONE,
             shaper: crate::motion::shaper::ShaperStage::NONE,
             queue: crate::machine::RequestQueue::new(),
-            next_servo: None,
+            next_settings: None,
             settings: crate::settings::FACTORY,
         })
     }

@@ -68,7 +68,7 @@ pub fn program_run(cfg: &mut RunConfig, pcfg: &PlannerConfig) -> Result<ProgramR
         comp: controller_core::motion::compensation::CompTables::NONE,
         shaper: controller_core::motion::shaper::ShaperStage::NONE,
         queue: controller_core::machine::RequestQueue::new(),
-        next_servo: None,
+        next_settings: None,
         settings: controller_core::settings::FACTORY,
     });
     SimRun::with_memory(cfg, pcfg, memory).map_err(|e| anyhow!("invalid machine: {e}"))

@@ -68,7 +68,7 @@ static mut MEMORY: MachineMemory<Executor> = MachineMemory {
     comp: controller_core::motion::compensation::CompTables::NONE,
     shaper: controller_core::motion::shaper::ShaperStage::NONE,
     queue: controller_core::machine::RequestQueue::new(),
-    next_servo: None,
+    next_settings: None,
     settings: controller_core::settings::FACTORY,
 };
 static mut PLANNER: MachineTaskPlanner = MachineTaskPlanner::BLANK;

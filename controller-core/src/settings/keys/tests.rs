@@ -9,6 +9,7 @@ use std::vec::Vec;
 
 use super::*;
 use crate::config::ConfigError;
+use crate::filter::MAX_STAGES;
 use crate::law::LawConfig;
 use crate::plant::AxisModel;
 use crate::presets::board::BOARD_RATE_HZ;
@@ -18,9 +19,10 @@ use crate::sysid::tuning;
 
 const RATE: u32 = BOARD_RATE_HZ;
 
-/// Number of keys: 39 per axis, 12 others, 3 per axis' input shaper, 3 per work
-/// coordinate system, 2 per tool.
-const KEY_COUNT: usize = 39 * 3 + 12 + 3 * 3 + 3 * WORK_SYSTEMS + 2 * TOOL_COUNT;
+/// Number of keys: 39 per axis, 9 per axis' feed-forward, 5 per axis' filter stage, 12
+/// others, 3 per axis' input shaper, 3 per work coordinate system, 2 per tool.
+const KEY_COUNT: usize =
+    (39 + 9 + 5 * MAX_STAGES) * 3 + 12 + 3 * 3 + 3 * WORK_SYSTEMS + 2 * TOOL_COUNT;
 
 /// The factory tree with every axis' model known (so every key has a value).
 fn with_models() -> Settings {
@@ -71,8 +73,11 @@ fn keys_are_unique_named_by_their_axis_and_counted() {
         // a unit where the value has one
         if matches!(k.range, Range::F32 { .. }) && !k.name.contains("lambda") {
             assert!(
-                // (dimensionless: damping ratio, tangential share, servo reserve)
+                // (dimensionless: damping ratio, tangential share, servo reserve, a
+                // filter's quality, the Stribeck peak's ratio)
                 !k.unit.is_empty()
+                    || k.name.ends_with(".q")
+                    || k.name.ends_with("stiction_ratio")
                     || k.name.ends_with("damping")
                     || k.name.ends_with("damping_ratio")
                     || k.name.ends_with("share")
@@ -619,7 +624,7 @@ fn change_classes() {
 
 #[test]
 fn work_offsets_and_tools_are_keys_taken_at_any_time() {
-    assert_eq!(KEY_COUNT, 181);
+    assert_eq!(KEY_COUNT, 268);
     let names: Vec<&str> = keys().map(|k| k.name).collect();
     // the tables come last, row by row: G54's three coordinates, ..., then the tools
     let work = names.iter().position(|n| *n == "work.g54.x_mm").unwrap();
@@ -800,4 +805,94 @@ mod properties {
             }
         }
     }
+}
+
+#[test]
+fn feedforward_and_filter_keys_reach_the_servo_configuration_validated_at_the_rate() {
+    use crate::filter::{AxisFilterConfig, FilterConfig};
+    use crate::motion::feedforward::FeedForwardConfig;
+    // the factory's: none on every axis, exactly the board's factory configuration
+    let c = FACTORY.servo_config(RATE).unwrap();
+    assert_eq!(c.feedforward, [FeedForwardConfig::NONE; 3]);
+    assert_eq!(c.filters, [AxisFilterConfig::NONE; 3]);
+
+    // the flexible gantry's Y (host-sim/comp/gantry_flexible/feedforward.toml), a 35 Hz
+    // notch in stage 2 and a low-pass in stage 4 (stages 1 and 3 off: skipped)
+    let mut s = FACTORY;
+    for (k, v) in [
+        ("axis.y.feedforward.coulomb_pos_mnm", "60"),
+        ("axis.y.feedforward.coulomb_neg_mnm", "-50"),
+        ("axis.y.feedforward.stiction_ratio", "1.3"),
+        ("axis.y.feedforward.compliance_s2", "2.323e-5"),
+        ("axis.y.filter.stage2.kind", "notch"),
+        ("axis.y.filter.stage2.freq_hz", "35"),
+        ("axis.y.filter.stage2.width_hz", "10"),
+        ("axis.y.filter.stage2.depth_db", "20"),
+        ("axis.y.filter.stage4.kind", "low_pass"),
+        ("axis.y.filter.stage4.freq_hz", "800"),
+    ] {
+        s.set_text(k, v, RATE)
+            .unwrap_or_else(|e| panic!("{k}: {e}"));
+        assert_eq!(FACTORY.change_class(&s), Some(Apply::OutputsOff), "{k}");
+    }
+    let c = s.servo_config(RATE).unwrap();
+    assert_eq!(
+        c.feedforward[1],
+        FeedForwardConfig {
+            coulomb_pos_mnm: 60.0,
+            coulomb_neg_mnm: -50.0,
+            stiction_ratio: 1.3,
+            compliance_s2: 2.323e-5,
+            ..FeedForwardConfig::NONE
+        }
+    );
+    assert_eq!(
+        c.filters[1].stages(),
+        [
+            FilterConfig::Notch {
+                freq_hz: 35.0,
+                width_hz: 10.0,
+                depth_db: 20.0
+            },
+            FilterConfig::low_pass(800.0)
+        ]
+    );
+    assert_eq!(c.feedforward[0], FeedForwardConfig::NONE);
+    assert_eq!(c.filters[0], AxisFilterConfig::NONE);
+    // the servo runs what the keys say: the filtered servo is built from them
+    assert!(crate::servo::Servo::<f32>::new(&c, [0; 3], [0; 3]).is_ok());
+
+    // a low-pass at 0.45 of the rate or above is refused with the tree, naming the axis
+    // and the stage, and changes nothing
+    let before = s;
+    let e = s
+        .set_text("axis.y.filter.stage4.freq_hz", "4500", RATE)
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "axis.y.filter.stage4.freq_hz = 4500 rejected: axis.y.filter.stage4: parameter \
+         `low_pass.cutoff_hz` is out of its allowed range (frequencies lie from 1/10000 to \
+         0.45 of the control rate)"
+    );
+    assert!(same_tree(&s, &before));
+    // at 20 kHz it is within 0.45 of the rate
+    s.set_text("axis.y.filter.stage4.freq_hz", "4500", 20_000)
+        .unwrap();
+    // a key's own range: a notch deeper than the design's 60 dB, a positive Coulomb
+    // torque for the backward direction
+    assert!(matches!(
+        s.set_text("axis.y.filter.stage2.depth_db", "61", RATE),
+        Err(SetError::OutOfRange { .. })
+    ));
+    assert!(matches!(
+        s.set_text("axis.x.feedforward.coulomb_neg_mnm", "5", RATE),
+        Err(SetError::OutOfRange { .. })
+    ));
+    // a stage switched off again leaves the others
+    s.set_text("axis.y.filter.stage2.kind", "none", 20_000)
+        .unwrap();
+    assert_eq!(
+        s.servo_config(20_000).unwrap().filters[1].stages(),
+        [FilterConfig::low_pass(4500.0)]
+    );
 }
