@@ -131,7 +131,8 @@ enum Command {
     },
     /// The ISO 230-4 circular test: circles of R 50 mm at 3000 mm/min and R 10 mm at
     /// 1000 mm/min, both directions, at the tool; circular deviation G, radius deviation D,
-    /// reversal spikes (host-sim/scenarios/circle.toml, docs/precision.md).
+    /// reversal spikes, and each circle's polar plot (host-sim/scenarios/circle.toml,
+    /// docs/precision.md).
     Circle {
         /// Machine file (default: the built-in physical gantry; e.g.
         /// host-sim/machines/gantry_flexible.toml).
@@ -144,6 +145,12 @@ enum Command {
         /// comp_z.txt: LinuxCNC COMP_FILEs of type 0, as `compensation --write` writes them).
         #[arg(long)]
         comp: Option<PathBuf>,
+        /// Output folder for the polar plots.
+        #[arg(long, default_value = "out/circle")]
+        out: PathBuf,
+        /// Skip the plots.
+        #[arg(long)]
+        no_plots: bool,
     },
     /// Backlash and lead-screw compensation: ISO 230-2's bidirectional positioning test at
     /// the tool (a simulated laser) on every axis, the readings written as LinuxCNC
@@ -307,7 +314,15 @@ fn main() -> ExitCode {
             machine,
             json,
             comp,
-        }) => run_circle(machine.as_deref(), json.as_deref(), comp.as_deref()),
+            out,
+            no_plots,
+        }) => run_circle(
+            machine.as_deref(),
+            json.as_deref(),
+            comp.as_deref(),
+            &out,
+            no_plots,
+        ),
         Some(Command::Compensation {
             machine,
             write,
@@ -535,13 +550,24 @@ fn run_identify(
     Ok(())
 }
 
-fn run_circle(machine: Option<&Path>, json: Option<&Path>, comp: Option<&Path>) -> Result<()> {
+fn run_circle(
+    machine: Option<&Path>,
+    json: Option<&Path>,
+    comp: Option<&Path>,
+    out: &Path,
+    no_plots: bool,
+) -> Result<()> {
     let started = Instant::now();
     let r = host_sim::studies::circle::run_compensated(machine, comp)?;
     print!("{}", host_sim::studies::circle::table(&r));
     if let Some(j) = json {
         write_json(j, &r)?;
         println!("JSON: {}", j.display());
+    }
+    if !no_plots {
+        create_dir(out)?;
+        let n = host_sim::output::circle_plots::figures(out, &r)?;
+        println!("{n} figures (PNG + SVG) in {}", out.display());
     }
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())

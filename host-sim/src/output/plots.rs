@@ -332,14 +332,15 @@ pub(crate) fn thin_path(points: &[(f64, f64)], px: (f64, f64)) -> Vec<(f64, f64)
 
 /// What a legend entry shows before its text.
 #[derive(Clone, Copy)]
-enum Swatch {
+pub(crate) enum Swatch {
     Line(RGBColor),
     Dashed(RGBColor),
 }
 
-struct Entry {
-    text: String,
-    swatch: Swatch,
+/// A legend entry: its line sample and its text.
+pub(crate) struct Entry {
+    pub(crate) text: String,
+    pub(crate) swatch: Swatch,
 }
 
 fn entries(series: &[Series]) -> Vec<Entry> {
@@ -387,7 +388,7 @@ fn wrap<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, text: &str, width: u3
 /// A panel's title over the whole width (smaller type for a long one), and below it the
 /// chart's area and a legend strip to its right wide enough for `texts` (at most 30 % of
 /// the width; longer texts wrap). No strip without texts.
-fn layout<DB: DrawingBackend>(
+pub(crate) fn layout<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
     texts: &[&str],
@@ -416,7 +417,7 @@ fn layout<DB: DrawingBackend>(
 
 /// The legend in its strip: one line sample and (wrapped) text per entry, then the notes;
 /// returns the y (pixels in the strip) below it.
-fn draw_legend<DB: DrawingBackend>(
+pub(crate) fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     entries: &[Entry],
     notes: &[String],

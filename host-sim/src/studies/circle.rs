@@ -1,11 +1,12 @@
 //! `host-sim circle [--machine FILE]`: the ISO 230-4 circular test on a simulated
 //! machine (host-sim/scenarios/circle.toml: two radii and feeds, both directions), each
-//! circle evaluated at the tool over its last full turn ([`super::circular_test`]).
+//! circle evaluated at the tool over its last full turn ([`super::circular_test`]), its
+//! radial deviation kept for the polar plot (`crate::output::circle_plots`).
 
 use crate::builtin::{self, resolve_all};
 use crate::engine::simulate;
 use crate::jobs;
-use crate::studies::circular_test::{evaluate, CircleFigures};
+use crate::studies::circular_test::{evaluate_traced, CircleFigures, RadialDeviation};
 use anyhow::{bail, Context, Result};
 use controller_core::motion::trajectory::Trajectory;
 use gantry_scenario::Resolved;
@@ -25,6 +26,11 @@ pub struct CircleCase {
     pub figures: CircleFigures,
     /// The run's contour error at the tool (to the programmed circle), max, µm.
     pub contour_max_um: f64,
+    /// The radial deviation about the least-squares centre over the judged turn, for the
+    /// polar plot; not in the JSON (its keys are fixed, and a trace per case would swamp
+    /// the figures).
+    #[serde(skip)]
+    pub trace: Vec<RadialDeviation>,
 }
 
 /// Every circle of the test on one machine.
@@ -71,15 +77,16 @@ fn case(r: &Resolved) -> Result<CircleCase> {
         .filter(|(t, _)| **t >= from_s && **t < from_s + turn_s)
         .map(|(_, p)| [p[0], p[1]])
         .collect();
-    let figures = evaluate(&pts, centre, radius).with_context(|| format!("run {}", r.name))?;
+    let eval = evaluate_traced(&pts, centre, radius).with_context(|| format!("run {}", r.name))?;
     Ok(CircleCase {
         name: r.name.clone(),
         radius_mm: radius,
         feed_mm_min: radius * omega.abs() * 60.0,
         // x = cx + r sin(ωt), y = cy + r cos(ωt): ω > 0 turns from +Y towards +X
         direction: if omega > 0.0 { "cw" } else { "ccw" },
-        figures,
+        figures: eval.figures,
         contour_max_um: res.contour_max * 1e3,
+        trace: eval.trace,
     })
 }
 

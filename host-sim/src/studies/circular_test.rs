@@ -10,6 +10,9 @@
 //! bump a reversal adds to the circle, not the circle's own out-of-roundness. The
 //! standard states the spikes' heights from the plot; this is that reading made
 //! numerical.
+//!
+//! [`evaluate_traced`] also hands back the radial deviation against angle, the trace the
+//! polar plot draws (`host-sim/src/output/circle_plots.rs`).
 
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -30,6 +33,25 @@ pub struct CircleFigures {
     pub reversal_spike_um: f64,
     /// The least-squares centre's offset from the nominal centre, µm.
     pub centre_offset_um: [f64; 2],
+}
+
+/// One sample of the radial deviation trace: what the polar plot draws.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadialDeviation {
+    /// The point's angle about the least-squares centre, from +X towards +Y
+    /// (counter-clockwise seen from +Z, as the plot shows the XY plane), radians within
+    /// ±π.
+    pub angle_rad: f64,
+    /// Its distance from the least-squares centre less the least-squares radius, µm.
+    pub dev_um: f64,
+}
+
+/// The figures of one circle and the radial deviation they were taken from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    pub figures: CircleFigures,
+    /// One sample per traced point, in the order traced.
+    pub trace: Vec<RadialDeviation>,
 }
 
 /// A circle fitted by least squares (Kåsa's algebraic fit: exact for points on a circle,
@@ -99,6 +121,11 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
 /// Evaluate one full turn of tool positions `pts` (XY, mm) against the nominal circle
 /// (`centre`, `radius`, mm).
 pub fn evaluate(pts: &[[f64; 2]], centre: [f64; 2], radius: f64) -> Result<CircleFigures> {
+    Ok(evaluate_traced(pts, centre, radius)?.figures)
+}
+
+/// [`evaluate`], with the radial deviation about the least-squares centre at each point.
+pub fn evaluate_traced(pts: &[[f64; 2]], centre: [f64; 2], radius: f64) -> Result<Evaluation> {
     let f = fit(pts)?;
     let dev: Vec<(f64, f64)> = pts
         .iter()
@@ -132,14 +159,28 @@ pub fn evaluate(pts: &[[f64; 2]], centre: [f64; 2], radius: f64) -> Result<Circl
             .fold(0.0, f64::max);
         spike = spike.max(peak);
     }
-    Ok(CircleFigures {
-        circular_deviation_um: (hi - lo) * 1e3,
-        radius_deviation_um: (f.radius - radius) * 1e3,
-        reversal_spike_um: spike * 1e3,
-        centre_offset_um: [
-            (f.centre[0] - centre[0]) * 1e3,
-            (f.centre[1] - centre[1]) * 1e3,
-        ],
+    // the plot's angle is the XY plane's own (from +X, counter-clockwise), not the test's
+    // (from +Y, clockwise) the spikes are looked for in: the picture keeps the machine's
+    // orientation; the deviations are the very ones G is the range of
+    let trace = pts
+        .iter()
+        .zip(&dev)
+        .map(|(p, (_, d))| RadialDeviation {
+            angle_rad: (p[1] - f.centre[1]).atan2(p[0] - f.centre[0]),
+            dev_um: d * 1e3,
+        })
+        .collect();
+    Ok(Evaluation {
+        figures: CircleFigures {
+            circular_deviation_um: (hi - lo) * 1e3,
+            radius_deviation_um: (f.radius - radius) * 1e3,
+            reversal_spike_um: spike * 1e3,
+            centre_offset_um: [
+                (f.centre[0] - centre[0]) * 1e3,
+                (f.centre[1] - centre[1]) * 1e3,
+            ],
+        },
+        trace,
     })
 }
 
@@ -187,6 +228,29 @@ mod tests {
         });
         let f = evaluate(&bumped, [0.0, 0.0], 50.0).unwrap();
         assert!((f.reversal_spike_um - 4.0).abs() < 0.05, "{f:?}");
+    }
+
+    #[test]
+    fn the_trace_is_the_deviation_g_is_the_range_of_at_the_points_angles() {
+        // +5 µm at +X (the test's 90°), -5 µm at +Y (its 0°)
+        let oval = circle([2.0, -50.0], 50.0, 3600, |a| {
+            -5e-3 * (2.0 * a.to_radians()).cos()
+        });
+        let e = evaluate_traced(&oval, [2.0, -50.0], 50.0).unwrap();
+        assert_eq!(e.trace.len(), oval.len());
+        let (lo, hi) = e.trace.iter().fold((f64::MAX, f64::MIN), |(l, h), t| {
+            (l.min(t.dev_um), h.max(t.dev_um))
+        });
+        assert!((hi - lo - e.figures.circular_deviation_um).abs() < 1e-9);
+        // the first point is at +Y, the 900th (90° clockwise) at +X
+        assert!((e.trace[0].angle_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+        assert!((e.trace[0].dev_um + 5.0).abs() < 0.01, "{:?}", e.trace[0]);
+        assert!(e.trace[900].angle_rad.abs() < 1e-6, "{:?}", e.trace[900]);
+        assert!(
+            (e.trace[900].dev_um - 5.0).abs() < 0.01,
+            "{:?}",
+            e.trace[900]
+        );
     }
 
     #[test]
