@@ -199,12 +199,25 @@ struct AxisTerms<R> {
     inv_v_stribeck: R,
 }
 
+/// How long after the deflection term last moved the motor faster than
+/// [`TURN_RATE_MM_S`] an axis counts as turning ([`FeedForward::turning_mask`]), s: as a
+/// compensation table's step ([`crate::motion::compensation::CROSSING_HOLD_S`]), the
+/// motor side catching up with the term's step rings for a few of the frame's periods.
+pub const TURN_HOLD_S: f32 = crate::motion::compensation::CROSSING_HOLD_S;
+
+/// A deflection rate above this is the term turning with the friction (a reversal, or a
+/// stop: up to 0.25 mm within the reversal band, tens of mm/s after a hard stop), not its
+/// slow change at speed; the compensation's threshold for the same kind of step.
+pub const TURN_RATE_MM_S: f32 = crate::motion::compensation::STEP_RATE_MM_S;
+
 /// The three axes' feed-forward, validated.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FeedForward<R> {
     axes: [AxisTerms<R>; AXES],
     /// Axes with a term (bit i: axis i); none: the servo skips the block.
     any: u8,
+    /// Per axis, time left in which the deflection term counts as turning, s.
+    turning_s: [f32; AXES],
 }
 
 impl<R: Real> FeedForward<R> {
@@ -239,7 +252,27 @@ impl<R: Real> FeedForward<R> {
                 inv_v_stribeck: R::from_f32(1.0 / c.v_stribeck_mm_s),
             };
         }
-        Ok(Self { axes, any })
+        Ok(Self {
+            axes,
+            any,
+            turning_s: [0.0; AXES],
+        })
+    }
+
+    /// Axes whose deflection term turned within [`TURN_HOLD_S`] (bit i: axis i): it steps
+    /// the motor by the frame's bend as the friction turns, which the counts-due check's
+    /// rigid bounds do not describe (the servo releases its claims there, as for a
+    /// compensation table's step; the following-error, jump and runaway checks still
+    /// watch the axis).
+    #[inline(always)]
+    pub fn turning_mask(&self) -> u8 {
+        let mut m = 0;
+        for (i, t) in self.turning_s.iter().enumerate() {
+            if *t > 0.0 {
+                m |= 1 << i;
+            }
+        }
+        m
     }
 
     /// Does any axis have a term?
@@ -252,9 +285,15 @@ impl<R: Real> FeedForward<R> {
     /// reference `nominal`, on the axes of `active` (bit i: axis i); returns the Coulomb
     /// effort of `nominal`'s direction on them. (`r` is `nominal` plus what the
     /// compensation added: the terms are the nominal's, not the compensation offset's
-    /// own rates.)
+    /// own rates.) `dt_s`, the period, counts down [`Self::turning_mask`]'s hold.
     #[inline]
-    pub fn apply(&self, nominal: &RefSample<R>, r: &mut RefSample<R>, active: u8) -> Vec3<R> {
+    pub fn apply(
+        &mut self,
+        nominal: &RefSample<R>,
+        r: &mut RefSample<R>,
+        active: u8,
+        dt_s: f32,
+    ) -> Vec3<R> {
         let mut effort = Vec3::zero();
         let on = self.any & active;
         if on == 0 {
@@ -283,7 +322,15 @@ impl<R: Real> FeedForward<R> {
             // deflection's, h''(v)·a², reaches 200 mm/s² as a reversal's friction turns,
             // and fed to the laws' equivalent control with the whole axis' inertia it
             // rang the flexible gantry's Y mode: G 6.8 -> 11.0 µm on the circle.)
-            r.vel[i] += t.lag * a + deflection * d_h * a;
+            let turn_rate = deflection * d_h * a;
+            r.vel[i] += t.lag * a + turn_rate;
+            if let Some(left) = self.turning_s.get_mut(i) {
+                *left = if turn_rate.abs().to_f32() > TURN_RATE_MM_S {
+                    TURN_HOLD_S
+                } else {
+                    (*left - dt_s).max(0.0)
+                };
+            }
         }
         effort
     }
@@ -354,20 +401,20 @@ mod tests {
 
     #[test]
     fn friction_and_deflection_follow_the_direction_and_vanish_at_rest() {
-        let ff = FeedForward::<f32>::new(&[FeedForwardConfig::NONE, cfg(), cfg()]).unwrap();
+        let mut ff = FeedForward::<f32>::new(&[FeedForwardConfig::NONE, cfg(), cfg()]).unwrap();
         let mut r = sample(50.0, 0.0);
-        let u = ff.apply(&{ r }, &mut r, 0b111);
+        let u = ff.apply(&{ r }, &mut r, 0b111, 1e-4);
         assert_eq!(u[0], 0.0);
         assert_eq!(r.pos[0], 10.0);
         assert_eq!(u[1], 60.0);
         assert!((r.pos[1] - 10.021).abs() < 1e-6);
         let mut r = sample(-50.0, 0.0);
-        let u = ff.apply(&{ r }, &mut r, 0b111);
+        let u = ff.apply(&{ r }, &mut r, 0b111, 1e-4);
         assert_eq!(u[1], -50.0);
         assert!((r.pos[1] - 9.982).abs() < 1e-6);
         // half the band: ρ = 0.5/√1.25, its slope 1.25^(-3/2), the deflection's rate added
         let mut r = sample(0.25, 100.0);
-        let u = ff.apply(&{ r }, &mut r, 0b111);
+        let u = ff.apply(&{ r }, &mut r, 0b111, 1e-4);
         let (rho, slope) = (0.5 / 1.25f32.sqrt(), 1.25f32.powf(-1.5));
         assert!((u[1] - 60.0 * rho).abs() < 1e-4, "{u:?}");
         let dpos = 2.0e-5 * 100.0 + 0.021 * rho;
@@ -380,14 +427,47 @@ mod tests {
         assert!((a - b).abs() < 2e-4 && b == 1.0, "{a} {b}");
         // at rest nothing moves
         let mut r = sample(0.0, 0.0);
-        let u = ff.apply(&{ r }, &mut r, 0b111);
+        let u = ff.apply(&{ r }, &mut r, 0b111, 1e-4);
         assert_eq!(u, Vec3::zero());
         assert_eq!(r, sample(0.0, 0.0));
         // an inactive axis gets nothing
         let mut r = sample(50.0, 10.0);
-        let u = ff.apply(&{ r }, &mut r, 0b001);
+        let u = ff.apply(&{ r }, &mut r, 0b001, 1e-4);
         assert_eq!(u, Vec3::zero());
         assert_eq!(r, sample(50.0, 10.0));
+    }
+
+    #[test]
+    fn a_stop_turns_the_deflection_and_the_mask_holds_it() {
+        // Y with a deflection, X with the Coulomb term only (it never turns)
+        let mut c = cfg();
+        c.deflection_pos_mm = 0.0;
+        c.deflection_neg_mm = 0.0;
+        let mut ff = FeedForward::<f32>::new(&[c, cfg(), FeedForwardConfig::NONE]).unwrap();
+        let dt = 1e-4;
+        // at speed: the term stands still
+        let mut r = sample(50.0, 0.0);
+        ff.apply(&{ r }, &mut r, 0b111, dt);
+        assert_eq!(ff.turning_mask(), 0);
+        // a 2000 mm/s² stop through the reversal band: 0.021 mm · ρ'(v/0.5) / 0.5 · 2000,
+        // 84 mm/s at v = 0, far above TURN_RATE_MM_S
+        let mut r = sample(0.1, -2000.0);
+        ff.apply(&{ r }, &mut r, 0b111, dt);
+        assert_eq!(ff.turning_mask(), 0b010);
+        // held for TURN_HOLD_S at rest, then released
+        let periods = (TURN_HOLD_S / dt).round() as usize;
+        for k in 0..periods + 2 {
+            let mut r = sample(0.0, 0.0);
+            ff.apply(&{ r }, &mut r, 0b111, dt);
+            if k + 2 < periods {
+                assert_eq!(ff.turning_mask(), 0b010, "period {k}");
+            }
+        }
+        assert_eq!(ff.turning_mask(), 0);
+        // slow through the band (5 mm/s²: 0.2 mm/s at most) is not a turn
+        let mut r = sample(0.0, -5.0);
+        ff.apply(&{ r }, &mut r, 0b111, dt);
+        assert_eq!(ff.turning_mask(), 0);
     }
 
     #[test]
@@ -395,16 +475,16 @@ mod tests {
         let mut c = cfg();
         c.stiction_ratio = 1.3;
         c.compliance_s2 = 0.0;
-        let ff = FeedForward::<f64>::new(&[c; AXES]).unwrap();
+        let mut ff = FeedForward::<f64>::new(&[c; AXES]).unwrap();
         let a = 50.0;
-        let at = |v: f64| {
+        let mut at = |v: f64| {
             let n = RefSample {
                 pos: Vec3::new(0.0, 0.0, 0.0),
                 vel: Vec3::new(v, v, v),
                 acc: Vec3::new(a, a, a),
             };
             let mut r = n;
-            let u = ff.apply(&n, &mut r, 0b111);
+            let u = ff.apply(&n, &mut r, 0b111, 1e-4);
             (r.pos[1], r.vel[1] - v, u[1])
         };
         for v in [-3.0, -1.0, -0.3, 0.2, 0.7, 2.5, 6.0] {
@@ -431,9 +511,9 @@ mod tests {
 
     #[test]
     fn a_non_finite_reference_adds_nothing_unbounded() {
-        let ff = FeedForward::<f32>::new(&[cfg(); AXES]).unwrap();
+        let mut ff = FeedForward::<f32>::new(&[cfg(); AXES]).unwrap();
         let mut r = sample(f32::NAN, 0.0);
-        let u = ff.apply(&{ r }, &mut r, 0b111);
+        let u = ff.apply(&{ r }, &mut r, 0b111, 1e-4);
         for i in 0..AXES {
             assert!(u[i].is_finite() && u[i].abs() <= 60.0, "{u:?}");
         }

@@ -471,9 +471,14 @@ impl<R: Real> Servo<R> {
             }
         }
         if self.ff.any() {
-            self.ff_effort = self
-                .ff
-                .apply(&programmed, &mut reference, self.tracking_mask());
+            let active = self.tracking_mask();
+            self.ff_effort =
+                self.ff
+                    .apply(&programmed, &mut reference, active, self.period_s as f32);
+            let turning = self.ff.turning_mask();
+            if turning != 0 {
+                self.monitor.release_due_claims(turning);
+            }
         }
 
         // 4. Positions and velocities.

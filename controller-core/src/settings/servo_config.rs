@@ -171,8 +171,9 @@ impl Settings {
     /// finite) and `Servo::new` itself, so a configuration returned here is one the servo
     /// accepts.
     ///
-    /// This builds a `Servo<f32>` on the stack to validate (4.2 KiB on a 64-bit host,
-    /// less on the MCU).
+    /// The servo's own validation is [`Servo::check`], which keeps no servo (0.8 KiB of
+    /// frame on the board, where the link task runs this preempted by the control
+    /// interrupt).
     pub fn servo_config(&self, rate_hz: u32) -> Result<ServoConfig, ServoConfigError> {
         let mut c = factory_config(rate_hz);
         for (i, a) in self.axis.iter().enumerate() {
@@ -365,10 +366,12 @@ mod tests {
     }
 
     #[test]
-    fn validating_servo_fits_the_documented_stack_budget() {
-        // servo_config's doc states the stack the validation takes
+    fn a_servo_fits_the_frame_the_board_measured() {
+        // `Servo::reconfigure` builds a whole servo in the control interrupt's frame (the
+        // board's stack high-waters in firmware/README-firmware.md were measured with it
+        // at this size): a larger servo needs them measured again
         let size = core::mem::size_of::<Servo<f32>>();
         std::println!("Servo<f32>: {size} bytes");
-        assert!(size <= 4300, "Servo<f32> is {size} bytes");
+        assert!(size <= 4400, "Servo<f32> is {size} bytes");
     }
 }
