@@ -591,6 +591,7 @@ mod split {
                 planner: exec,
                 scope: Scope::new(),
                 comp: controller_core::motion::compensation::CompTables::NONE,
+                comp_entry: controller_core::machine::CompEntry::NONE,
                 shaper: controller_core::motion::shaper::ShaperStage::NONE,
                 queue: controller_core::machine::RequestQueue::new(),
                 next_settings: None,
@@ -944,4 +945,177 @@ fn compensation_tables_arm_in_place_are_refused_while_armed_and_move_the_motor_b
     );
     assert!((snap.pos[0] - 50.025).abs() < 0.002, "{:?}", snap.pos);
     assert!(!m.servo().faults().any());
+}
+
+/// The transfer of a table over the link: `Request::CompBegin`, `CompPoints` in parts,
+/// `CompCommit`, read back with `CompRead`, as `gantry comp load` sends it.
+fn comp_requests(
+    axis: u8,
+    pts: &[controller_core::motion::compensation::CompPoint],
+    backlash_mm: f32,
+) -> Vec<Request> {
+    use controller_core::machine::messages::COMP_CHUNK;
+    let mut r = vec![Request::CompBegin {
+        axis,
+        points: pts.len() as u16,
+        backlash_mm,
+        rate_mm_s: 20.0,
+        accel_mm_s2: 5000.0,
+    }];
+    for (k, part) in pts.chunks(COMP_CHUNK).enumerate() {
+        r.push(Request::CompPoints {
+            first: (k * COMP_CHUNK) as u16,
+            points: heapless::Vec::from_slice(part).unwrap(),
+        });
+    }
+    r.push(Request::CompCommit);
+    r
+}
+
+/// Execute `r` alone and return its outcome.
+fn outcome(m: &mut M, w: &mut World, r: Request) -> Outcome {
+    let before = m.executed();
+    m.submit(r);
+    periods(m, w, 1);
+    assert_eq!(m.executed(), before + 1, "executed in its period");
+    m.last().clone()
+}
+
+fn is_refused_with(o: &Outcome, text: &str) -> bool {
+    matches!(o, Outcome::Refused(t) if t.contains(text))
+}
+
+#[test]
+fn a_compensation_table_entered_over_the_link_is_the_table_entered_whole_and_reads_back() {
+    use controller_core::machine::messages::CompChunk;
+    use controller_core::motion::compensation::{AxisCompensation, CompPoint};
+    let (mut m, mut w) = machine();
+    // 37 points: parts of 8, the last one of 5
+    let pts: Vec<CompPoint> = (0..37)
+        .map(|i| CompPoint {
+            nominal_mm: -180.0 + 10.0 * i as f32,
+            fwd_trim_mm: 0.015 * ((i as f32) * 0.4).sin(),
+            rev_trim_mm: 0.015 * ((i as f32) * 0.4).sin() - 0.003,
+        })
+        .collect();
+    for r in comp_requests(1, &pts, 0.020) {
+        assert_eq!(outcome(&mut m, &mut w, r), Outcome::Done);
+    }
+    let whole = AxisCompensation::with_limits(&pts, 0.020, 20.0, 5000.0).unwrap();
+    assert_eq!(*m.compensation().axis(1), whole, "bit for bit");
+    assert!(m.compensation().axis(0).is_none() && m.compensation().axis(2).is_none());
+    assert_eq!(m.status().comp, 0b010);
+    // read back, 6 points at a time
+    let mut back = Vec::new();
+    loop {
+        let o = outcome(
+            &mut m,
+            &mut w,
+            Request::CompRead {
+                axis: 1,
+                first: back.len() as u16,
+            },
+        );
+        let Outcome::Comp(CompChunk {
+            axis: 1,
+            total: 37,
+            backlash_mm,
+            points,
+            ..
+        }) = o
+        else {
+            panic!("{o:?}")
+        };
+        assert_eq!(backlash_mm, 0.020);
+        if points.is_empty() {
+            break;
+        }
+        back.extend(points);
+    }
+    assert_eq!(back.len(), 37);
+    for (i, p) in back.iter().enumerate() {
+        assert_eq!(Some(*p), whole.point(i));
+        assert!((p.fwd_trim_mm - pts[i].fwd_trim_mm).abs() <= 0.5e-4 + 1e-7);
+    }
+    // an empty transfer clears the axis
+    for r in comp_requests(1, &[], 0.0) {
+        assert_eq!(outcome(&mut m, &mut w, r), Outcome::Done);
+    }
+    assert_eq!(m.status().comp, 0);
+}
+
+#[test]
+fn a_compensation_transfer_refuses_bad_parts_and_commits_only_with_the_outputs_off() {
+    use controller_core::motion::compensation::CompPoint;
+    let (mut m, mut w) = machine();
+    let p = |n: f32, t: f32| CompPoint {
+        nominal_mm: n,
+        fwd_trim_mm: t,
+        rev_trim_mm: t,
+    };
+    let pts = [p(0.0, 0.01), p(50.0, 0.02), p(100.0, 0.0)];
+    let points = |first: u16, ps: &[CompPoint]| Request::CompPoints {
+        first,
+        points: heapless::Vec::from_slice(ps).unwrap(),
+    };
+    // nothing under way
+    let o = outcome(&mut m, &mut w, points(0, &pts));
+    assert!(is_refused_with(&o, "no table transfer under way"), "{o:?}");
+    let o = outcome(&mut m, &mut w, Request::CompCommit);
+    assert!(is_refused_with(&o, "no table transfer under way"), "{o:?}");
+    // a bad axis, a bad backlash
+    let mut begin = comp_requests(3, &pts, 0.0).remove(0);
+    let o = outcome(&mut m, &mut w, begin.clone());
+    assert!(is_refused_with(&o, "axis must be 0, 1 or 2"), "{o:?}");
+    if let Request::CompBegin {
+        axis, backlash_mm, ..
+    } = &mut begin
+    {
+        *axis = 0;
+        *backlash_mm = 2.0;
+    }
+    let o = outcome(&mut m, &mut w, begin.clone());
+    assert!(is_refused_with(&o, "backlash"), "{o:?}");
+    // a good begin; parts out of order, not increasing, not finite, too large: refused
+    let reqs = comp_requests(0, &pts, 0.01);
+    assert_eq!(outcome(&mut m, &mut w, reqs[0].clone()), Outcome::Done);
+    let o = outcome(&mut m, &mut w, points(1, &pts[1..]));
+    assert!(is_refused_with(&o, "out of order"), "{o:?}");
+    let o = outcome(&mut m, &mut w, points(0, &[pts[1], pts[0]]));
+    assert!(is_refused_with(&o, "increase strictly"), "{o:?}");
+    let o = outcome(&mut m, &mut w, points(0, &[p(0.0, f32::NAN)]));
+    assert!(is_refused_with(&o, "not finite"), "{o:?}");
+    let o = outcome(&mut m, &mut w, points(0, &[p(0.0, 5.0)]));
+    assert!(is_refused_with(&o, "trim beyond"), "{o:?}");
+    // a commit short of points: refused, the transfer stays
+    assert_eq!(outcome(&mut m, &mut w, points(0, &pts[..2])), Outcome::Done);
+    let o = outcome(&mut m, &mut w, Request::CompCommit);
+    assert!(is_refused_with(&o, "fewer points"), "{o:?}");
+    assert_eq!(outcome(&mut m, &mut w, points(2, &pts[2..])), Outcome::Done);
+    // armed: the commit is refused and changes nothing
+    m.submit(Request::Arm);
+    periods(&mut m, &mut w, 3000);
+    assert_eq!(m.servo().state(), ServoState::Idle);
+    let o = outcome(&mut m, &mut w, Request::CompCommit);
+    assert!(is_refused_with(&o, "outputs are on"), "{o:?}");
+    assert_eq!(m.status().comp, 0);
+    // disarmed: taken
+    m.submit(Request::Disarm);
+    let mut k = 0;
+    while m.servo().state().drives() || m.servo().switching_off() {
+        periods(&mut m, &mut w, 100);
+        k += 100;
+        assert!(k < 10_000, "the disarm did not end");
+    }
+    assert_eq!(outcome(&mut m, &mut w, Request::CompCommit), Outcome::Done);
+    assert_eq!(m.status().comp, 0b001);
+    // a new session drops a transfer under way: its commit is refused
+    let reqs = comp_requests(2, &pts, 0.0);
+    for r in &reqs[..reqs.len() - 1] {
+        assert_eq!(outcome(&mut m, &mut w, r.clone()), Outcome::Done);
+    }
+    m.session_started();
+    let o = outcome(&mut m, &mut w, Request::CompCommit);
+    assert!(is_refused_with(&o, "no table transfer under way"), "{o:?}");
+    assert_eq!(m.status().comp, 0b001);
 }

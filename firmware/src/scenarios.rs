@@ -65,6 +65,7 @@ mod tests {
                 planner: MachinePlanner::BLANK,
                 scope: Scope::new(),
                 comp: controller_core::motion::compensation::CompTables::NONE,
+                comp_entry: controller_core::machine::CompEntry::NONE,
                 shaper: controller_core::motion::shaper::ShaperStage::NONE,
                 queue: controller_core::machine::RequestQueue::new(),
                 next_settings: None,

@@ -243,6 +243,13 @@ enum Command {
         /// (e.g. `--set planner.servo_reserve=0`).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Enter the backlash and lead-screw tables of this folder before the machine arms
+        /// (comp_x.txt, comp_y.txt, comp_z.txt: LinuxCNC COMP_FILEs of type 0, as
+        /// `compensation --write` writes them; an absent file: none on that axis), as
+        /// `gantry comp load` enters them on a board. Only the tables: the feed-forward and
+        /// the filters are settings here (`--set axis.<a>.feedforward.*`, `axis.<a>.filter.*`).
+        #[arg(long, value_name = "DIR")]
+        comp: Option<PathBuf>,
     },
     /// Write the planner's benchmark programs (host_sim::bench_programs) to DIR as
     /// `<name>.nc`, the rest-to-rest lines as `r2r_<dir>_<len>.nc` (docs/planner.md).
@@ -360,6 +367,7 @@ fn main() -> ExitCode {
             out,
             no_plots,
             set,
+            comp,
         }) => {
             return run_gcode(
                 &file,
@@ -368,6 +376,7 @@ fn main() -> ExitCode {
                 out.as_deref(),
                 no_plots,
                 &set,
+                comp.as_deref(),
             )
         }
         Some(Command::BenchPrograms { out, huge }) => write_bench_programs(&out, huge),
@@ -684,9 +693,10 @@ fn run_gcode(
     out: Option<&Path>,
     no_plots: bool,
     set: &[String],
+    comp: Option<&Path>,
 ) -> ExitCode {
     use host_sim::gcode::report::{table, GcodeReport};
-    use host_sim::gcode::runner::run_with_settings;
+    use host_sim::gcode::runner::run_compensated;
     use host_sim::sim_gantry::machine_and_planner;
     let started = Instant::now();
     let res = (|| -> Result<GcodeReport> {
@@ -700,7 +710,21 @@ fn run_gcode(
         if !set.is_empty() {
             println!("settings overrides: {}", set.join(", "));
         }
-        let r = run_with_settings(file, machine, &settings, std::io::stderr().is_terminal())?;
+        let tables = match comp {
+            Some(dir) => {
+                let t = host_sim::comp_file::read_dir(dir)?;
+                println!("compensation tables: {}", dir.display());
+                t
+            }
+            None => [controller_core::motion::compensation::AxisCompensation::NONE; 3],
+        };
+        let r = run_compensated(
+            file,
+            machine,
+            &settings,
+            &tables,
+            std::io::stderr().is_terminal(),
+        )?;
         print!("{}", table(&r));
         if let Some(j) = json {
             write_json(j, &r)?;

@@ -239,3 +239,100 @@ fn a_jog_the_host_leaves_with_a_goodbye_stops_without_a_fault_and_the_machine_st
     // at rest (the jog was 20 mm/s): the estimate's noise while holding
     assert!(s.vel_mm_s[0].abs() < 1.0, "{s:?}");
 }
+
+#[test]
+fn a_compensation_table_loaded_on_a_served_machine_reads_back_as_sent_and_is_refused_while_armed() {
+    let dir = TempDir::new("comp");
+    let pty = dir.0.join("tty");
+    let flash = dir.0.join("gantry.flash");
+    let server = Server::start(&pty, &flash);
+    // a LinuxCNC type-0 file: the positions measured at the tool
+    let file = dir.0.join("comp_y.txt");
+    std::fs::write(
+        &file,
+        "# nominal forward-actual reverse-actual\n-150 -150.012 -149.992\n0 0.004 0.021\n150 150.010 150.030\n",
+    )
+    .unwrap();
+    let f = file.to_str().unwrap();
+    let out = ok(&pty, &["comp", "load", "y", f, "--backlash-mm", "0.02"]);
+    assert!(out.contains("3 points"), "{out}");
+    assert_eq!(status(&pty)["comp"], 0b010);
+    // read back: the trims are nominal − actual, the backlash as given
+    let shown: serde_json::Value =
+        serde_json::from_str(&ok(&pty, &["comp", "show", "y", "--json"])).unwrap();
+    assert_eq!(shown["backlash_mm"], 0.02, "{shown}");
+    assert_eq!(
+        shown["points"],
+        serde_json::json!([
+            [-150.0, 0.012, -0.008],
+            [0.0, -0.004, -0.021],
+            [150.0, -0.01, -0.03]
+        ]),
+        "{shown}"
+    );
+    // the text form is a type-1 file that loads back to the same table
+    let text = ok(&pty, &["comp", "show", "y"]);
+    let again = dir.0.join("again.txt");
+    std::fs::write(&again, text.lines().skip(1).collect::<Vec<_>>().join("\n")).unwrap();
+    ok(
+        &pty,
+        &[
+            "comp",
+            "load",
+            "y",
+            again.to_str().unwrap(),
+            "--file-type",
+            "1",
+            "--backlash-mm",
+            "0.02",
+        ],
+    );
+    assert_eq!(ok(&pty, &["comp", "show", "y"]), text);
+    // a bad file is refused by FILE:LINE and changes nothing
+    std::fs::write(&file, "0 0 0\n-1 0 0\n").unwrap();
+    let o = gantry(&pty, &["comp", "load", "y", f]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("comp_y.txt:2"), "{err}");
+    assert_eq!(ok(&pty, &["comp", "show", "y"]), text);
+    // armed: refused, nothing changes; disarmed: cleared
+    ok(&pty, &["arm"]);
+    let o = gantry(&pty, &["comp", "clear", "y"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("outputs are on"),
+        "{err}"
+    );
+    assert_eq!(status(&pty)["comp"], 0b010);
+    ok(&pty, &["disarm"]);
+    ok(&pty, &["comp", "clear", "y"]);
+    assert_eq!(status(&pty)["comp"], 0);
+    // a table beside the feed-forward's friction deflection: loaded, with a warning that
+    // the reversal is compensated twice
+    ok(
+        &pty,
+        &[
+            "settings",
+            "set",
+            "axis.y.feedforward.deflection_pos_mm",
+            "0.02",
+        ],
+    );
+    let o = gantry(
+        &pty,
+        &[
+            "comp",
+            "load",
+            "y",
+            again.to_str().unwrap(),
+            "--file-type",
+            "1",
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && err.contains("compensated twice"),
+        "{err}"
+    );
+    assert_eq!(status(&pty)["comp"], 0b010);
+    server.stop();
+}

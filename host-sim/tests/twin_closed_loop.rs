@@ -1,5 +1,5 @@
 //! The release firmware closed-loop on the board twin (firmware/twin, docs/board-twin.md):
-//! `gantry run` of the square and the arcs programs over the twin's USART2, TIM1's duty
+//! `gantry run` of the square and the arcs (at twice their feeds) programs over the twin's USART2, TIM1's duty
 //! and the DIR pins driving the simulated gantry of `gantry --sim` (the `twin-plant`
 //! helper), its counts back in the encoder timers; the same program on `gantry --sim` with
 //! the same settings and telemetry rate. The twin's run completes, with its contour max
@@ -26,7 +26,7 @@ use host_sim::gcode::report::GcodeReport;
 /// figures are taken from it. (1 kHz, `gantry`'s default, works too: every telemetry
 /// byte is a UART interrupt the twin emulates: several times the wall time.)
 const DECIMATION: u32 = 100;
-/// Machine seconds a twin serves at most (the arcs take 35).
+/// Machine seconds a twin serves at most (the arcs at twice their feeds take 18).
 const TWIN_SECONDS: u32 = 120;
 /// How far the twin's contour max may be from `--sim`'s.
 const CONTOUR_RATIO_BOUND: f64 = 0.10;
@@ -524,10 +524,47 @@ fn on_sim(program: &Path) -> GcodeReport {
     cli::run_program(&mut c, program, f64::from(DECIMATION) / 1e4, false, None).unwrap()
 }
 
+/// host-sim/programs/arcs.nc with every feed doubled (F1000 → F2000 …), as
+/// `arcs_x2.nc` in a temporary folder: the same arcs of every kind in half the machine time
+/// (17 s instead of 34: the twin emulates the board at about 1/20 of real time, and the
+/// arcs were the longest job of a CI run).
+fn arcs_at_twice_the_feed() -> PathBuf {
+    let text = std::fs::read_to_string(root().join("host-sim/programs/arcs.nc")).unwrap();
+    let doubled: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if l.starts_with('(') {
+                return l.to_string();
+            }
+            l.split(' ')
+                .map(
+                    |w| match w.strip_prefix('F').and_then(|f| f.parse::<f64>().ok()) {
+                        Some(f) => format!("F{}", 2.0 * f),
+                        None => w.to_string(),
+                    },
+                )
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect();
+    assert!(
+        doubled.iter().any(|l| l.contains("F2000")),
+        "arcs.nc's feeds"
+    );
+    let dir = std::env::temp_dir().join(format!("gantry_twin_{}_programs", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("arcs_x2.nc");
+    std::fs::write(&p, doubled.join("\n") + "\n").unwrap();
+    p
+}
+
 #[test]
 #[ignore = "needs `cargo fw`, the twin-plant helper and the twin's Python packages; .ci/run runs it"]
 fn square_and_arcs_on_the_twin_match_the_simulated_machine() {
-    let programs = ["square", "arcs"].map(|p| root().join(format!("host-sim/programs/{p}.nc")));
+    let programs = [
+        root().join("host-sim/programs/square.nc"),
+        arcs_at_twice_the_feed(),
+    ];
     // the square's twin finishes first: its fault scenarios run while the arcs go on
     let afters: [After; 2] = [estop_then_stuck_encoder, limit_only];
     let twins: Vec<_> = programs

@@ -20,6 +20,13 @@ pub const VALUE_MAX: usize = 32;
 pub const TEXT_MAX: usize = 96;
 /// Chosen signals a telemetry sample carries at most (each adds 4 bytes to its frame).
 pub const TELEMETRY_SIGNALS: usize = 4;
+/// Compensation points a [`Request::CompPoints`] carries at most (8 × 12 bytes: the
+/// request stays within the size of the largest other one, so the control interrupt's
+/// copies of every queued request do not grow; a 256-point table is 32 requests).
+pub const COMP_CHUNK: usize = 8;
+/// Compensation points a read-back chunk ([`CompChunk`]) carries at most (the largest
+/// status must fit a 256-byte frame: 6 points fit where a refusal's text does).
+pub const COMP_READ_CHUNK: usize = 6;
 
 /// A request on the reliable command channel, executed in order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -90,6 +97,46 @@ pub enum Request {
     /// Erase the settings store and write the settings the machine runs into it (like
     /// [`Request::SettingsSave`]: only with the outputs off, nothing arms until done).
     SettingsRepair,
+    /// Start entering axis 0/1/2's backlash and lead-screw compensation
+    /// (`motion::compensation`, LinuxCNC's `COMP_FILE` and `BACKLASH`): a table of `points`
+    /// points (0: backlash alone, or nothing: clears the axis), the backlash and the
+    /// applied offset's rate and acceleration limits. Drops a transfer under way. The
+    /// points follow in [`Request::CompPoints`], then [`Request::CompCommit`].
+    CompBegin {
+        axis: u8,
+        points: u16,
+        backlash_mm: f32,
+        rate_mm_s: f32,
+        accel_mm_s2: f32,
+    },
+    /// The next points of the transfer, the first of them the table's point `first`
+    /// (in order, each part validated as it comes; a refused part is not kept).
+    CompPoints {
+        first: u16,
+        points: heapless::Vec<crate::motion::compensation::CompPoint, COMP_CHUNK>,
+    },
+    /// Put the transferred table in use, once every announced point came: only with the
+    /// outputs off (it moves the reference). Kept in RAM until the next boot (the host
+    /// loads it each session, as LinuxCNC reads its `COMP_FILE` at start).
+    CompCommit,
+    /// Read axis 0/1/2's compensation in use from point `first` on: the chunk is in
+    /// [`Status::last`] ([`Outcome::Comp`]).
+    CompRead { axis: u8, first: u16 },
+}
+
+/// A part of an axis' compensation in use, as [`Request::CompRead`] reads it (trims as
+/// stored: rounded to 0.1 µm).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct CompChunk {
+    pub axis: u8,
+    /// Points in the whole table.
+    pub total: u16,
+    /// The table's index of `points[0]`.
+    pub first: u16,
+    pub backlash_mm: f32,
+    pub rate_mm_s: f32,
+    pub accel_mm_s2: f32,
+    pub points: heapless::Vec<crate::motion::compensation::CompPoint, COMP_READ_CHUNK>,
 }
 
 /// How the last executed request ended.
@@ -105,6 +152,8 @@ pub enum Outcome {
     Refused(String<TEXT_MAX>),
     /// A chunk of the scope's capture.
     Scope(ScopeChunk),
+    /// A chunk of an axis' compensation table.
+    Comp(CompChunk),
 }
 
 /// The machine's supervisor state.
@@ -236,6 +285,8 @@ pub struct Status {
     pub homed: u8,
     /// Axes whose model is missing (a model-based law refuses to arm).
     pub model_missing: u8,
+    /// Axes with a backlash or lead-screw compensation in use (bit per axis).
+    pub comp: u8,
     pub pos_mm: [f32; 3],
     pub vel_mm_s: [f32; 3],
     /// Free slots in the planner's segment queue and requests waiting to be executed.
@@ -311,6 +362,7 @@ mod tests {
             fault_history,
             homed: u8::MAX,
             model_missing: u8::MAX,
+            comp: u8::MAX,
             pos_mm: [f32::MAX; 3],
             vel_mm_s: [f32::MAX; 3],
             planner_free: u16::MAX,

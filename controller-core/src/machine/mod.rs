@@ -9,6 +9,7 @@
 //! control interrupt). A settings save is written by the link side (`save`, feature `store`). Transport:
 //! [`crate::link`].
 
+mod comp_entry;
 mod endpoint;
 pub mod messages;
 pub mod port;
@@ -20,6 +21,7 @@ pub mod scope;
 mod settings_agent;
 mod supervisor;
 
+pub use comp_entry::CompEntry;
 pub use endpoint::Endpoint;
 pub use port::{
     Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort,

@@ -65,6 +65,8 @@ pub struct MachineMemory<M = MachinePlanner> {
     pub scope: Scope,
     /// The backlash and lead-screw compensation tables (6 KiB; all zeros: none).
     pub comp: crate::motion::compensation::CompTables,
+    /// A table being entered over the link (2 KiB; all zeros: none under way).
+    pub comp_entry: super::CompEntry,
     /// The input shapers between the planner and the servo, with their history (9 KiB;
     /// all zeros: off).
     pub shaper: ShaperStage,
@@ -111,6 +113,7 @@ impl MachineMemory<MachinePlanner> {
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
         comp: crate::motion::compensation::CompTables::NONE,
+        comp_entry: crate::machine::CompEntry::NONE,
         shaper: ShaperStage::NONE,
         queue: RequestQueue::new(),
         next_settings: None,
@@ -210,7 +213,7 @@ fn text<const N: usize>(s: &str) -> String<N> {
     t
 }
 
-fn refused(s: &str) -> Outcome {
+pub(super) fn refused(s: &str) -> Outcome {
     Outcome::Refused(text(s))
 }
 
@@ -431,6 +434,7 @@ where
     pub fn session_started(&mut self) {
         // (the link side cancels its save at the same event)
         self.save_lock = None;
+        self.mem.comp_entry.drop_transfer();
         self.pend(Command::LinkUp);
         self.retire_queue();
         self.executed = 0;
@@ -944,6 +948,21 @@ where
                 }
                 Step::Done(Outcome::Done)
             }
+            Request::CompBegin { .. }
+            | Request::CompPoints { .. }
+            | Request::CompCommit
+            | Request::CompRead { .. } => {
+                // a commit after a disarm whose brakes still engage waits for the outputs
+                // to go off, as a save does (they do by themselves, soon)
+                if matches!(r, Request::CompCommit)
+                    && (!cmds.is_empty() || self.servo.switching_off())
+                {
+                    return Step::Wait;
+                }
+                let on = self.servo.state().drives();
+                let mem = &mut *self.mem;
+                Step::Done(mem.comp_entry.execute(&mut mem.comp, r, on))
+            }
             Request::FeedOverride(r) => match self.mem.planner.set_feed_override(*r) {
                 Ok(()) => Step::Done(Outcome::Done),
                 Err(_) => Step::Done(refused("feed override must be within 0.01-2.0")),
@@ -1067,6 +1086,7 @@ where
             first_fault,
             homed: s.homed,
             model_missing: s.model_missing,
+            comp: self.mem.comp.axes_in_use(),
             pos_mm: s.pos,
             vel_mm_s: s.vel,
             planner_free: self.mem.planner.free_slots() as u16,

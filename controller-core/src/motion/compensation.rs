@@ -59,8 +59,18 @@ pub const DEFAULT_COMP_RATE_MM_S: f32 = 20.0;
 pub const DEFAULT_COMP_ACCEL_MM_S2: f32 = 5000.0;
 
 /// One point of a table as it is entered: the nominal position and the trims to add when
-/// moving forward (increasing position) and in reverse, mm.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// moving forward (increasing position) and in reverse, mm. (Also a link message: the
+/// host sends tables point by point, `machine::messages::Request::CompPoints`.)
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    serde::Serialize,
+    serde::Deserialize,
+    postcard_schema::Schema,
+)]
 pub struct CompPoint {
     pub nominal_mm: f32,
     pub fwd_trim_mm: f32,
@@ -82,6 +92,10 @@ pub enum CompError {
     BadBacklash,
     /// The rate or the acceleration is not a finite positive number.
     BadRate,
+    /// Points entered out of order: the next one expected is this one.
+    OutOfOrder(usize),
+    /// Fewer points entered than announced.
+    Incomplete { got: usize, expected: usize },
 }
 
 impl core::fmt::Display for CompError {
@@ -102,7 +116,138 @@ impl core::fmt::Display for CompError {
                 f,
                 "rate_mm_s and accel_mm_s2 must be finite positive numbers"
             ),
+            Self::OutOfOrder(i) => write!(f, "points out of order: point {} expected", i + 1),
+            Self::Incomplete { got, expected } => {
+                write!(f, "{got} points entered of the {expected} announced")
+            }
         }
+    }
+}
+
+impl CompError {
+    /// The refusal without its numbers, for the control interrupt (which never formats):
+    /// the host knows which points it sent.
+    pub const fn message(&self) -> &'static str {
+        match self {
+            Self::TooManyPoints(_) => "comp: more than 256 points",
+            Self::NotFinite(_) => "comp: a value is not finite",
+            Self::NotIncreasing(_) => "comp: nominal positions must increase strictly",
+            Self::TrimTooLarge(_) => "comp: a trim beyond +-3.2767 mm",
+            Self::BadBacklash => "comp: backlash must be in 0..=1 mm",
+            Self::BadRate => "comp: rate_mm_s and accel_mm_s2 must be finite positive numbers",
+            Self::OutOfOrder(_) => "comp: points out of order (send them from the first on)",
+            Self::Incomplete { .. } => "comp: fewer points sent than announced",
+        }
+    }
+}
+
+/// A table entered in parts (the host link's transfer: `Request::CompBegin`, then the
+/// points a few at a time in order, then `Request::CompCommit`), each part validated as
+/// it comes, as [`AxisCompensation::with_limits`] validates a whole table (which is this
+/// builder fed at once).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CompBuilder {
+    table: AxisCompensation,
+    expected: u16,
+}
+
+impl CompBuilder {
+    /// A builder with nothing announced (a blank memory's: [`Self::push`] and
+    /// [`Self::finish`] of an empty table succeed).
+    pub const NONE: Self = Self {
+        table: AxisCompensation::NONE,
+        expected: 0,
+    };
+
+    /// A table of `points` points, `backlash_mm` and the offset's limits: refused as
+    /// [`AxisCompensation::with_limits`] refuses them.
+    pub fn begin(
+        points: usize,
+        backlash_mm: f32,
+        rate_mm_s: f32,
+        accel_mm_s2: f32,
+    ) -> Result<Self, CompError> {
+        if points > MAX_COMP_POINTS {
+            return Err(CompError::TooManyPoints(points));
+        }
+        if !(backlash_mm.is_finite() && (0.0..=MAX_BACKLASH_MM).contains(&backlash_mm)) {
+            return Err(CompError::BadBacklash);
+        }
+        let good = |v: f32| v.is_finite() && v > 0.0;
+        if !(good(rate_mm_s) && good(accel_mm_s2)) {
+            return Err(CompError::BadRate);
+        }
+        Ok(Self {
+            table: AxisCompensation {
+                half_backlash_mm: 0.5 * backlash_mm,
+                rate_mm_s,
+                accel_mm_s2,
+                ..AxisCompensation::NONE
+            },
+            expected: points as u16,
+        })
+    }
+
+    /// Points entered so far.
+    pub fn received(&self) -> usize {
+        self.table.len()
+    }
+
+    /// Enter `points`, the first of them the table's point `first` (the next one due:
+    /// parts come in order). On a refusal nothing of this part is kept.
+    pub fn push(&mut self, first: usize, points: &[CompPoint]) -> Result<(), CompError> {
+        let at = self.table.len();
+        if first != at {
+            return Err(CompError::OutOfOrder(at));
+        }
+        let end = at + points.len();
+        if end > usize::from(self.expected) {
+            return Err(CompError::TooManyPoints(end));
+        }
+        let units = |v: f32, i: usize| -> Result<i16, CompError> {
+            if v.abs() > MAX_TRIM_MM {
+                return Err(CompError::TrimTooLarge(i));
+            }
+            // round to the nearest unit: |v| ≤ MAX_TRIM_MM fits i16
+            Ok(libm::roundf(v / TRIM_UNIT_MM) as i16)
+        };
+        // checked whole first, then written: a refused part leaves the table as it was
+        let mut prev = at
+            .checked_sub(1)
+            .and_then(|i| self.table.nominal_mm.get(i).copied());
+        for (k, p) in points.iter().enumerate() {
+            let i = at + k;
+            if !(p.nominal_mm.is_finite() && p.fwd_trim_mm.is_finite() && p.rev_trim_mm.is_finite())
+            {
+                return Err(CompError::NotFinite(i));
+            }
+            if prev.is_some_and(|x| p.nominal_mm <= x) {
+                return Err(CompError::NotIncreasing(i));
+            }
+            units(p.fwd_trim_mm, i)?;
+            units(p.rev_trim_mm, i)?;
+            prev = Some(p.nominal_mm);
+        }
+        for (k, p) in points.iter().enumerate() {
+            let i = at + k;
+            if let (Some(x), Some(t)) =
+                (self.table.nominal_mm.get_mut(i), self.table.trim.get_mut(i))
+            {
+                *x = p.nominal_mm;
+                *t = [units(p.fwd_trim_mm, i)?, units(p.rev_trim_mm, i)?];
+            }
+        }
+        self.table.len = end as u16;
+        Ok(())
+    }
+
+    /// The table, once every announced point was entered.
+    pub fn finish(&self) -> Result<AxisCompensation, CompError> {
+        let (got, expected) = (self.table.len(), usize::from(self.expected));
+        if got != expected {
+            return Err(CompError::Incomplete { got, expected });
+        }
+        Ok(self.table)
     }
 }
 
@@ -149,42 +294,9 @@ impl AxisCompensation {
         rate_mm_s: f32,
         accel_mm_s2: f32,
     ) -> Result<Self, CompError> {
-        if points.len() > MAX_COMP_POINTS {
-            return Err(CompError::TooManyPoints(points.len()));
-        }
-        if !(backlash_mm.is_finite() && (0.0..=MAX_BACKLASH_MM).contains(&backlash_mm)) {
-            return Err(CompError::BadBacklash);
-        }
-        let good = |v: f32| v.is_finite() && v > 0.0;
-        if !(good(rate_mm_s) && good(accel_mm_s2)) {
-            return Err(CompError::BadRate);
-        }
-        let mut c = Self {
-            half_backlash_mm: 0.5 * backlash_mm,
-            rate_mm_s,
-            accel_mm_s2,
-            ..Self::NONE
-        };
-        let units = |v: f32, i: usize| -> Result<i16, CompError> {
-            if v.abs() > MAX_TRIM_MM {
-                return Err(CompError::TrimTooLarge(i));
-            }
-            // round to the nearest unit: |v| ≤ MAX_TRIM_MM fits i16
-            Ok(libm::roundf(v / TRIM_UNIT_MM) as i16)
-        };
-        for (i, p) in points.iter().enumerate() {
-            if !(p.nominal_mm.is_finite() && p.fwd_trim_mm.is_finite() && p.rev_trim_mm.is_finite())
-            {
-                return Err(CompError::NotFinite(i));
-            }
-            if i > 0 && p.nominal_mm <= c.nominal_mm[i - 1] {
-                return Err(CompError::NotIncreasing(i));
-            }
-            c.nominal_mm[i] = p.nominal_mm;
-            c.trim[i] = [units(p.fwd_trim_mm, i)?, units(p.rev_trim_mm, i)?];
-        }
-        c.len = points.len() as u16;
-        Ok(c)
+        let mut b = CompBuilder::begin(points.len(), backlash_mm, rate_mm_s, accel_mm_s2)?;
+        b.push(0, points)?;
+        b.finish()
     }
 
     /// Nothing to add: no table and no backlash.
@@ -212,12 +324,20 @@ impl AxisCompensation {
         self.rate_mm_s
     }
 
-    /// The point `i` as entered (trims rounded to [`TRIM_UNIT_MM`]).
+    /// The acceleration of the applied offset, mm/s².
+    pub fn accel_mm_s2(&self) -> f32 {
+        self.accel_mm_s2
+    }
+
+    /// The point `i` as entered (trims rounded to [`TRIM_UNIT_MM`]: the `f32` nearest to
+    /// the whole number of units, so that 80 units read back as 0.008, not 0.007999999).
     pub fn point(&self, i: usize) -> Option<CompPoint> {
+        const UNITS_PER_MM: f32 = 10_000.0;
+        const _: () = assert!(UNITS_PER_MM * TRIM_UNIT_MM == 1.0);
         (i < self.len()).then(|| CompPoint {
             nominal_mm: self.nominal_mm[i],
-            fwd_trim_mm: f32::from(self.trim[i][0]) * TRIM_UNIT_MM,
-            rev_trim_mm: f32::from(self.trim[i][1]) * TRIM_UNIT_MM,
+            fwd_trim_mm: f32::from(self.trim[i][0]) / UNITS_PER_MM,
+            rev_trim_mm: f32::from(self.trim[i][1]) / UNITS_PER_MM,
         })
     }
 
@@ -354,6 +474,11 @@ impl CompTables {
     /// `axis`' compensation.
     pub fn axis(&self, axis: usize) -> &AxisCompensation {
         &self.axes[axis.min(AXES - 1)]
+    }
+
+    /// The axes with something to add (bit i: axis i).
+    pub fn axes_in_use(&self) -> u8 {
+        self.any
     }
 
     /// Some axis has something to add.
@@ -553,6 +678,47 @@ mod tests {
         );
         let many = [p(0.0, 0.0); MAX_COMP_POINTS + 1];
         assert_eq!(r(&many), Some(CompError::TooManyPoints(257)));
+    }
+
+    #[test]
+    fn a_table_entered_in_parts_equals_the_table_entered_whole_and_a_bad_part_is_not_kept() {
+        let pts: [CompPoint; 20] = core::array::from_fn(|i| CompPoint {
+            nominal_mm: -95.0 + 10.0 * i as f32,
+            fwd_trim_mm: 0.001 * i as f32,
+            rev_trim_mm: -0.0007 * i as f32,
+        });
+        let whole = AxisCompensation::with_limits(&pts, 0.02, 15.0, 4000.0).unwrap();
+        let mut b = CompBuilder::begin(20, 0.02, 15.0, 4000.0).unwrap();
+        // out of order: refused, nothing kept
+        assert_eq!(b.push(8, &pts[8..16]), Err(CompError::OutOfOrder(0)));
+        b.push(0, &pts[..8]).unwrap();
+        assert_eq!(
+            b.finish(),
+            Err(CompError::Incomplete {
+                got: 8,
+                expected: 20
+            })
+        );
+        // a part whose last point goes back: refused whole (its good points not kept)
+        let mut bad = [pts[8], pts[9], pts[10]];
+        bad[2].nominal_mm = pts[9].nominal_mm;
+        assert_eq!(b.push(8, &bad), Err(CompError::NotIncreasing(10)));
+        assert_eq!(b.received(), 8);
+        // nor may a part go back from the last point kept
+        assert_eq!(b.push(8, &[pts[0]]), Err(CompError::NotIncreasing(8)));
+        b.push(8, &pts[8..16]).unwrap();
+        // beyond the announced count
+        let mut more = [pts[19]; 5];
+        for (k, p) in more.iter_mut().enumerate() {
+            p.nominal_mm += k as f32;
+        }
+        assert_eq!(b.push(16, &more), Err(CompError::TooManyPoints(21)));
+        b.push(16, &pts[16..]).unwrap();
+        assert_eq!(b.finish(), Ok(whole));
+        assert_eq!(
+            CompBuilder::begin(257, 0.0, 1.0, 1.0),
+            Err(CompError::TooManyPoints(257))
+        );
     }
 
     #[test]

@@ -67,6 +67,7 @@ impl RunMemory {
             planner: NoPlanner { start_mm: [0.0; 3] },
             scope: Scope::new(),
             comp: crate::motion::compensation::CompTables::NONE,
+            comp_entry: crate::machine::CompEntry::NONE,
             shaper: crate::motion::shaper::ShaperStage::NONE,
             queue: crate::machine::RequestQueue::new(),
             next_settings: None,

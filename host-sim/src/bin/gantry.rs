@@ -206,6 +206,54 @@ enum Cmd {
         #[command(subcommand)]
         op: SettingsOp,
     },
+    /// Backlash and lead-screw compensation (LinuxCNC COMP_FILE and BACKLASH): load AXIS
+    /// FILE, show AXIS, clear AXIS. Kept by the machine until its next boot (load it each
+    /// session); applies to referenced axes.
+    Comp {
+        #[command(subcommand)]
+        op: CompOp,
+    },
+}
+
+#[derive(Subcommand)]
+enum CompOp {
+    /// Read a compensation file, check it, enter it on the machine (outputs off: disarm
+    /// first) and read it back. Example: `gantry comp load y comp_y.txt --backlash-mm
+    /// 0.02`.
+    Load {
+        /// x, y or z.
+        axis: String,
+        /// One point per line: `nominal forward reverse` (mm, nominal increasing, at most
+        /// 256 points; `#` and `;` start comments).
+        file: PathBuf,
+        /// LinuxCNC's COMP_FILE_TYPE: 0 the columns are the positions measured at the
+        /// tool, 1 they are the trims to add.
+        #[arg(long, default_value_t = 0)]
+        file_type: u32,
+        /// Backlash added as +-half by direction, mm (0-1).
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = cli::args::finite)]
+        backlash_mm: f32,
+        /// Fastest change of the applied offset, mm/s.
+        #[arg(long, default_value_t = controller_core::motion::compensation::DEFAULT_COMP_RATE_MM_S, allow_negative_numbers = true, value_parser = cli::args::finite)]
+        rate_mm_s: f32,
+        /// Its acceleration, mm/s².
+        #[arg(long, default_value_t = controller_core::motion::compensation::DEFAULT_COMP_ACCEL_MM_S2, allow_negative_numbers = true, value_parser = cli::args::finite)]
+        accel_mm_s2: f32,
+    },
+    /// The compensation an axis uses, as a COMP_FILE_TYPE 1 file (trims) or JSON.
+    Show {
+        /// x, y or z.
+        axis: String,
+        /// Machine-readable: `axis`, `backlash_mm`, `rate_mm_s`, `accel_mm_s2`, `points`
+        /// (`[nominal, forward trim, reverse trim]` mm each).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Remove an axis' compensation (outputs off).
+    Clear {
+        /// x, y or z.
+        axis: String,
+    },
 }
 
 #[derive(Subcommand)]
@@ -430,8 +478,64 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             json,
         } => return identify(c, &axis, accept, window_mm, json.as_deref()),
         Cmd::Settings { op } => settings(c, op)?,
+        Cmd::Comp { op } => comp(c, op)?,
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `gantry comp`.
+fn comp<T: Transport>(c: &mut Client<T>, op: CompOp) -> Result<()> {
+    use controller_core::motion::compensation::AxisCompensation;
+    use host_sim::comp_file::{self, CompFileType};
+    match op {
+        CompOp::Load {
+            axis,
+            file,
+            file_type,
+            backlash_mm,
+            rate_mm_s,
+            accel_mm_s2,
+        } => {
+            let a = axis_index(&axis)?;
+            let kind = CompFileType::from_number(file_type)?;
+            let pts = comp_file::read(&file, kind)?;
+            // (the flags first: a refusal of theirs is not the file's)
+            controller_core::motion::compensation::CompBuilder::begin(
+                0,
+                backlash_mm,
+                rate_mm_s,
+                accel_mm_s2,
+            )
+            .map_err(|e| anyhow::anyhow!("--backlash-mm, --rate-mm-s, --accel-mm-s2: {e}"))?;
+            let table = AxisCompensation::with_limits(&pts, backlash_mm, rate_mm_s, accel_mm_s2)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+            cli::comp::load(c, a, &table)?;
+            if let Some(w) = cli::comp::deflection_warning(c, a)? {
+                eprintln!("warning: {w}");
+            }
+            println!(
+                "comp {}: {} points and a backlash of {} mm in use (read back identical; kept until the machine's next boot)",
+                AXES[a],
+                table.len(),
+                table.backlash_mm()
+            );
+        }
+        CompOp::Show { axis, json } => {
+            let a = axis_index(&axis)?;
+            let m = cli::comp::read(c, a)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&cli::comp::json(a, &m))?);
+            } else {
+                print!("{}", cli::comp::text(a, &m));
+            }
+        }
+        CompOp::Clear { axis } => {
+            let a = axis_index(&axis)?;
+            cli::comp::clear(c, a)?;
+            println!("comp {}: none", AXES[a]);
+        }
+    }
+    Ok(())
 }
 
 /// `gantry status`: the machine's status, as text or JSON.
@@ -836,6 +940,7 @@ fn status_json(s: &Status) -> serde_json::Value {
         "period": s.period,
         "homed": s.homed,
         "model_missing": s.model_missing,
+        "comp": s.comp,
         "pos_mm": s.pos_mm,
         "vel_mm_s": s.vel_mm_s,
         "first_fault": s.first_fault.as_deref(),

@@ -11,6 +11,7 @@
 
 pub mod args;
 pub mod client;
+pub mod comp;
 pub mod interrupt;
 pub mod keys;
 pub mod machine;

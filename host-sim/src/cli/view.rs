@@ -136,6 +136,15 @@ pub fn status_text(s: &Status, rate_hz: u32) -> String {
             ),
         );
     }
+    if s.comp != 0 {
+        line(
+            "comp",
+            format!(
+                "{}  (backlash / lead-screw tables in use: `gantry comp show AXIS`)",
+                axes_of(s.comp)
+            ),
+        );
+    }
     line("fault", latched);
     line("history", format!("{history} (kept across resets)"));
     line("program", program(s));

@@ -38,6 +38,7 @@ impl SplitParts {
             planner: exec,
             scope: Scope::new(),
             comp: controller_core::motion::compensation::CompTables::NONE,
+            comp_entry: controller_core::machine::CompEntry::NONE,
             shaper: controller_core::motion::shaper::ShaperStage::NONE,
             queue: controller_core::machine::RequestQueue::new(),
             next_settings: None,

@@ -66,6 +66,7 @@ pub fn program_run(cfg: &mut RunConfig, pcfg: &PlannerConfig) -> Result<ProgramR
         planner: MachinePlanner::BLANK,
         scope: Scope::new(),
         comp: controller_core::motion::compensation::CompTables::NONE,
+        comp_entry: controller_core::machine::CompEntry::NONE,
         shaper: controller_core::motion::shaper::ShaperStage::NONE,
         queue: controller_core::machine::RequestQueue::new(),
         next_settings: None,
@@ -238,12 +239,31 @@ pub fn run_with_settings(
     settings: &Settings,
     progress: bool,
 ) -> Result<GcodeReport> {
+    let none = [controller_core::motion::compensation::AxisCompensation::NONE; 3];
+    run_compensated(program_path, machine, settings, &none, progress)
+}
+
+/// [`run_with_settings`] with the axes' backlash and lead-screw compensation `comp`
+/// entered before the machine arms, as `gantry comp load` enters them on a board
+/// (`cargo sim gcode --comp DIR`).
+pub fn run_compensated(
+    program_path: &Path,
+    machine: Option<&Path>,
+    settings: &Settings,
+    comp: &[controller_core::motion::compensation::AxisCompensation; 3],
+    progress: bool,
+) -> Result<GcodeReport> {
     let (mut cfg, pcfg) = machine_and_planner_with(machine, settings)?;
     let limits = limits_of(&pcfg);
     let tol = decimal(pcfg.tolerance_mm);
     let name = program_path.display().to_string();
     let travel = travel_of(&cfg)?;
     let mut run = program_run(&mut cfg, &pcfg)?;
+    for (axis, c) in controller_core::axes::Axis::ALL.into_iter().zip(comp) {
+        run.machine_mut()
+            .set_compensation(axis, *c)
+            .map_err(|e| anyhow!("compensation of {axis:?}: {e:?}"))?;
+    }
     // the input shapers (`--set shaper.y.kind=zv`), their deviation counted inside the
     // planner's tolerance by the machine
     run.machine_mut()

@@ -83,6 +83,7 @@ impl LinkEncode {
             fault_history: heapless::Vec::new(),
             homed: 0b111,
             model_missing: 0,
+            comp: 0,
             pos_mm: SAMPLE.pos_mm,
             vel_mm_s: SAMPLE.ref_vel_mm_s,
             planner_free: 3,
