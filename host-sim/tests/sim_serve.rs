@@ -274,18 +274,17 @@ fn a_compensation_table_loaded_on_a_served_machine_reads_back_as_sent_and_is_ref
     let text = ok(&pty, &["comp", "show", "y"]);
     let again = dir.0.join("again.txt");
     std::fs::write(&again, text.lines().skip(1).collect::<Vec<_>>().join("\n")).unwrap();
+    let load_again = [
+        "comp",
+        "load",
+        "y",
+        again.to_str().unwrap(),
+        "--file-type",
+        "1",
+    ];
     ok(
         &pty,
-        &[
-            "comp",
-            "load",
-            "y",
-            again.to_str().unwrap(),
-            "--file-type",
-            "1",
-            "--backlash-mm",
-            "0.02",
-        ],
+        &[&load_again[..], &["--backlash-mm", "0.02"]].concat(),
     );
     assert_eq!(ok(&pty, &["comp", "show", "y"]), text);
     // a bad file is refused by FILE:LINE and changes nothing
@@ -317,17 +316,7 @@ fn a_compensation_table_loaded_on_a_served_machine_reads_back_as_sent_and_is_ref
             "0.02",
         ],
     );
-    let o = gantry(
-        &pty,
-        &[
-            "comp",
-            "load",
-            "y",
-            again.to_str().unwrap(),
-            "--file-type",
-            "1",
-        ],
-    );
+    let o = gantry(&pty, &load_again);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         o.status.success() && err.contains("compensated twice"),

@@ -12,7 +12,6 @@
 //! the status says which axes carry one ([`super::messages::Status::comp`]).
 
 use super::messages::{CompChunk, Outcome, Request, COMP_READ_CHUNK};
-use super::supervisor::refused;
 use crate::axes::Axis;
 use crate::motion::compensation::{CompBuilder, CompTables};
 
@@ -60,7 +59,7 @@ impl CompEntry {
             } => {
                 self.axis = 0;
                 let Some(a) = Axis::from_index(usize::from(*axis)) else {
-                    return refused(BAD_AXIS);
+                    return Outcome::refused(BAD_AXIS);
                 };
                 match CompBuilder::begin(
                     usize::from(*points),
@@ -73,24 +72,24 @@ impl CompEntry {
                         self.axis = a.index() as u8 + 1;
                         Outcome::Done
                     }
-                    Err(e) => refused(e.message()),
+                    Err(e) => Outcome::refused(e.message()),
                 }
             }
             Request::CompPoints { first, points } => {
                 if self.axis == 0 {
-                    return refused(NO_TRANSFER);
+                    return Outcome::refused(NO_TRANSFER);
                 }
                 match self.builder.push(usize::from(*first), points) {
                     Ok(()) => Outcome::Done,
-                    Err(e) => refused(e.message()),
+                    Err(e) => Outcome::refused(e.message()),
                 }
             }
             Request::CompCommit => {
                 let Some(axis) = usize::from(self.axis).checked_sub(1) else {
-                    return refused(NO_TRANSFER);
+                    return Outcome::refused(NO_TRANSFER);
                 };
                 if outputs_on {
-                    return refused(
+                    return Outcome::refused(
                         "comp: the outputs are on; disarm first (a new table moves the reference)",
                     );
                 }
@@ -100,12 +99,12 @@ impl CompEntry {
                         self.axis = 0;
                         Outcome::Done
                     }
-                    Err(e) => refused(e.message()),
+                    Err(e) => Outcome::refused(e.message()),
                 }
             }
             Request::CompRead { axis, first } => {
                 let Some(a) = Axis::from_index(usize::from(*axis)) else {
-                    return refused(BAD_AXIS);
+                    return Outcome::refused(BAD_AXIS);
                 };
                 let t = tables.axis(a.index());
                 let mut points = heapless::Vec::new();
@@ -128,7 +127,7 @@ impl CompEntry {
                     points,
                 })
             }
-            _ => refused("comp: not a compensation request"),
+            _ => Outcome::refused("comp: not a compensation request"),
         }
     }
 }

@@ -156,6 +156,20 @@ pub enum Outcome {
     Comp(CompChunk),
 }
 
+impl Outcome {
+    /// A refusal with the text `why` (cut at [`TEXT_MAX`] characters; copied, never
+    /// formatted: the control interrupt refuses with it).
+    pub fn refused(why: &str) -> Self {
+        let mut t = String::new();
+        for c in why.chars() {
+            if t.push(c).is_err() {
+                break;
+            }
+        }
+        Self::Refused(t)
+    }
+}
+
 /// The machine's supervisor state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
 pub enum MachineState {

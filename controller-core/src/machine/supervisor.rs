@@ -213,8 +213,8 @@ fn text<const N: usize>(s: &str) -> String<N> {
     t
 }
 
-pub(super) fn refused(s: &str) -> Outcome {
-    Outcome::Refused(text(s))
+fn refused(s: &str) -> Outcome {
+    Outcome::refused(s)
 }
 
 /// A request in the machine's queue: as it came, or as the link side resolved it.
@@ -951,18 +951,7 @@ where
             Request::CompBegin { .. }
             | Request::CompPoints { .. }
             | Request::CompCommit
-            | Request::CompRead { .. } => {
-                // a commit after a disarm whose brakes still engage waits for the outputs
-                // to go off, as a save does (they do by themselves, soon)
-                if matches!(r, Request::CompCommit)
-                    && (!cmds.is_empty() || self.servo.switching_off())
-                {
-                    return Step::Wait;
-                }
-                let on = self.servo.state().drives();
-                let mem = &mut *self.mem;
-                Step::Done(mem.comp_entry.execute(&mut mem.comp, r, on))
-            }
+            | Request::CompRead { .. } => self.comp_request(r, cmds),
             Request::FeedOverride(r) => match self.mem.planner.set_feed_override(*r) {
                 Ok(()) => Step::Done(Outcome::Done),
                 Err(_) => Step::Done(refused("feed override must be within 0.01-2.0")),
@@ -981,6 +970,18 @@ where
                 "settings requests reach the machine through its link (machine::port)",
             )),
         }
+    }
+
+    /// A request of the compensation transfer ([`super::CompEntry`]).
+    fn comp_request(&mut self, r: &Request, cmds: &heapless::Vec<Command, 4>) -> Step {
+        // a commit after a disarm whose brakes still engage waits for the outputs to go
+        // off, as a save does (they do by themselves, soon)
+        if matches!(r, Request::CompCommit) && (!cmds.is_empty() || self.servo.switching_off()) {
+            return Step::Wait;
+        }
+        let on = self.servo.state().drives();
+        let mem = &mut *self.mem;
+        Step::Done(mem.comp_entry.execute(&mut mem.comp, r, on))
     }
 
     /// A save's turn: lock the outputs off while the link side writes the flash, or refuse
