@@ -1115,6 +1115,8 @@ fn a_compensation_transfer_refuses_bad_parts_and_commits_only_with_the_outputs_o
         assert_eq!(outcome(&mut m, &mut w, r.clone()), Outcome::Done);
     }
     m.session_started();
+    // (the session's link-up command goes to the servo first; the commit waits for it)
+    periods(&mut m, &mut w, 1);
     let o = outcome(&mut m, &mut w, Request::CompCommit);
     assert!(is_refused_with(&o, "no table transfer under way"), "{o:?}");
     assert_eq!(m.status().comp, 0b001);

@@ -89,8 +89,13 @@ pub fn parse(name: &str, text: &str, kind: CompFileType) -> Result<Vec<CompPoint
 }
 
 /// Read the compensation file at `path`.
+/// Largest compensation file read (256 points of three numbers are a few KiB).
+pub const COMP_FILE_MAX_BYTES: u64 = 1 << 20;
+
 pub fn read(path: &Path, kind: CompFileType) -> Result<Vec<CompPoint>> {
-    let text = std::fs::read_to_string(path)
+    // (a regular file only: a pipe or a device is refused before it is opened)
+    let text = gantry_scenario::file::read_regular(path, COMP_FILE_MAX_BYTES)
+        .map_err(anyhow::Error::msg)
         .with_context(|| format!("reading compensation file {}", path.display()))?;
     parse(&path.display().to_string(), &text, kind)
 }

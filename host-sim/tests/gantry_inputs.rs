@@ -62,6 +62,10 @@ fn pipes_and_devices_are_refused_before_they_are_opened() {
         &["/dev/zero", "not a regular file"],
     );
     refused(&["--sim", "run", "/dev/zero"], &["not a regular file"]);
+    refused(
+        &["--sim", "comp", "load", "y", "/dev/zero"],
+        &["/dev/zero", "not a regular file"],
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -99,6 +103,31 @@ fn non_finite_and_out_of_range_numbers_are_refused() {
         &["--sim", "scope", "out.csv", "--timeout-s=-1"],
         &["--timeout-s", "outside"],
     );
+    // compensation: the flags are checked before anything is sent
+    let comp = std::env::temp_dir().join(format!("gantry-inputs-comp-{}.txt", std::process::id()));
+    std::fs::write(&comp, "-100 -100.01 -99.99\n100 100.01 99.99\n").unwrap();
+    let c = comp.to_str().unwrap();
+    refused(
+        &["--sim", "comp", "load", "y", c, "--backlash-mm", "nan"],
+        &["--backlash-mm", "not finite"],
+    );
+    refused(
+        &["--sim", "comp", "load", "y", c, "--backlash-mm", "3"],
+        &["--backlash-mm", "backlash must be in 0..=1 mm"],
+    );
+    refused(
+        &["--sim", "comp", "load", "y", c, "--rate-mm-s", "0"],
+        &["--rate-mm-s", "finite positive"],
+    );
+    refused(
+        &["--sim", "comp", "load", "y", c, "--file-type", "2"],
+        &["COMP_FILE_TYPE must be 0"],
+    );
+    refused(
+        &["--sim", "comp", "load", "w", c],
+        &["axis must be x, y or z"],
+    );
+    let _ = std::fs::remove_file(&comp);
     // --elf belongs to --qemu
     refused(&["--sim", "--elf", "x.elf", "status"], &["--elf", "--qemu"]);
     refused(
