@@ -28,8 +28,17 @@ use host_sim::gcode::report::GcodeReport;
 const DECIMATION: u32 = 100;
 /// Machine seconds a twin serves at most (the arcs at twice their feeds take 18).
 const TWIN_SECONDS: u32 = 120;
-/// How far the twin's contour max may be from `--sim`'s.
+/// How far the twin's contour max may be outside the band of `--sim`'s (below its least,
+/// above its largest over the telemetry phases).
 const CONTOUR_RATIO_BOUND: f64 = 0.10;
+/// How far the twin's contour rms may be from `--sim`'s (an average over ~2,000 samples
+/// hardly depends on their phase: 1 % over the phases of arcs_x2; the twin has read 2-3 %
+/// above `--sim` in every run so far).
+const CONTOUR_RMS_RATIO_BOUND: f64 = 0.06;
+/// A simulated machine's clock moves in steps of 1 ms (10 periods, `SimMachine::wait`):
+/// starting the program 0, 1, … 9 ms after the subscription puts its telemetry samples
+/// at every phase of the 10 ms between them, in steps of 10 periods.
+const SIM_PHASES_MS: u32 = DECIMATION / 10;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -518,10 +527,36 @@ fn limit_only(c: &mut Client<BoardPort>, served: &Served) -> Vec<serde_json::Val
     vec![limit_switch(c, served)]
 }
 
-fn on_sim(program: &Path) -> GcodeReport {
+/// The program on `--sim`, started `phase_ms` after the telemetry subscription.
+fn on_sim(program: &Path, phase_ms: u32) -> GcodeReport {
     let mut c = Client::connect(SimMachine::new(SimModels::Designed, DECIMATION).unwrap()).unwrap();
     prepare(&mut c);
+    cli::subscribe(&mut c, DECIMATION).unwrap();
+    c.sleep_ms(phase_ms).unwrap();
     cli::run_program(&mut c, program, f64::from(DECIMATION) / 1e4, false, None).unwrap()
+}
+
+/// The program on `--sim` at every telemetry phase ([`SIM_PHASES_MS`]): a contour max
+/// read from samples 10 ms apart misses the peak by as much as the error moves between
+/// them (arcs_x2: 10.14 to 12.10 µm over the phases), and where the twin's samples fall is
+/// up to the wall clock. The twin's max is judged against this band.
+struct SimBand {
+    /// The run at phase 0 (segments, duration, rms).
+    first: GcodeReport,
+    contour_max_least_mm: f64,
+    contour_max_largest_mm: f64,
+}
+
+impl SimBand {
+    fn of(program: &Path) -> Self {
+        let runs: Vec<GcodeReport> = (0..SIM_PHASES_MS).map(|k| on_sim(program, k)).collect();
+        let maxima = runs.iter().map(|r| r.contour_max_mm);
+        Self {
+            contour_max_least_mm: maxima.clone().fold(f64::INFINITY, f64::min),
+            contour_max_largest_mm: maxima.fold(0.0, f64::max),
+            first: runs.into_iter().next().expect("at least one phase"),
+        }
+    }
 }
 
 /// host-sim/programs/arcs.nc with every feed doubled (F1000 → F2000 …), as
@@ -577,13 +612,15 @@ fn square_and_arcs_on_the_twin_match_the_simulated_machine() {
     for (p, t) in programs.iter().zip(twins) {
         let (twin, wall_s, fault_rows) = t.join().expect("the twin's run");
         rows.extend(fault_rows);
-        let sim = on_sim(p);
+        let band = SimBand::of(p);
+        let sim = &band.first;
         let name = p.file_stem().unwrap().to_string_lossy().to_string();
         println!(
             "{name}: twin contour max {:.5} mm rms {:.5} mm, {:.3} s, {} segments ({:.0} s wall, {:.3}x real time); \
-             --sim contour max {:.5} mm rms {:.5} mm, {:.3} s, {} segments",
+             --sim contour max {:.5} to {:.5} mm over {SIM_PHASES_MS} telemetry phases, rms {:.5} mm, {:.3} s, {} segments",
             twin.contour_max_mm, twin.contour_rms_mm, twin.duration_s, twin.segments, wall_s,
-            twin.duration_s / wall_s, sim.contour_max_mm, sim.contour_rms_mm, sim.duration_s, sim.segments,
+            twin.duration_s / wall_s, band.contour_max_least_mm, band.contour_max_largest_mm,
+            sim.contour_rms_mm, sim.duration_s, sim.segments,
         );
         assert_eq!(
             twin.status, "completed",
@@ -592,12 +629,24 @@ fn square_and_arcs_on_the_twin_match_the_simulated_machine() {
         );
         assert!(twin.program_done, "{name}: {}", twin.program_end);
         assert_eq!(twin.segments, sim.segments, "{name}: segments executed");
-        let ratio = twin.contour_max_mm / sim.contour_max_mm;
+        let (low, high) = (
+            twin.contour_max_mm / band.contour_max_least_mm,
+            twin.contour_max_mm / band.contour_max_largest_mm,
+        );
         assert!(
-            (ratio - 1.0).abs() <= CONTOUR_RATIO_BOUND,
-            "{name}: contour max twin {} mm vs --sim {} mm (ratio {ratio:.3})",
+            low >= 1.0 - CONTOUR_RATIO_BOUND && high <= 1.0 + CONTOUR_RATIO_BOUND,
+            "{name}: contour max twin {} mm vs --sim {} to {} mm over the telemetry phases \
+             (ratios {low:.3}, {high:.3})",
             twin.contour_max_mm,
-            sim.contour_max_mm
+            band.contour_max_least_mm,
+            band.contour_max_largest_mm,
+        );
+        let rms_ratio = twin.contour_rms_mm / sim.contour_rms_mm;
+        assert!(
+            (rms_ratio - 1.0).abs() <= CONTOUR_RMS_RATIO_BOUND,
+            "{name}: contour rms twin {} mm vs --sim {} mm (ratio {rms_ratio:.3})",
+            twin.contour_rms_mm,
+            sim.contour_rms_mm
         );
         // the same program at the same feeds: the durations agree within a few periods of
         // telemetry
@@ -610,8 +659,9 @@ fn square_and_arcs_on_the_twin_match_the_simulated_machine() {
         rows.push(serde_json::json!({
             "program": name,
             "twin_contour_max_mm": twin.contour_max_mm,
-            "sim_contour_max_mm": sim.contour_max_mm,
-            "contour_ratio": ratio,
+            "sim_contour_max_band_mm": [band.contour_max_least_mm, band.contour_max_largest_mm],
+            "contour_ratios_to_band": [low, high],
+            "contour_rms_ratio": rms_ratio,
             "twin_contour_rms_mm": twin.contour_rms_mm,
             "sim_contour_rms_mm": sim.contour_rms_mm,
             "twin_duration_s": twin.duration_s,
