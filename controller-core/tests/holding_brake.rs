@@ -5,7 +5,7 @@
 //! The Z-drop table: Z holding at rest with an overload (a 150 mN·m load beyond its
 //! 23 mN·m of gravity: a heavy spindle), then an e-stop of category 0 or 1, with and
 //! without the brake; the drop is the largest fall of the true Z position within 0.5 s of
-//! the e-stop. `cargo test --release -p controller-core --test holding_brake -- --nocapture`
+//! the e-stop. `cargo test --release -p controller-core --test core_tests holding_brake:: -- --nocapture`
 //! prints it (docs/safety.md, "E-stop categories").
 //!
 //! And the order of events, in control periods (10 kHz: 300 periods = `engage_s`, 700 =

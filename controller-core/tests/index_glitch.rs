@@ -5,7 +5,7 @@
 //! `index_max_correction_counts` within a revolution are the `encoder_index` fault;
 //! without the index the same glitch stays as a silent offset (what the check is for).
 //!
-//! `cargo test --release -p controller-core --test index_glitch -- --nocapture` prints
+//! `cargo test --release -p controller-core --test core_tests index_glitch:: -- --nocapture` prints
 //! the figures docs/safety.md quotes.
 
 use controller_core::axes::Axis;

@@ -2,7 +2,7 @@
 //! executed path stays on the programmed arc, ends on the programmed point, keeps the
 //! per-axis limits and runs at the programmed feed where the limits allow.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::{Blend, Plane, Segment};
 use planner_common::*;
 

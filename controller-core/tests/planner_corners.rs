@@ -4,7 +4,7 @@
 //! G61.1 (exact stop) and ε = 0 (G61) stop exactly on the corner, and an exact stop also
 //! stops where the next line goes on straight.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::{Blend, Segment};
 use planner_common::*;
 

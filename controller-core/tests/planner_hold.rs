@@ -2,7 +2,7 @@
 //! continuous, on the path and within the limits; hold stops within the jerk-limited
 //! stopping distance; resume continues from exactly where it stopped.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::profile::braking_distance;
 use controller_core::motion::planner::{
     ExecMode, Executor, PathSample, Planner, PlannerState, Segment, Span, Step,

@@ -9,7 +9,7 @@
 //! ratios stay at 1 + 1e-5 or below. The path ends on the programmed end point, the
 //! look-ahead never slips and the samples stay within the largest ε of the program.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::{Blend, Feed, Motion, Plane, Segment};
 use planner_common::*;
 use proptest::prelude::*;

@@ -2,7 +2,7 @@
 //! the queue reports its free slots and refuses when full, rapids run at the axis limits,
 //! dwells stop and wait, every sample carries its segment's tag.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::{
     Blend, Feed, Motion, Plane, Planner, PlannerConfigError, Segment, SegmentError,
 };

@@ -3,7 +3,7 @@
 //! with the configured servo reserve), for lengths from 0.1 to 300 mm along an axis, the
 //! XY diagonal and the space diagonal. A 45° line gets √2 times an axis' limits.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::{Blend, PlannerConfig, Segment, GANTRY_PLANNER};
 use planner_common::*;
 

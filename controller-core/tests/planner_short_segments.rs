@@ -2,7 +2,7 @@
 //! 0.05 mm on a 20 mm radius circle at 50 mm/s with ε = 0.01 mm keep the programmed feed
 //! (no stop-and-go), within the limits and the tolerance.
 
-mod planner_common;
+use crate::planner_common;
 use controller_core::motion::planner::Segment;
 use planner_common::*;
 

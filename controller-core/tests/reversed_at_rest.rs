@@ -12,7 +12,7 @@
 //! brake opens (its load's runaway must outgrow a healthy Z's 6-count sag first), a few
 //! µm of travel (docs/safety.md, "Swapped A/B at rest").
 //!
-//! `cargo test --release -p controller-core --test reversed_at_rest -- --nocapture` prints
+//! `cargo test --release -p controller-core --test core_tests reversed_at_rest:: -- --nocapture` prints
 //! the table docs/safety.md quotes.
 
 use controller_core::axes::Axis;

@@ -11,7 +11,7 @@
 //!   bound: the shaped reference stays within the path tolerance;
 //! - the block in fixed point (Q32.32) against `f32`.
 
-mod planner_common;
+use crate::planner_common;
 
 use controller_core::axes::Axis;
 use controller_core::motion::planner::{Blend, Segment};

@@ -1,7 +1,7 @@
 //! Identification's safety behaviour: every abort path, what the effort does on it, and
 //! bounded, finite output whatever the input.
 
-mod sysid_common;
+use crate::sysid_common;
 
 use controller_core::plant::physical::PhysicalAxisConfig;
 use controller_core::presets::gantry::GANTRY_X;

@@ -1,7 +1,7 @@
 //! Laws from identified models: every law builds from what identification finds, and its
 //! model-dependent gains are within the identification's error of the true model's.
 
-mod sysid_common;
+use crate::sysid_common;
 
 use controller_core::law::adaptive_smc::AdaptiveSmc;
 use controller_core::law::dob_smc::DobSmc;

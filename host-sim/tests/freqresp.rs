@@ -13,7 +13,7 @@
 //! - The rigid gantry (host-sim/machines/gantry.toml): no resonance, no anti-resonance.
 //! - Every run: the axis never leaves its window, the effort never exceeds the cap.
 //!
-//! Release-mode: `cargo test -p host-sim --release --test freqresp` (about 10 s).
+//! Release-mode: `cargo test -p host-sim --release --test sim_tests freqresp::` (about 10 s).
 
 use host_sim::studies::freqresp::{run, AxisResponse, FreqRespReport, WINDOW_HALF_MM};
 use std::path::{Path, PathBuf};

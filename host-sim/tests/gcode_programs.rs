@@ -132,7 +132,7 @@ fn dense_contour_is_the_generator_output() {
     assert!(
         text == generated,
         "programs/dense_contour.nc differs from the generator: run \
-         `cargo test -p host-sim --test gcode_programs -- --ignored regenerate_dense_contour`"
+         `cargo test -p host-sim --test sim_tests gcode_programs::regenerate_dense_contour -- --ignored`"
     );
     assert!(text.len() < 1024 * 1024, "{} bytes", text.len());
     let p = load("dense_contour.nc");

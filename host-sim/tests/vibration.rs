@@ -11,7 +11,7 @@
 //! the 5 µm band. With the shapers switched off (every run unshaped) both ratios are 1
 //! and the assertions fail.
 //!
-//! Release-mode: `cargo test -p host-sim --release --test vibration` (about 2 s).
+//! Release-mode: `cargo test -p host-sim --release --test sim_tests vibration::` (about 2 s).
 
 use controller_core::axes::Axis;
 use host_sim::studies::freqresp::ModeJson;
