@@ -32,6 +32,7 @@ impl Served {
             speed: Speed::Times(1.0),
             flash: None,
             models: args.models(),
+            machine: args.machine.clone(),
             seconds: None,
         };
         let stop = Arc::new(AtomicBool::new(false));

@@ -73,7 +73,19 @@ pub fn gantry_world(
     rate_hz: Option<u32>,
     board_amplifier: bool,
 ) -> Result<(World, u32)> {
-    let (run, _) = machine_and_planner(None)?;
+    gantry_world_on(None, settings, rate_hz, board_amplifier)
+}
+
+/// [`gantry_world`] on the axes of a machine file (`gantry --sim --machine FILE`, e.g.
+/// host-sim/machines/gantry_flexible.toml: its frame's modes, backlash and lead error) in
+/// place of host-sim/machines/gantry.toml's.
+pub fn gantry_world_on(
+    machine: Option<&Path>,
+    settings: &Settings,
+    rate_hz: Option<u32>,
+    board_amplifier: bool,
+) -> Result<(World, u32)> {
+    let (run, _) = machine_and_planner(machine)?;
     let rate_hz = rate_hz.unwrap_or(run.servo.rate_hz);
     let options = GantryOptions {
         index_pulses: true,

@@ -128,6 +128,21 @@ fn non_finite_and_out_of_range_numbers_are_refused() {
         &["axis must be x, y or z"],
     );
     let _ = std::fs::remove_file(&comp);
+    // the frequency response: the axis and the window are checked before anything moves
+    refused(&["--sim", "freqresp", "w"], &["axis must be x, y or z"]);
+    refused(
+        &["--sim", "freqresp", "y", "--window-mm", "nan"],
+        &["--window-mm", "positive number"],
+    );
+    // a simulated machine's file: named when it cannot be read; only with --sim
+    refused(
+        &["--sim", "--machine", "/nonexistent/flexible.toml", "status"],
+        &["/nonexistent/flexible.toml"],
+    );
+    refused(
+        &["--port", "/dev/null", "--machine", "m.toml", "status"],
+        &["--machine", "--sim"],
+    );
     // --elf belongs to --qemu
     refused(&["--sim", "--elf", "x.elf", "status"], &["--elf", "--qemu"]);
     refused(

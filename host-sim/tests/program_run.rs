@@ -113,6 +113,7 @@ fn the_program_completes_on_the_square_and_the_split_planner_plans_the_same() {
         scope: Scope::new(),
         comp: controller_core::motion::compensation::CompTables::NONE,
         comp_entry: controller_core::machine::CompEntry::NONE,
+        response: controller_core::machine::ResponseRecord::EMPTY,
         shaper: controller_core::motion::shaper::ShaperStage::NONE,
         queue: controller_core::machine::RequestQueue::new(),
         next_settings: None,

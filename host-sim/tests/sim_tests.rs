@@ -20,6 +20,8 @@ mod feedforward;
 mod figures_output;
 #[path = "freqresp.rs"]
 mod freqresp;
+#[path = "freqresp_link.rs"]
+mod freqresp_link;
 #[path = "gantry_busy.rs"]
 mod gantry_busy;
 #[path = "gantry_inputs.rs"]

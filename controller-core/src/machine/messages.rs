@@ -27,6 +27,9 @@ pub const COMP_CHUNK: usize = 8;
 /// Compensation points a read-back chunk ([`CompChunk`]) carries at most (the largest
 /// status must fit a 256-byte frame: 6 points fit where a refusal's text does).
 pub const COMP_READ_CHUNK: usize = 6;
+/// Frequency-response points a read-out chunk ([`ResponseChunk`]) carries at most (6 × 12
+/// bytes, as a compensation chunk: the largest status must fit a 256-byte frame).
+pub const RESPONSE_READ_CHUNK: usize = 6;
 
 /// A request on the reliable command channel, executed in order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
@@ -71,6 +74,17 @@ pub enum Request {
     },
     /// Store the last identification's model of the axis in the settings (outputs off).
     AcceptIdentified { axis: u8 },
+    /// Measure axis 0/1/2's frequency response from effort to encoder (a stepped sine,
+    /// `servo::Command::MeasureResponse`: the identification's rules, window and torque
+    /// cap); the state is [`MachineState::Identify`] while it runs, [`Status::progress`]
+    /// its progress. The points are read with [`Request::ResponseRead`].
+    MeasureResponse {
+        axis: u8,
+        window_mm: Option<[f32; 2]>,
+    },
+    /// Read the last frequency response's points from point `first` on (in the order they
+    /// were measured): the chunk is in [`Status::last`] ([`Outcome::Response`]).
+    ResponseRead { first: u8 },
     /// Telemetry: one sample every `every_periods` control periods (0: off), carrying
     /// the chosen `signals` besides its fixed fields ([`Telemetry::signals`]).
     Subscribe {
@@ -154,6 +168,8 @@ pub enum Outcome {
     Scope(ScopeChunk),
     /// A chunk of an axis' compensation table.
     Comp(CompChunk),
+    /// A chunk of the last frequency response.
+    Response(ResponseChunk),
 }
 
 impl Outcome {
@@ -168,6 +184,37 @@ impl Outcome {
         }
         Self::Refused(t)
     }
+}
+
+/// One measured frequency of [`Request::MeasureResponse`]: `H(j 2π freq_hz)` from effort
+/// to encoder, mm/(mN·m) (`sysid::frequency::ResponsePoint`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, Schema)]
+pub struct ResponsePointMsg {
+    pub freq_hz: f32,
+    pub re: f32,
+    pub im: f32,
+}
+
+/// How a frequency-response measurement stands ([`ResponseChunk::state`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Schema)]
+pub enum ResponseState {
+    /// Every frequency measured.
+    Done,
+    /// Stopped before the end (a fault, a stop, the window or the torque cap): the points
+    /// measured until then.
+    Aborted,
+}
+
+/// A part of the last frequency response, as [`Request::ResponseRead`] reads it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Schema)]
+pub struct ResponseChunk {
+    pub axis: u8,
+    pub state: ResponseState,
+    /// Points measured in all.
+    pub total: u8,
+    /// The index of `points[0]` (in the order measured).
+    pub first: u8,
+    pub points: heapless::Vec<ResponsePointMsg, RESPONSE_READ_CHUNK>,
 }
 
 /// The machine's supervisor state.
@@ -397,13 +444,57 @@ mod tests {
             }),
             scope: ScopeState::Triggered,
         };
-        let mut buf = [0u8; MAX_FRAME_LEN];
-        let frame: ToHost<Telemetry, Status> = ToHost::Status {
-            id: Seq(u16::MAX),
-            status,
-        };
-        let n = encode(&frame, &mut buf).expect("the largest status must fit a frame");
-        assert!(n <= MAX_FRAME_LEN);
+        // every read-out chunk at its largest in place of the refusal's text
+        let mut points = heapless::Vec::new();
+        while points
+            .push(ResponsePointMsg {
+                freq_hz: f32::MAX,
+                re: f32::MAX,
+                im: f32::MAX,
+            })
+            .is_ok()
+        {}
+        let mut comp = heapless::Vec::new();
+        while comp
+            .push(crate::motion::compensation::CompPoint {
+                nominal_mm: f32::MAX,
+                fwd_trim_mm: f32::MAX,
+                rev_trim_mm: f32::MAX,
+            })
+            .is_ok()
+        {}
+        let lasts = [
+            Outcome::Refused(full()),
+            Outcome::Response(ResponseChunk {
+                axis: u8::MAX,
+                state: ResponseState::Aborted,
+                total: u8::MAX,
+                first: u8::MAX,
+                points,
+            }),
+            Outcome::Comp(CompChunk {
+                axis: u8::MAX,
+                total: u16::MAX,
+                first: u16::MAX,
+                backlash_mm: f32::MAX,
+                rate_mm_s: f32::MAX,
+                accel_mm_s2: f32::MAX,
+                points: comp,
+            }),
+        ];
+        for last in lasts {
+            let mut buf = [0u8; MAX_FRAME_LEN];
+            let frame: ToHost<Telemetry, Status> = ToHost::Status {
+                id: Seq(u16::MAX),
+                status: Status {
+                    last: last.clone(),
+                    ..status.clone()
+                },
+            };
+            let n = encode(&frame, &mut buf)
+                .unwrap_or_else(|e| panic!("the largest status must fit a frame: {last:?}: {e:?}"));
+            assert!(n <= MAX_FRAME_LEN);
+        }
     }
 
     /// A telemetry frame takes at most 80 bytes, and 4 more per chosen signal (the link's

@@ -15,6 +15,7 @@ pub mod messages;
 pub mod port;
 #[cfg(feature = "serde")]
 pub mod record;
+mod response_record;
 #[cfg(feature = "store")]
 pub mod save;
 pub mod scope;
@@ -27,6 +28,7 @@ pub use port::{
     Channels, ControlSide, Down, Echo, LinkEnds, LinkSide, LinkState, MachinePort,
     PreparedSettings, SaveJob, Up, REQUEST_QUEUE,
 };
+pub use response_record::ResponseRecord;
 #[cfg(feature = "store")]
 pub use save::{save_blocking, save_due_into, write_blocking};
 pub use settings_agent::{Resolution, SettingsAgent};

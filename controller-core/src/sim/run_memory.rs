@@ -68,6 +68,7 @@ impl RunMemory {
             scope: Scope::new(),
             comp: crate::motion::compensation::CompTables::NONE,
             comp_entry: crate::machine::CompEntry::NONE,
+            response: crate::machine::ResponseRecord::EMPTY,
             shaper: crate::motion::shaper::ShaperStage::NONE,
             queue: crate::machine::RequestQueue::new(),
             next_settings: None,

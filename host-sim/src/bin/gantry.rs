@@ -200,6 +200,27 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Measure an axis' frequency response from effort to encoder (a stepped sine, 5-300
+    /// Hz, within the identification's window and torque cap) and find its resonances and
+    /// anti-resonances, as `cargo sim freqresp` does: a table, --json, Bode plots in --out.
+    /// Example: `gantry --sim --machine host-sim/machines/gantry_flexible.toml freqresp y`.
+    Freqresp {
+        /// x, y or z.
+        axis: String,
+        /// Measure an unhomed axis within ± this many mm of where it stands (needed while
+        /// the machine has no model and so cannot arm to home).
+        #[arg(long, allow_negative_numbers = true)]
+        window_mm: Option<f32>,
+        /// Write the report as JSON to this file (`cargo sim freqresp --json`'s keys).
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Where the Bode plot goes (freqresp_<axis>.png and .svg).
+        #[arg(long, default_value = "out/freqresp")]
+        out: PathBuf,
+        /// No plot.
+        #[arg(long)]
+        no_plots: bool,
+    },
     /// Settings: list, get KEY, set KEY VALUE | set KEY=VALUE..., defaults, save, repair,
     /// export FILE, import FILE.
     Settings {
@@ -281,6 +302,10 @@ enum SimOp {
         /// Stop after this much machine time, s (default: until Ctrl-C or SIGTERM).
         #[arg(long, allow_negative_numbers = true, value_parser = cli::args::duration_s)]
         seconds: Option<f32>,
+        /// The machine's axes from a machine file instead of the rigid gantry's, e.g.
+        /// host-sim/machines/gantry_flexible.toml.
+        #[arg(long, value_name = "FILE")]
+        machine: Option<PathBuf>,
     },
 }
 
@@ -347,6 +372,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             flash,
             factory,
             seconds,
+            machine,
         } = op;
         let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         let on_signal = stop.clone();
@@ -361,6 +387,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             } else {
                 SimModels::Designed
             },
+            machine,
             seconds: seconds.map(f64::from),
         };
         host_sim::cli::serve::serve(&opts, stop)?;
@@ -477,6 +504,19 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             window_mm,
             json,
         } => return identify(c, &axis, accept, window_mm, json.as_deref()),
+        Cmd::Freqresp {
+            axis,
+            window_mm,
+            json,
+            out,
+            no_plots,
+        } => {
+            let opts = FreqrespOpts {
+                json,
+                out: (!no_plots).then_some(out),
+            };
+            return freqresp(c, &axis, window_mm, &opts);
+        }
         Cmd::Settings { op } => settings(c, op)?,
         Cmd::Comp { op } => comp(c, op)?,
     }
@@ -875,6 +915,40 @@ fn identify<T: Transport>(
         return Ok(ExitCode::FAILURE);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Where `gantry freqresp` writes its report and plot.
+struct FreqrespOpts {
+    json: Option<PathBuf>,
+    /// `None`: no plot.
+    out: Option<PathBuf>,
+}
+
+/// `gantry freqresp AXIS`: measure, print the table, write the JSON and the plot; fails
+/// when the measurement did not finish.
+fn freqresp<T: Transport>(
+    c: &mut Client<T>,
+    axis: &str,
+    window_mm: Option<f32>,
+    opts: &FreqrespOpts,
+) -> Result<ExitCode> {
+    let i = axis_index(axis)?;
+    let r = cli::freqresp::measure(c, i, window_mm, "the machine over the link")?;
+    print!("{}", host_sim::studies::freqresp::table(&r));
+    if let Some(j) = &opts.json {
+        write_json(j, &r)?;
+    }
+    if let Some(dir) = &opts.out {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+        let n = host_sim::output::freqresp_plots::figures(dir, &r)?;
+        println!("{n} files in {}", dir.display());
+    }
+    Ok(if r.all_done() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
 }
 
 /// `gantry settings …`: list, get, set, defaults, save, repair, export, import.

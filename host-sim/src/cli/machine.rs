@@ -50,6 +50,18 @@ pub struct MachineArgs {
     /// Start the simulated machine with factory settings (no axis model: identify first).
     #[arg(long, requires = "sim")]
     pub factory: bool,
+    /// The simulated machine's axes from a machine file instead of the rigid gantry's,
+    /// e.g. host-sim/machines/gantry_flexible.toml (its frame modes, backlash and lead
+    /// error).
+    /// (Its id is not `machine`: that is the name of the group these options form in
+    /// `gantry`'s command line.)
+    #[arg(
+        long = "machine",
+        id = "machine_file",
+        value_name = "FILE",
+        requires = "sim"
+    )]
+    pub machine: Option<PathBuf>,
     /// Telemetry rate of the session, Hz (1-10000).
     #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
     pub telemetry_hz: u32,
@@ -73,6 +85,9 @@ impl MachineArgs {
         }
         if self.factory && !self.sim {
             bail!("--factory starts the simulated machine; it goes with --sim only");
+        }
+        if self.machine.is_some() && !self.sim {
+            bail!("--machine is the simulated machine's file; it goes with --sim only (`gantry sim serve --machine FILE` for a served one)");
         }
         if self.telemetry_hz == 0 || self.telemetry_hz > MAX_TELEMETRY_HZ {
             bail!(
@@ -105,6 +120,9 @@ impl MachineArgs {
         }
         if let Some(elf) = &self.elf {
             out.extend(["--elf".to_string(), elf.display().to_string()]);
+        }
+        if let Some(m) = &self.machine {
+            out.extend(["--machine".to_string(), m.display().to_string()]);
         }
         out.extend(["--telemetry-hz".to_string(), self.telemetry_hz.to_string()]);
         out
@@ -149,7 +167,7 @@ impl MachineArgs {
         } else {
             // (the simulated machine starts with the subscription, decimated from the rate
             // it runs at: the rate its handshake reports)
-            let mut sim = SimMachine::new(self.models(), 0)?;
+            let mut sim = SimMachine::on_machine(self.models(), 0, self.machine.as_deref())?;
             sim.set_telemetry_every(self.decimation(sim.rate_hz()));
             Client::connect(Box::new(sim))
         }

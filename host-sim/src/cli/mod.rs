@@ -12,6 +12,7 @@
 pub mod args;
 pub mod client;
 pub mod comp;
+pub mod freqresp;
 pub mod interrupt;
 pub mod keys;
 pub mod machine;
@@ -896,37 +897,7 @@ pub fn identify<T: Transport>(
 ) -> Result<Vec<IdentifyJson>> {
     let mut out = Vec::new();
     for &i in axes {
-        let s = c.status()?;
-        let window_mm = if s.model_missing != 0
-            || s.homed & (1 << i) == 0 && window_half_mm.is_some()
-        {
-            let Some(w) = window_half_mm else {
-                bail!(
-                    "axis {} cannot be homed before it has a model (nothing can arm): give \
-                     --window-mm W to identify it within ±W mm of where it stands",
-                    AXES[i]
-                );
-            };
-            if !(w.is_finite() && w > 0.0) {
-                bail!("--window-mm must be a positive number of mm (the half-width of the travel identification may use), got {w}");
-            }
-            if s.state == MachineState::Idle {
-                expect_done("disarm", c.exec(Request::Disarm)?)?;
-            }
-            let at = c.status()?.pos_mm[i];
-            Some([at - w, at + w])
-        } else {
-            // homed: identify around the middle of the travel, where it has room
-            let s = ready(c, true)?;
-            let key = |end: &str| format!("axis.{}.travel.{end}", AXES[i]);
-            let (lo, hi) = (get_f64(c, &key("min_mm"))?, get_f64(c, &key("max_mm"))?);
-            if lo.is_finite() && hi.is_finite() {
-                let mut target = s.pos_mm;
-                target[i] = (0.5 * (lo + hi)) as f32;
-                move_to(c, target)?;
-            }
-            None
-        };
+        let window_mm = driven_window(c, i, window_half_mm, "identify")?;
         expect_done(
             &format!("identify {}", AXES[i]),
             c.exec(Request::Identify {
@@ -976,6 +947,48 @@ pub fn identify<T: Transport>(
         }
     }
     Ok(out)
+}
+
+/// Where axis `i` may move while it is driven alone (`gantry identify`, `gantry
+/// freqresp`; `what` names the command in errors). A machine whose axes have no model
+/// cannot arm, hence cannot home: then `window_half_mm` is required, the user's
+/// confirmation that the axis may move that far either side of where it stands, and the
+/// run starts from Disabled. Homed, the axis is moved to the middle of its travel first
+/// (`None`: the machine's own travel limits the run).
+pub fn driven_window<T: Transport>(
+    c: &mut Client<T>,
+    i: usize,
+    window_half_mm: Option<f32>,
+    what: &str,
+) -> Result<Option<[f32; 2]>> {
+    let s = c.status()?;
+    if s.model_missing != 0 || s.homed & (1 << i) == 0 && window_half_mm.is_some() {
+        let Some(w) = window_half_mm else {
+            bail!(
+                "axis {} cannot be homed before it has a model (nothing can arm): give \
+                 --window-mm W to {what} it within ±W mm of where it stands",
+                AXES[i]
+            );
+        };
+        if !(w.is_finite() && w > 0.0) {
+            bail!("--window-mm must be a positive number of mm (the half-width of the travel `gantry {what}` may use), got {w}");
+        }
+        if s.state == MachineState::Idle {
+            expect_done("disarm", c.exec(Request::Disarm)?)?;
+        }
+        let at = c.status()?.pos_mm[i];
+        return Ok(Some([at - w, at + w]));
+    }
+    // homed: around the middle of the travel, where it has room
+    let s = ready(c, true)?;
+    let key = |end: &str| format!("axis.{}.travel.{end}", AXES[i]);
+    let (lo, hi) = (get_f64(c, &key("min_mm"))?, get_f64(c, &key("max_mm"))?);
+    if lo.is_finite() && hi.is_finite() {
+        let mut target = s.pos_mm;
+        target[i] = (0.5 * (lo + hi)) as f32;
+        move_to(c, target)?;
+    }
+    Ok(None)
 }
 
 /// Every setting the machine has (a key whose value is absent, e.g. the model of an axis

@@ -79,6 +79,8 @@ pub struct ServeOptions {
     /// The settings flash, kept across runs (created on the first save).
     pub flash: Option<PathBuf>,
     pub models: SimModels,
+    /// The machine file whose axes it runs (`None`: host-sim/machines/gantry.toml's).
+    pub machine: Option<PathBuf>,
     /// Stop after this much machine time, s (`None`: until SIGINT/SIGTERM).
     pub seconds: Option<f64>,
 }
@@ -137,13 +139,16 @@ pub fn serve(opts: &ServeOptions, stop: Arc<AtomicBool>) -> Result<()> {
         Some(p) => read_flash(p)?,
         None => None,
     };
-    let (mut sim, outcome) =
-        SimMachine::boot(opts.models, IDLE_TELEMETRY_PERIODS, image.as_deref()).with_context(
-            || match &opts.flash {
-                Some(p) => format!("the flash file {}", p.display()),
-                None => "the simulated machine".into(),
-            },
-        )?;
+    let (mut sim, outcome) = SimMachine::boot(
+        opts.models,
+        IDLE_TELEMETRY_PERIODS,
+        image.as_deref(),
+        opts.machine.as_deref(),
+    )
+    .with_context(|| match &opts.flash {
+        Some(p) => format!("the flash file {}", p.display()),
+        None => "the simulated machine".into(),
+    })?;
     let mut kept = sim.flash_image().to_vec();
     let (mut master, slave, dev, served, clock) = open_pty(&opts.pty)?;
 

@@ -8,7 +8,7 @@
 //! it lasts as long as the simulated machine (one `gantry --sim` invocation).
 
 use super::Transport;
-use crate::sim_gantry::{designed_settings, gantry_world, machine_and_planner};
+use crate::sim_gantry::{designed_settings, gantry_world_on, machine_and_planner};
 use anyhow::{anyhow, bail, Result};
 use controller_core::link::device::DEFAULT_DEVICE_LINK_CONFIG;
 use controller_core::link::LinkClock;
@@ -21,6 +21,7 @@ use controller_core::settings::store::{
 };
 use controller_core::settings::FACTORY;
 use controller_core::sim::world::{Injection, World};
+use std::path::Path;
 
 /// Simulated time one [`Transport::wait`] advances, ms.
 const WAIT_MS: u32 = 1;
@@ -60,7 +61,17 @@ impl SimMachine {
     /// around where it starts) with limit switches where the factory homing expects
     /// them; telemetry every `telemetry_periods` control periods.
     pub fn new(models: SimModels, telemetry_periods: u32) -> Result<Self> {
-        Ok(Self::boot(models, telemetry_periods, None)?.0)
+        Ok(Self::boot(models, telemetry_periods, None, None)?.0)
+    }
+
+    /// [`Self::new`] on the axes of a machine file (`None`: the gantry's,
+    /// host-sim/machines/gantry.toml), e.g. host-sim/machines/gantry_flexible.toml.
+    pub fn on_machine(
+        models: SimModels,
+        telemetry_periods: u32,
+        machine: Option<&Path>,
+    ) -> Result<Self> {
+        Ok(Self::boot(models, telemetry_periods, None, machine)?.0)
     }
 
     /// Power on with the settings flash `image` (what a served machine kept in its
@@ -72,6 +83,7 @@ impl SimMachine {
         models: SimModels,
         telemetry_periods: u32,
         image: Option<&[u8]>,
+        machine: Option<&Path>,
     ) -> Result<(Self, LoadOutcome)> {
         let mut ram = RamFlash::new();
         if let Some(bytes) = image {
@@ -88,7 +100,7 @@ impl SimMachine {
         let mut store = SettingsStore::new(flash, 0..STORE_BYTES)
             .map_err(|e| anyhow!("settings store: {e}"))?;
         // (the scenario's control rate: the settings are checked at the rate they run)
-        let rate_hz = machine_and_planner(None)?.0.servo.rate_hz;
+        let rate_hz = machine_and_planner(machine)?.0.servo.rate_hz;
         let (stored, outcome) = block_on(store.load(rate_hz));
         let settings = match outcome {
             LoadOutcome::Stored => stored,
@@ -98,7 +110,7 @@ impl SimMachine {
             },
             _ => FACTORY,
         };
-        let (world, rate_hz) = gantry_world(&settings, Some(rate_hz), false)?;
+        let (world, rate_hz) = gantry_world_on(machine, &settings, Some(rate_hz), false)?;
         let mut machine = Machine::new(
             &settings,
             rate_hz,

@@ -39,6 +39,7 @@ impl SplitParts {
             scope: Scope::new(),
             comp: controller_core::motion::compensation::CompTables::NONE,
             comp_entry: controller_core::machine::CompEntry::NONE,
+            response: controller_core::machine::ResponseRecord::EMPTY,
             shaper: controller_core::motion::shaper::ShaperStage::NONE,
             queue: controller_core::machine::RequestQueue::new(),
             next_settings: None,

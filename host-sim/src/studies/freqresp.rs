@@ -93,12 +93,12 @@ pub struct AxisResponse {
     /// `done`, or why it stopped.
     pub status: String,
     pub machine_time_s: f64,
-    /// The window and the cap the measurement ran within.
+    /// The window the measurement ran within.
     pub window_mm: [f64; 2],
-    pub torque_cap_mnm: f64,
-    /// Largest |motor position - start| and |effort| during the run.
-    pub travel_max_mm: f64,
-    pub effort_max_mnm: f64,
+    /// The cap and what the run reached (the study sees every period; over the link
+    /// `gantry freqresp` does not, and leaves these keys out).
+    #[serde(flatten)]
+    pub bounds: Option<RunBounds>,
     /// The rigid-body line: `J`, `B`.
     pub inertia: f64,
     pub viscous: f64,
@@ -111,6 +111,15 @@ pub struct AxisResponse {
     pub machine: Option<MachineMode>,
     /// The resonance nearest the machine's mode against it.
     pub error_pct: Option<ModeErrors>,
+}
+
+/// The torque cap a measurement ran under and how far it went.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct RunBounds {
+    pub torque_cap_mnm: f64,
+    /// Largest |motor position - start| and |effort| during the run.
+    pub travel_max_mm: f64,
+    pub effort_max_mnm: f64,
 }
 
 /// The whole study.
@@ -280,69 +289,97 @@ pub fn unwrap_phases(raw: impl Iterator<Item = f64>) -> Vec<f64> {
     .collect()
 }
 
+/// The status word of a measurement's end: `done`, or why it stopped.
+pub fn status_text(status: IdentifyStatus) -> String {
+    match status {
+        IdentifyStatus::Done => "done".to_string(),
+        other => format!("{other:?}"),
+    }
+}
+
+impl AxisResponse {
+    /// The figures of a measured response `frf` (its rigid line, modes and points over the
+    /// rigid line; [`find_modes`]), as the study and `gantry freqresp` report them;
+    /// `machine`: the machine file's mode to compare the nearest resonance with.
+    pub fn of(
+        frf: &FrequencyResponse,
+        status: String,
+        machine_time_s: f64,
+        window_mm: [f64; 2],
+        bounds: Option<RunBounds>,
+        machine: Option<MachineMode>,
+    ) -> Self {
+        let modes: ModeReport = find_modes(frf, &MODE_DEFAULTS).unwrap_or_default();
+        let phases = unwrap_phases(frf.points().iter().map(|p| f64::from(p.phase_deg())));
+        let points = frf
+            .points()
+            .iter()
+            .zip(phases)
+            .map(|(p, phase)| {
+                let (rr, ri) = modes.rigid.response(p.freq_hz);
+                let rigid_db = 10.0 * f64::from(rr * rr + ri * ri).max(1e-300).log10();
+                PointJson {
+                    freq_hz: f64::from(p.freq_hz),
+                    magnitude_db: f64::from(p.magnitude_db()),
+                    phase_deg: phase,
+                    relative_db: f64::from(p.magnitude_db()) - rigid_db,
+                }
+            })
+            .collect();
+        let resonances: Vec<ModeJson> = modes.resonances().iter().map(ModeJson::from).collect();
+        let error_pct = machine.and_then(|mm| {
+            let near = resonances.iter().min_by(|a, b| {
+                let d = |m: &ModeJson| (m.freq_hz / mm.mode_hz).ln().abs();
+                d(a).total_cmp(&d(b))
+            })?;
+            Some(ModeErrors {
+                freq_pct: pct(near.freq_hz, mm.mode_hz),
+                damping_pct: pct(near.damping_ratio, mm.damping_ratio),
+                model_damping_pct: pct(near.damping_ratio, mm.model_damping_ratio),
+            })
+        });
+        Self {
+            status,
+            machine_time_s,
+            window_mm,
+            bounds,
+            inertia: f64::from(modes.rigid.inertia),
+            viscous: f64::from(modes.rigid.viscous),
+            delay_s: f64::from(modes.delay_s),
+            points,
+            resonances,
+            anti_resonances: modes.anti_resonances().iter().map(ModeJson::from).collect(),
+            machine,
+            error_pct,
+        }
+    }
+}
+
 /// Measure `axis` and find its modes; compare them with the machine file's `truth`.
 pub fn measure_axis(base: &RunConfig, axis: Axis, truth: &PlantConfig) -> Result<AxisResponse> {
     let m = measure(base, axis)?;
-    let status = match m.status {
-        IdentifyStatus::Done => "done".to_string(),
-        other => format!("{other:?}"),
-    };
-    let modes: ModeReport = find_modes(&m.frf, &MODE_DEFAULTS).unwrap_or_default();
-    let phases = unwrap_phases(m.frf.points().iter().map(|p| f64::from(p.phase_deg())));
-    let points = m
-        .frf
-        .points()
-        .iter()
-        .zip(phases)
-        .map(|(p, phase)| {
-            let (rr, ri) = modes.rigid.response(p.freq_hz);
-            let rigid_db = 10.0 * f64::from(rr * rr + ri * ri).max(1e-300).log10();
-            PointJson {
-                freq_hz: f64::from(p.freq_hz),
-                magnitude_db: f64::from(p.magnitude_db()),
-                phase_deg: phase,
-                relative_db: f64::from(p.magnitude_db()) - rigid_db,
-            }
-        })
-        .collect();
     let machine = match truth {
         PlantConfig::Physical(a) => model_mode(a),
         PlantConfig::Paper(_) => None,
     };
-    let resonances: Vec<ModeJson> = modes.resonances().iter().map(ModeJson::from).collect();
-    let error_pct = machine.and_then(|mm| {
-        let near = resonances.iter().min_by(|a, b| {
-            let d = |m: &ModeJson| (m.freq_hz / mm.mode_hz).ln().abs();
-            d(a).total_cmp(&d(b))
-        })?;
-        Some(ModeErrors {
-            freq_pct: pct(near.freq_hz, mm.mode_hz),
-            damping_pct: pct(near.damping_ratio, mm.damping_ratio),
-            model_damping_pct: pct(near.damping_ratio, mm.model_damping_ratio),
-        })
-    });
     let torque_cap = match truth {
         PlantConfig::Physical(a) => {
             f64::from(base.servo.identify.torque_cap_mnm.min(a.torque_max_mnm))
         }
         PlantConfig::Paper(_) => f64::from(base.servo.identify.torque_cap_mnm),
     };
-    Ok(AxisResponse {
-        status,
-        machine_time_s: m.time_s,
-        window_mm: m.window_mm,
-        torque_cap_mnm: torque_cap,
-        travel_max_mm: m.travel_mm,
-        effort_max_mnm: m.effort_mnm,
-        inertia: f64::from(modes.rigid.inertia),
-        viscous: f64::from(modes.rigid.viscous),
-        delay_s: f64::from(modes.delay_s),
-        points,
-        resonances,
-        anti_resonances: modes.anti_resonances().iter().map(ModeJson::from).collect(),
+    Ok(AxisResponse::of(
+        &m.frf,
+        status_text(m.status),
+        m.time_s,
+        m.window_mm,
+        Some(RunBounds {
+            torque_cap_mnm: torque_cap,
+            travel_max_mm: m.travel_mm,
+            effort_max_mnm: m.effort_mnm,
+        }),
         machine,
-        error_pct,
-    })
+    ))
 }
 
 /// Run the study on the built-in flexible gantry (or `machine`).
@@ -429,17 +466,20 @@ pub fn table(r: &FreqRespReport) -> String {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
+        let bounds = a.bounds.map_or(String::new(), |b| {
+            format!(
+                "; travel {:.1} mm, effort {:.0} mN·m (cap {:.0})",
+                b.travel_max_mm, b.effort_max_mnm, b.torque_cap_mnm
+            )
+        });
         let _ = writeln!(
             s,
-            "{name}: J {:.4} B {:.3} delay {:.0} µs; resonances [{}]; anti-resonances [{}]; travel {:.1} mm, effort {:.0} mN·m (cap {:.0}), {:.1} s",
+            "{name}: J {:.4} B {:.3} delay {:.0} µs; resonances [{}]; anti-resonances [{}]{bounds}, {:.1} s",
             a.inertia,
             a.viscous,
             a.delay_s * 1e6,
             list(&a.resonances),
             list(&a.anti_resonances),
-            a.travel_max_mm,
-            a.effort_max_mnm,
-            a.torque_cap_mnm,
             a.machine_time_s
         );
     }
