@@ -84,6 +84,30 @@ fn the_beam_mode_of_y_is_measured_over_the_link() {
         y.inertia,
         axis.inertia
     );
+    // a refused measurement (a window that leaves the axis out) leaves the last one's
+    // points readable
+    match c
+        .exec(Request::MeasureResponse {
+            axis: 1,
+            window_mm: Some([5.0, 60.0]),
+        })
+        .unwrap()
+    {
+        Outcome::Refused(why) => assert!(why.contains("window"), "{why}"),
+        other => panic!("a window without the axis: {other:?}"),
+    }
+    match c.exec(Request::ResponseRead { first: 0 }).unwrap() {
+        Outcome::Response(chunk) => {
+            assert_eq!((chunk.axis, chunk.total), (1, 64), "{chunk:?}");
+            assert_eq!(chunk.points.len(), 6);
+            let f = f64::from(chunk.points[0].freq_hz);
+            assert!(
+                y.points.iter().any(|p| (p.freq_hz - f).abs() < 1e-3),
+                "{f} Hz is not one of the measured frequencies"
+            );
+        }
+        other => panic!("a read after a refused measurement: {other:?}"),
+    }
     // a read past the measured points is refused
     match c.exec(Request::ResponseRead { first: 65 }).unwrap() {
         Outcome::Refused(why) => assert!(why.contains("past the measured"), "{why}"),

@@ -778,7 +778,10 @@ where
             self.executed = self.executed.wrapping_add(1);
             self.last = match refused_now {
                 Some((_, why)) => refused(why.message()),
-                None => Outcome::Done,
+                None => {
+                    self.response_accepted(&cmds);
+                    Outcome::Done
+                }
             };
         }
         if self.program {
@@ -996,7 +999,7 @@ where
                 let Some(axis) = Axis::from_index(usize::from(*axis)) else {
                     return Step::Done(refused("freqresp: axis must be 0, 1 or 2"));
                 };
-                self.mem.response.start();
+                // (the record starts once the servo accepts: see `period`)
                 let _ = cmds.push(Command::MeasureResponse {
                     axis,
                     window_mm: *window_mm,
@@ -1008,6 +1011,19 @@ where
                 self.servo.response_outcome(),
                 self.servo.state() == ServoState::Identify,
             )),
+        }
+    }
+
+    /// A frequency response the servo accepted this period: the last one's points go (a
+    /// refused request leaves them, and the outcome they belong to, readable).
+    #[cold]
+    #[inline(never)]
+    fn response_accepted(&mut self, cmds: &[Command]) {
+        if cmds
+            .iter()
+            .any(|c| matches!(c, Command::MeasureResponse { .. }))
+        {
+            self.mem.response.start();
         }
     }
 
