@@ -58,6 +58,8 @@ mod program_run;
 mod settings_atomic;
 #[path = "sim_serve.rs"]
 mod sim_serve;
+#[path = "tune_link.rs"]
+mod tune_link;
 #[path = "twin_plant_cli.rs"]
 mod twin_plant_cli;
 #[path = "vibration.rs"]

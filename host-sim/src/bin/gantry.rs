@@ -221,6 +221,35 @@ enum Cmd {
         #[arg(long)]
         no_plots: bool,
     },
+    /// Tune an axis in one go: identify it (the model is accepted), measure its frequency
+    /// response, take a rapid stop as the reference, set the friction feed-forward and an
+    /// input shaper at the strongest resonance, take the stop again; put everything back
+    /// when the stop rings more than before. Nothing is saved (`settings save`).
+    /// Example: `gantry --sim --machine host-sim/machines/gantry_flexible.toml tune y`.
+    Tune {
+        /// x, y or z.
+        axis: String,
+        /// As `identify --window-mm`: needed while the machine has no model.
+        #[arg(long, allow_negative_numbers = true)]
+        window_mm: Option<f32>,
+        /// The law's closed-loop bandwidth to set (axis.<a>.law.bandwidth_rad_s); the
+        /// machine's when absent.
+        #[arg(long, allow_negative_numbers = true)]
+        bandwidth_rad_s: Option<f32>,
+        /// auto (mzv, else zv: what fits the shaper's history), none, or a kind: zv, mzv,
+        /// zvd, ei, 2hump_ei, 3hump_ei.
+        #[arg(long, default_value = "auto")]
+        shaper: String,
+        /// Measure and report; change no setting and run no stop.
+        #[arg(long)]
+        dry_run: bool,
+        /// Write the report as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Where the stop's program goes.
+        #[arg(long, default_value = "out/tune")]
+        out: PathBuf,
+    },
     /// Settings: list, get KEY, set KEY VALUE | set KEY=VALUE..., defaults, save, repair,
     /// export FILE, import FILE.
     Settings {
@@ -504,6 +533,34 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             window_mm,
             json,
         } => return identify(c, &axis, accept, window_mm, json.as_deref()),
+        Cmd::Tune {
+            axis,
+            window_mm,
+            bandwidth_rad_s,
+            shaper,
+            dry_run,
+            json,
+            out,
+        } => {
+            let o = cli::tune::TuneOptions {
+                axis: axis_index(&axis)?,
+                window_half_mm: window_mm,
+                bandwidth_rad_s,
+                shaper: cli::tune::ShaperChoice::parse(&shaper)?,
+                dry_run,
+                telemetry_period_s: f64::from(decimation) / f64::from(c.control_rate_hz()),
+            };
+            let r = cli::tune::tune(c, &o, &out)?;
+            print!("{}", cli::tune::table(&r));
+            if let Some(j) = json {
+                write_json(&j, &r)?;
+            }
+            return Ok(if r.applied() || dry_run {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            });
+        }
         Cmd::Freqresp {
             axis,
             window_mm,

@@ -24,6 +24,7 @@ pub mod serve;
 pub mod sim;
 pub mod trace;
 pub mod transport;
+pub mod tune;
 pub mod view;
 
 pub use transport::Transport;

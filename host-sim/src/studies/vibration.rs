@@ -169,7 +169,7 @@ pub struct VibrationReport {
 }
 
 /// The measured mode an axis is shaped for: its strongest resonance.
-fn strongest(res: &[ModeJson]) -> Option<ModeJson> {
+pub fn strongest(res: &[ModeJson]) -> Option<ModeJson> {
     res.iter()
         .copied()
         .max_by(|a, b| a.peak_db.total_cmp(&b.peak_db))

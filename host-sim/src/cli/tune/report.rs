@@ -1,0 +1,145 @@
+//! `gantry tune`'s report: what was measured and set, the stops before and after, as
+//! JSON (keys are public interface) and as text.
+
+use super::stop::{StopCheck, SETTLE_UM};
+use crate::cli::IdentifyJson;
+use crate::studies::freqresp::{AxisResponse, ModeJson};
+use serde::Serialize;
+
+/// A notch `filter::place` puts at a resonance (listed, not applied).
+#[derive(Clone, Debug, Serialize)]
+pub struct NotchJson {
+    pub freq_hz: f32,
+    pub width_hz: f32,
+    pub depth_db: f32,
+}
+
+/// The shaper set (JSON keys are public interface).
+#[derive(Clone, Debug, Serialize)]
+pub struct ShaperJson {
+    pub kind: String,
+    pub freq_hz: f32,
+    pub damping_ratio: f32,
+}
+
+/// `gantry tune`'s report (JSON keys are public interface).
+#[derive(Clone, Debug, Serialize)]
+pub struct TuneReport {
+    pub axis: String,
+    pub identify: IdentifyJson,
+    pub response: AxisResponse,
+    pub bandwidth_rad_s: f32,
+    /// The resonance shaped (the strongest measured).
+    pub mode: Option<ModeJson>,
+    pub shaper: Option<ShaperJson>,
+    /// Kinds the machine's shaper history does not hold at that mode.
+    pub shaper_refused: Vec<String>,
+    /// The settings step 4 set (key, value), in order.
+    pub settings: Vec<(String, String)>,
+    pub notches_placed: Vec<NotchJson>,
+    /// Resonances too close to the bandwidth for a notch (`filter::Placement::
+    /// near_bandwidth`, below 1.5× it): the shaper is their remedy.
+    pub in_band_resonances: usize,
+    /// The path tolerance at which the shaped axis keeps its full acceleration, mm (the
+    /// shaper's deviation takes half of it); `null` without a shaper.
+    pub full_acc_tolerance_mm: Option<f32>,
+    pub before: Option<StopCheck>,
+    pub after: Option<StopCheck>,
+    pub after_full_acc: Option<StopCheck>,
+    /// `applied`, `dry run`, `rolled back (...)`, or why nothing was applied.
+    pub outcome: String,
+}
+
+impl TuneReport {
+    /// The command's success: the settings are applied and verified.
+    pub fn applied(&self) -> bool {
+        self.outcome == "applied"
+    }
+}
+
+fn stop_cell(s: Option<&StopCheck>) -> String {
+    match s {
+        None => "-".into(),
+        Some(s) => format!(
+            "peak {:.2} µm, {} (stop at {:.0} mm/s²)",
+            s.peak_um,
+            match s.settle_ms {
+                None => "not settled within the capture".into(),
+                Some(0.0) => format!("never left the {SETTLE_UM} µm band"),
+                Some(m) => format!("within {SETTLE_UM} µm after {m:.1} ms"),
+            },
+            s.acc_mm_s2,
+        ),
+    }
+}
+
+/// The report as text.
+pub fn table(r: &TuneReport) -> String {
+    let mut t = String::new();
+    let id = &r.identify;
+    let num = |v: Option<f32>| v.map_or("-".into(), |v| format!("{v}"));
+    t += &format!(
+        "tune {}: {}\n  model      J {} B {} f+ {} f- {} mN·m (nrmse {:.3}){}\n",
+        r.axis,
+        r.outcome,
+        num(id.j),
+        num(id.b),
+        num(id.f_pos),
+        num(id.f_neg),
+        id.nrmse,
+        if id.accepted { ", accepted" } else { "" }
+    );
+    let modes: Vec<String> = r
+        .response
+        .resonances
+        .iter()
+        .map(|m| {
+            format!(
+                "{:.2} Hz ζ {:.4} (+{:.1} dB)",
+                m.freq_hz, m.damping_ratio, m.peak_db
+            )
+        })
+        .collect();
+    t += &format!(
+        "  modes      {}\n  bandwidth  {} rad/s ({:.1} Hz); {} resonance(s) too close to it for a notch\n",
+        if modes.is_empty() { "none".into() } else { modes.join(", ") },
+        r.bandwidth_rad_s,
+        r.bandwidth_rad_s / core::f32::consts::TAU,
+        r.in_band_resonances
+    );
+    t += &match &r.shaper {
+        Some(s) => format!(
+            "  shaper     {} at {:.2} Hz, ζ {:.4}\n",
+            s.kind, s.freq_hz, s.damping_ratio
+        ),
+        None => "  shaper     none\n".into(),
+    };
+    if !r.shaper_refused.is_empty() {
+        t += &format!(
+            "             (the history does not hold {} at this mode)\n",
+            r.shaper_refused.join(", ")
+        );
+    }
+    for n in &r.notches_placed {
+        t += &format!(
+            "  notch      {:.2} Hz, width {:.2} Hz, depth {:.1} dB: placed, not applied (its margins need the loop measured)\n",
+            n.freq_hz, n.width_hz, n.depth_db
+        );
+    }
+    for (k, v) in &r.settings {
+        t += &format!("  set        {k} = {v}\n");
+    }
+    if let Some(tol) = r.full_acc_tolerance_mm {
+        t += &format!(
+            "  tolerance  the shaper keeps {}'s full acceleration from planner.tolerance_mm = {tol:.4} mm on; below, the machine lowers it\n",
+            r.axis
+        );
+    }
+    t += &format!(
+        "  before     {}\n  after      {}\n  same acc.  {}\n",
+        stop_cell(r.before.as_ref()),
+        stop_cell(r.after.as_ref()),
+        stop_cell(r.after_full_acc.as_ref())
+    );
+    t
+}
