@@ -22,15 +22,17 @@ pub enum Tab {
     Scope,
     Settings,
     Identify,
+    Tune,
 }
 
 impl Tab {
-    pub const ALL: [Tab; 5] = [
+    pub const ALL: [Tab; 6] = [
         Tab::Path,
         Tab::Plots,
         Tab::Scope,
         Tab::Settings,
         Tab::Identify,
+        Tab::Tune,
     ];
     pub fn label(self) -> &'static str {
         match self {
@@ -39,6 +41,7 @@ impl Tab {
             Tab::Scope => "Scope",
             Tab::Settings => "Settings",
             Tab::Identify => "Identification",
+            Tab::Tune => "Tuning",
         }
     }
 }
@@ -80,6 +83,7 @@ pub struct GantryApp {
     pub scope: panels::scope::ScopePanel,
     pub settings: panels::settings::SettingsPanel,
     pub identify: panels::identify::IdentifyPanel,
+    pub tune: panels::tune::TunePanel,
     pub script: Script,
     pub script_state: crate::script::ScriptState,
     /// Program runs that ended (with or without a report).
@@ -125,6 +129,7 @@ impl GantryApp {
             scope: Default::default(),
             settings: Default::default(),
             identify: Default::default(),
+            tune: Default::default(),
             script,
             script_state: Default::default(),
             report: None,
@@ -195,6 +200,7 @@ impl GantryApp {
             Event::RunReport(r) => self.report = Some(r),
             Event::Settings(all) => self.settings.set_values(all),
             Event::Identified(r) => self.identify.results.extend(r),
+            Event::Tuned(r) => self.tune.reports.push(*r),
             Event::Signals(names) => {
                 // the samples kept carry the old signals' values: not to be drawn under
                 // the new names
@@ -246,6 +252,7 @@ impl GantryApp {
                 Tab::Scope => panels::scope::show(self, ui),
                 Tab::Settings => panels::settings::show(self, ui),
                 Tab::Identify => panels::identify::show(self, ui),
+                Tab::Tune => panels::tune::show(self, ui),
             }
         });
         // live: repaint while the machine streams (the session also wakes the window)

@@ -15,7 +15,7 @@ use std::sync::{Arc, OnceLock};
 #[derive(Parser)]
 #[command(
     name = "gantry-gui",
-    about = "The gantry operator's window: read-out, jog, program and tool path, live plots, scope, settings, identification",
+    about = "The gantry operator's window: read-out, jog, program and tool path, live plots, scope, settings, identification, tuning",
     version
 )]
 struct Cli {
@@ -36,8 +36,8 @@ struct Cli {
     #[arg(long, value_name = "S")]
     after_s: Option<f64>,
     /// The tab shown at start: path (its XY view), path-3d (its 3-D view), plots, scope,
-    /// settings or identify.
-    #[arg(long, default_value = "path", value_parser = ["path", "path-3d", "plots", "scope", "settings", "identify"])]
+    /// settings, identify or tune.
+    #[arg(long, default_value = "path", value_parser = ["path", "path-3d", "plots", "scope", "settings", "identify", "tune"])]
     tab: String,
     /// The window's size in pixels, WxH.
     #[arg(long, default_value = "1400x900", value_name = "WxH")]
@@ -100,6 +100,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         "scope" => Tab::Scope,
         "settings" => Tab::Settings,
         "identify" => Tab::Identify,
+        "tune" => Tab::Tune,
         _ => Tab::Path,
     };
     if let Some(p) = &cli.program {

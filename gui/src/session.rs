@@ -71,6 +71,13 @@ pub enum Command {
         window_mm: Option<f32>,
         accept: bool,
     },
+    /// Tune one axis (`gantry tune`): identify, measure, shape, verify; `window_mm` for
+    /// an axis that has no model yet.
+    Tune {
+        axis: usize,
+        window_mm: Option<f32>,
+        shaper: host_sim::cli::tune::ShaperChoice,
+    },
     /// Store the last identification's model of `axis` in the settings (not saved to
     /// flash): disarm first (a model changes the law), as `gantry identify --accept` does.
     Accept {
@@ -104,6 +111,7 @@ impl Command {
             Self::SetSettings(_) => "settings set".into(),
             Self::SaveSettings => "settings save".into(),
             Self::Identify { axis, .. } => format!("identify {}", axis_name(*axis)),
+            Self::Tune { axis, .. } => format!("tune {}", axis_name(*axis)),
             Self::Accept { axis } => format!("accept {}", axis_name(*axis)),
             Self::Signals(_) => "telemetry signals".into(),
             Self::Scope { .. } => "scope".into(),
@@ -146,6 +154,8 @@ pub enum Event {
     RunReport(Box<host_sim::gcode::report::GcodeReport>),
     Settings(Vec<(String, String)>),
     Identified(Vec<IdentifyJson>),
+    /// A tuning ended (`gantry tune --json`'s keys).
+    Tuned(Box<host_sim::cli::tune::TuneReport>),
     /// The telemetry's signal names, in their order in each sample.
     Signals(Vec<String>),
     Scope(Box<cli::scope::Capture>),
@@ -470,6 +480,28 @@ fn execute(
                 .collect::<Vec<_>>()
                 .join(", ");
             let _ = events.send(Event::Identified(r));
+            Ok(text)
+        }
+        Command::Tune {
+            axis,
+            window_mm,
+            shaper,
+        } => {
+            let o = cli::tune::TuneOptions {
+                axis,
+                window_half_mm: window_mm,
+                bandwidth_rad_s: None,
+                shaper,
+                dry_run: false,
+                telemetry_period_s: f64::from(decimation) / f64::from(c.control_rate_hz()),
+            };
+            // (the stop's program is written beside the other temporary files)
+            let out = std::env::temp_dir().join(format!("gantry-gui-tune-{}", std::process::id()));
+            let r = cli::tune::tune(c, &o, &out)?;
+            let text = format!("tune {}: {}", axis_name(axis), r.outcome);
+            let _ = events.send(Event::Tuned(Box::new(r)));
+            let all = cli::read_settings(c)?;
+            let _ = events.send(Event::Settings(all));
             Ok(text)
         }
         Command::Accept { axis } => {

@@ -1,6 +1,6 @@
 //! The window's panels, one module each: the read-out and machine buttons ([`dro`]), jog
 //! and program ([`controls`]), and the tabs ([`path`], [`plots`], [`scope`],
-//! [`settings`], [`identify`]). Each draws from the app's state and acts only by sending
+//! [`settings`], [`identify`], [`tune`]). Each draws from the app's state and acts only by sending
 //! commands to the session.
 
 pub mod controls;
@@ -10,3 +10,4 @@ pub mod path;
 pub mod plots;
 pub mod scope;
 pub mod settings;
+pub mod tune;
