@@ -21,6 +21,8 @@ pub struct ResponseRecord {
     len: u8,
     /// The servo's index of the last point taken, plus one (0: none yet).
     seen: u8,
+    /// The servo's identification run the points are from (`Servo::identify_runs`).
+    run: u8,
 }
 
 impl Default for ResponseRecord {
@@ -43,19 +45,21 @@ impl ResponseRecord {
         }; MAX_POINTS],
         len: 0,
         seen: 0,
+        run: 0,
     };
 
-    /// A measurement starts: the last one's points go.
-    pub fn start(&mut self) {
-        self.len = 0;
-        self.seen = 0;
-    }
-
-    /// The servo's latest point (`Servo::response_point`), taken once.
-    pub fn collect(&mut self, latest: Option<(u8, ResponsePoint)>) {
+    /// The servo's latest point (`Servo::response_point`) of its identification run
+    /// `run` (`Servo::identify_runs`), taken once; the first point of a new run drops the
+    /// last run's points (a refused measurement starts no run: they stay readable).
+    pub fn collect(&mut self, run: u8, latest: Option<(u8, ResponsePoint)>) {
         let Some((n, p)) = latest else {
             return;
         };
+        if run != self.run {
+            self.run = run;
+            self.len = 0;
+            self.seen = 0;
+        }
         let tag = n.saturating_add(1);
         if tag == self.seen {
             return;
@@ -138,12 +142,11 @@ mod tests {
     #[test]
     fn points_are_taken_once_and_read_in_chunks() {
         let mut r = ResponseRecord::EMPTY;
-        r.start();
         for n in 0..9u8 {
             for _ in 0..3 {
-                r.collect(Some((n, point(300.0 - 10.0 * f32::from(n)))));
+                r.collect(1, Some((n, point(300.0 - 10.0 * f32::from(n)))));
             }
-            r.collect(None);
+            r.collect(1, None);
         }
         assert_eq!(r.points().len(), 9);
         let read = |first| r.read(&Request::ResponseRead { first }, done(), false);
@@ -174,15 +177,19 @@ mod tests {
     #[test]
     fn refusals_and_restart() {
         let mut r = ResponseRecord::EMPTY;
-        r.collect(Some((0, point(100.0))));
+        r.collect(1, Some((0, point(100.0))));
+        r.collect(1, Some((1, point(90.0))));
         let q = Request::ResponseRead { first: 0 };
         assert_eq!(r.read(&q, done(), true), Outcome::refused(RUNNING));
         assert_eq!(r.read(&q, None, false), Outcome::refused(NOT_MEASURED));
-        r.start();
-        assert!(r.points().is_empty());
-        // the servo's index restarts at 0 with the new measurement: taken again
-        r.collect(Some((0, point(300.0))));
+        // a later run (a model identification sends no point) keeps them until its
+        // first point
+        r.collect(2, None);
+        assert_eq!(r.points().len(), 2);
+        // the servo's index restarts at 0 with the new run: the old points go
+        r.collect(3, Some((0, point(300.0))));
         assert_eq!(r.points().len(), 1);
+        assert_eq!(r.points()[0].freq_hz, 300.0);
         let aborted = Some(ResponseOutcome {
             axis: Axis::X,
             status: IdentifyStatus::Aborted(crate::sysid::AbortReason::LeftWindow),

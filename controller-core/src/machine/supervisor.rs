@@ -778,10 +778,7 @@ where
             self.executed = self.executed.wrapping_add(1);
             self.last = match refused_now {
                 Some((_, why)) => refused(why.message()),
-                None => {
-                    self.response_accepted(&cmds);
-                    Outcome::Done
-                }
+                None => Outcome::Done,
             };
         }
         if self.program {
@@ -999,7 +996,8 @@ where
                 let Some(axis) = Axis::from_index(usize::from(*axis)) else {
                     return Step::Done(refused("freqresp: axis must be 0, 1 or 2"));
                 };
-                // (the record starts once the servo accepts: see `period`)
+                // (the record drops the last measurement's points when the servo's new
+                // run sends its first: a refused request leaves them readable)
                 let _ = cmds.push(Command::MeasureResponse {
                     axis,
                     window_mm: *window_mm,
@@ -1014,26 +1012,15 @@ where
         }
     }
 
-    /// A frequency response the servo accepted this period: the last one's points go (a
-    /// refused request leaves them, and the outcome they belong to, readable).
-    #[cold]
-    #[inline(never)]
-    fn response_accepted(&mut self, cmds: &[Command]) {
-        if cmds
-            .iter()
-            .any(|c| matches!(c, Command::MeasureResponse { .. }))
-        {
-            self.mem.response.start();
-        }
-    }
-
     /// The frequency response's latest point into the record (while identifying; out of
     /// line: inlined, it cost a streaming program's period 42 instructions of register
     /// spills, `cargo insns` machine_period_program 4 328 → 4 370).
     #[cold]
     #[inline(never)]
     fn collect_response(&mut self) {
-        self.mem.response.collect(self.servo.response_point());
+        self.mem
+            .response
+            .collect(self.servo.identify_runs(), self.servo.response_point());
     }
 
     /// A request of the compensation transfer ([`super::CompEntry`]).

@@ -162,6 +162,7 @@ impl<R: Real> Servo<R> {
                 outcome: None,
                 outcome_kind: super::identify::IdentifyKind::Model,
                 response_points: 0,
+                runs: 0,
             },
             link_down: false,
             stopping: StopState {
@@ -256,6 +257,8 @@ impl<R: Real> Servo<R> {
         next.ident.outcome = self.ident.outcome;
         next.ident.outcome_kind = self.ident.outcome_kind;
         next.ident.response_points = self.ident.response_points;
+        // (a new configuration is not a new run: a record of its points keeps them)
+        next.ident.runs = self.ident.runs;
         let mut snap = self.snapshot;
         snap.model_missing = next.snapshot.model_missing;
         next.snapshot = snap;

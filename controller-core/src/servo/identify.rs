@@ -33,6 +33,9 @@ pub(super) struct Identification {
     /// The kind of run `outcome` is from, and a frequency response's points measured.
     pub(super) outcome_kind: IdentifyKind,
     pub(super) response_points: u8,
+    /// Identifications started (wrapping): tells a caller collecting a frequency
+    /// response's points that a new run has begun.
+    pub(super) runs: u8,
 }
 
 impl Identification {

@@ -422,6 +422,7 @@ impl<R: Real> Servo<R> {
             self.hold_here(counts);
         }
         self.ident.run = Some(run);
+        self.ident.runs = self.ident.runs.wrapping_add(1);
         self.ident.outcome = None;
         self.state = ServoState::Identify;
         Ok(())

@@ -211,6 +211,12 @@ impl<R: Real> Servo<R> {
         self.ident.run.as_ref().and_then(|r| r.response_point())
     }
 
+    /// Identifications started since boot (wrapping): a new value is a new run (a
+    /// refused command starts none).
+    pub fn identify_runs(&self) -> u8 {
+        self.ident.runs
+    }
+
     /// Per axis: homed (or taking no part in homing), so that its soft limits apply.
     pub fn referenced(&self, axis: usize) -> bool {
         self.referenced_mask() & (1 << axis) != 0
