@@ -140,20 +140,52 @@ fn num(v: Option<f32>, digits: usize) -> String {
     v.map_or("—".into(), |v| format!("{v:.digits$}"))
 }
 
-pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
+/// An axis wizard's head (identification, tuning): the axis chooser, and what the
+/// status says of the chosen axis.
+pub struct AxisHead {
+    pub axis: usize,
+    pub name: &'static str,
+    /// Axes without a model (bits).
+    pub missing: u8,
+    pub homed: bool,
+    /// The session is free for a command.
+    pub free: bool,
+    pub status: Option<controller_core::machine::messages::Status>,
+}
+
+/// Draw the axis chooser on `axis` and read the status for it.
+pub fn axis_head(app: &GantryApp, axis: &mut usize, ui: &mut egui::Ui) -> AxisHead {
     let status = app.live.status.clone();
     let free = app.busy.is_none() && app.lost.is_none() && app.session.is_some();
     ui.horizontal(|ui| {
         ui.label("Axis");
         for (i, name) in ["X", "Y", "Z"].iter().enumerate() {
-            ui.selectable_value(&mut app.identify.axis, i, *name);
+            ui.selectable_value(axis, i, *name);
         }
     });
-    let axis = app.identify.axis.min(2);
-    let name = ["X", "Y", "Z"][axis];
-    let missing = status.as_ref().map_or(0, |s| s.model_missing);
-    let homed = status.as_ref().is_some_and(|s| s.homed & (1 << axis) != 0);
+    let a = (*axis).min(2);
     ui.separator();
+    AxisHead {
+        axis: a,
+        name: ["X", "Y", "Z"][a],
+        missing: status.as_ref().map_or(0, |s| s.model_missing),
+        homed: status.as_ref().is_some_and(|s| s.homed & (1 << a) != 0),
+        free,
+        status,
+    }
+}
+
+pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
+    let mut axis = app.identify.axis;
+    let AxisHead {
+        axis,
+        name,
+        missing,
+        homed,
+        free,
+        status,
+    } = axis_head(app, &mut axis, ui);
+    app.identify.axis = axis;
     egui::ScrollArea::vertical()
         .auto_shrink([false, false])
         .show(ui, |ui| {

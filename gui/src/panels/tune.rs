@@ -12,7 +12,7 @@ use egui::{Color32, RichText};
 use host_sim::cli::tune::{ShaperChoice, StopCheck, TuneReport, SETTLE_UM};
 use host_sim::cli::AXES;
 
-use super::identify::{window_for, DEFAULT_WINDOW_MM};
+use super::identify::{axis_head, window_for, AxisHead, DEFAULT_WINDOW_MM};
 
 const GOOD_GREEN: Color32 = Color32::from_rgb(80, 160, 60);
 const DOUBT_GOLD: Color32 = Color32::from_rgb(181, 137, 0);
@@ -129,19 +129,16 @@ pub fn stop_words(s: Option<&StopCheck>) -> String {
 }
 
 pub fn show(app: &mut GantryApp, ui: &mut egui::Ui) {
-    let status = app.live.status.clone();
-    let free = app.busy.is_none() && app.lost.is_none() && app.session.is_some();
-    ui.horizontal(|ui| {
-        ui.label("Axis");
-        for (i, name) in ["X", "Y", "Z"].iter().enumerate() {
-            ui.selectable_value(&mut app.tune.axis, i, *name);
-        }
-    });
-    let axis = app.tune.axis.min(2);
-    let name = ["X", "Y", "Z"][axis];
-    let missing = status.as_ref().map_or(0, |s| s.model_missing);
-    let homed = status.as_ref().is_some_and(|s| s.homed & (1 << axis) != 0);
-    ui.separator();
+    let mut axis = app.tune.axis;
+    let AxisHead {
+        axis,
+        name,
+        missing,
+        homed,
+        free,
+        status,
+    } = axis_head(app, &mut axis, ui);
+    app.tune.axis = axis;
     egui::ScrollArea::vertical()
         .auto_shrink([false, false])
         .show(ui, |ui| {

@@ -223,11 +223,7 @@ fn axis_filters(base: &RunConfig, axis: Axis, p: &AxisResponse) -> Result<AxisFi
     let modes: Vec<Resonance> = p
         .resonances
         .iter()
-        .map(|m| Resonance {
-            freq_hz: m.freq_hz as f32,
-            damping_ratio: m.damping_ratio as f32,
-            peak_db: m.peak_db as f32,
-        })
+        .map(super::freqresp::ModeJson::resonance)
         .collect();
     let period_s = 1.0 / base.servo.rate_hz as f32;
     let placed = place(&modes, bw, period_s, false).map_err(|e| anyhow!("placement: {e}"))?;

@@ -53,6 +53,17 @@ pub struct ModeJson {
     pub peak_db: f64,
 }
 
+impl ModeJson {
+    /// As the filters' placement takes a measured resonance (`filter::place`).
+    pub fn resonance(&self) -> controller_core::filter::Resonance {
+        controller_core::filter::Resonance {
+            freq_hz: self.freq_hz as f32,
+            damping_ratio: self.damping_ratio as f32,
+            peak_db: self.peak_db as f32,
+        }
+    }
+}
+
 impl From<&Mode> for ModeJson {
     fn from(m: &Mode) -> Self {
         Self {

@@ -217,15 +217,7 @@ fn verify<T: Transport>(
         (Ok(a), None) => Ok(a.clone()),
         (Err(e), _) => Err(anyhow!("{e:#}")),
     };
-    let worse = match &full {
-        Ok(a) => (a.peak_um > WORSE_RATIO * before.peak_um).then(|| {
-            format!(
-                "at the same acceleration the peak after the stop rose from {:.2} to {:.2} µm",
-                before.peak_um, a.peak_um
-            )
-        }),
-        Err(e) => Some(format!("the verification failed: {e:#}")),
-    };
+    let worse = judge(&before, &full);
     r.before = Some(before);
     r.after = after.ok();
     r.after_full_acc = full.ok();
@@ -240,6 +232,20 @@ fn verify<T: Transport>(
     Ok(())
 }
 
+/// Why the settings go back, if they do: the stop at the same acceleration `full` rang
+/// more than [`WORSE_RATIO`] times the reference `before`, or could not be taken.
+fn judge(before: &StopCheck, full: &Result<StopCheck>) -> Option<String> {
+    match full {
+        Ok(a) => (a.peak_um > WORSE_RATIO * before.peak_um).then(|| {
+            format!(
+                "at the same acceleration the peak after the stop rose from {:.2} to {:.2} µm",
+                before.peak_um, a.peak_um
+            )
+        }),
+        Err(e) => Some(format!("the verification failed: {e:#}")),
+    }
+}
+
 /// The notches `filter::place` puts at `res` for the loop's bandwidth, and how many
 /// resonances are too close to it for any.
 fn notches(
@@ -247,14 +253,7 @@ fn notches(
     bandwidth_rad_s: f32,
     period_s: f32,
 ) -> Result<(Vec<NotchJson>, usize)> {
-    let modes: Vec<Resonance> = res
-        .iter()
-        .map(|m| Resonance {
-            freq_hz: m.freq_hz as f32,
-            damping_ratio: m.damping_ratio as f32,
-            peak_db: m.peak_db as f32,
-        })
-        .collect();
+    let modes: Vec<Resonance> = res.iter().map(ModeJson::resonance).collect();
     let bw_hz = bandwidth_rad_s / core::f32::consts::TAU;
     let p =
         place(&modes, bw_hz, period_s, false).map_err(|e| anyhow!("placing the notches: {e:?}"))?;
@@ -348,4 +347,66 @@ fn current<T: Transport>(
         .iter()
         .map(|(k, _)| Ok((k.clone(), get(c, k)?)))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stop(peak_um: f64) -> StopCheck {
+        StopCheck {
+            peak_um,
+            settle_ms: Some(0.0),
+            acc_mm_s2: 2000.0,
+        }
+    }
+
+    /// The settings stay up to 1.1× the reference's peak, go back above it or when the
+    /// stop could not be taken.
+    #[test]
+    fn the_verdict_puts_back_what_rings_more() {
+        let before = stop(8.75);
+        assert_eq!(judge(&before, &Ok(stop(4.28))), None);
+        assert_eq!(judge(&before, &Ok(stop(9.6))), None);
+        let why = judge(&before, &Ok(stop(9.7))).expect("worse");
+        assert!(why.contains("8.75 to 9.70"), "{why}");
+        let why = judge(&before, &Err(anyhow!("the stop program did not complete"))).unwrap();
+        assert!(why.contains("did not complete"), "{why}");
+    }
+
+    #[test]
+    fn the_shaper_auto_takes_mzv_else_zv() {
+        let mode = ModeJson {
+            freq_hz: 35.0,
+            damping_ratio: 0.0425,
+            peak_db: 5.1,
+        };
+        let (s, refused) = choose_shaper(1, ShaperChoice::Auto, Some(&mode), 1e-4);
+        assert_eq!(s.map(|s| s.kind), Some(ShaperKind::Mzv));
+        assert!(refused.contains(&"zvd".to_string()), "{refused:?}");
+        // at 25 Hz MZV's 0.75 periods (30 ms) exceed the 256-period history (25.6 ms at
+        // 10 kHz), ZV's half period (20 ms) does not: ZV
+        let mid = ModeJson {
+            freq_hz: 25.0,
+            ..mode
+        };
+        let (s, _) = choose_shaper(1, ShaperChoice::Auto, Some(&mid), 1e-4);
+        assert_eq!(s.map(|s| s.kind), Some(ShaperKind::Zv));
+        // at 12 Hz neither fits (62 and 42 ms): no shaper
+        let low = ModeJson {
+            freq_hz: 12.0,
+            ..mode
+        };
+        assert_eq!(
+            choose_shaper(1, ShaperChoice::Auto, Some(&low), 1e-4).0,
+            None
+        );
+        // a kind the history refuses is not set, nor replaced by another
+        let (s, _) = choose_shaper(1, ShaperChoice::Kind(ShaperKind::Ei), Some(&mode), 1e-4);
+        assert_eq!(s, None);
+        assert_eq!(
+            choose_shaper(1, ShaperChoice::Off, Some(&mode), 1e-4).0,
+            None
+        );
+    }
 }
