@@ -42,7 +42,9 @@ pub mod report;
 pub mod stop;
 
 pub use report::{table, NotchJson, ShaperJson, TuneReport};
-use stop::{full_acc_stop, full_acc_tolerance, program_text, stop_check, stretch, switch_off};
+use stop::{
+    full_acc_stop, full_acc_tolerance, program_text, stop_check, stretch, switch_off, Stop,
+};
 pub use stop::{StopCheck, SETTLE_UM};
 
 use super::client::Client;
@@ -205,15 +207,21 @@ fn verify<T: Transport>(
     let program = out.join(format!("tune_stop_{name}.ngc"));
     std::fs::write(&program, program_text(o.axis, from, to))
         .with_context(|| format!("cannot write {}", program.display()))?;
-    let before = stop_check(c, o, &program, to)?;
+    let stop = Stop {
+        axis: o.axis,
+        program: &program,
+        to_mm: to,
+        telemetry_period_s: o.telemetry_period_s,
+    };
+    let before = stop_check(c, &stop)?;
     eprintln!("4/5 applying");
     let previous = current(c, &r.settings)?;
     switch_off(c)?;
     apply_settings(c, &r.settings)?;
     eprintln!("5/5 the rapid stop after");
-    let after = stop_check(c, o, &program, to);
+    let after = stop_check(c, &stop);
     let full = match (&after, r.full_acc_tolerance_mm) {
-        (Ok(_), Some(tol)) => full_acc_stop(c, o, &program, to, tol),
+        (Ok(_), Some(tol)) => full_acc_stop(c, &stop, tol),
         (Ok(a), None) => Ok(a.clone()),
         (Err(e), _) => Err(anyhow!("{e:#}")),
     };

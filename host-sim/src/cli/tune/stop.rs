@@ -1,7 +1,6 @@
 //! `gantry tune`'s rapid stop: its program, the scope's capture of the tracking error
 //! from the reference's arrival, and the figures read from it.
 
-use super::TuneOptions;
 use crate::cli::client::{expect_done, Client};
 use crate::cli::{apply_settings, get, ready, Transport, AXES};
 use crate::studies::vibration::{only, APPROACH_FEED_MM_MIN, MOVE_MM};
@@ -69,9 +68,7 @@ pub(super) fn full_acc_tolerance<T: Transport>(
 /// machine's), put back after.
 pub(super) fn full_acc_stop<T: Transport>(
     c: &mut Client<T>,
-    o: &TuneOptions,
-    program: &Path,
-    to: f64,
+    stop: &Stop,
     tol_mm: f32,
 ) -> Result<StopCheck> {
     const KEY: &str = "planner.tolerance_mm";
@@ -81,7 +78,7 @@ pub(super) fn full_acc_stop<T: Transport>(
         .with_context(|| format!("setting {KEY} = {was}"))?;
     switch_off(c)?;
     apply_settings(c, &[(KEY.into(), tol_mm.max(was_mm).to_string())])?;
-    let r = stop_check(c, o, program, to);
+    let r = stop_check(c, stop);
     switch_off(c)?;
     apply_settings(c, &[(KEY.into(), was)])?;
     r
@@ -125,15 +122,20 @@ pub(super) fn program_text(i: usize, from: f64, to: f64) -> String {
     )
 }
 
-/// Run the stop `program` (a rapid in + to `to`) while the scope records the axis'
-/// tracking error from just before the reference arrives.
-pub(super) fn stop_check<T: Transport>(
-    c: &mut Client<T>,
-    o: &TuneOptions,
-    program: &Path,
-    to: f64,
-) -> Result<StopCheck> {
-    let i = o.axis;
+/// One axis' stop as `tune` takes it.
+pub(super) struct Stop<'a> {
+    pub axis: usize,
+    /// Its program ([`program_text`]), a rapid in + ending at `to_mm`.
+    pub program: &'a Path,
+    pub to_mm: f64,
+    /// The session's telemetry period, s (the program's accelerations are read from it).
+    pub telemetry_period_s: f64,
+}
+
+/// Run `stop`'s program while the scope records the axis' tracking error from just
+/// before the reference arrives.
+pub(super) fn stop_check<T: Transport>(c: &mut Client<T>, stop: &Stop) -> Result<StopCheck> {
+    let (i, to) = (stop.axis, stop.to_mm);
     let rate_hz = f64::from(c.control_rate_hz());
     let span = (OBSERVE_S + PRE_S) * rate_hz;
     let every = (span / MAX_SAMPLES).ceil().max(1.0);
@@ -152,7 +154,7 @@ pub(super) fn stop_check<T: Transport>(
     let name = format!("tracking.{}", AXES[i]);
     let mut report = None;
     let cap = crate::cli::scope::capture(c, cfg, vec![name], c.control_rate_hz(), 30.0, |c| {
-        let r = crate::cli::run_program(c, program, o.telemetry_period_s, false, None)?;
+        let r = crate::cli::run_program(c, stop.program, stop.telemetry_period_s, false, None)?;
         if !r.completed() {
             bail!("the stop program did not complete: {}", r.status);
         }
