@@ -214,7 +214,7 @@ enum Cmd {
         /// Write the report as JSON to this file (`cargo sim freqresp --json`'s keys).
         #[arg(long)]
         json: Option<PathBuf>,
-        /// Where the Bode plot goes (freqresp_<axis>.png and .svg).
+        /// Where the Bode plot goes (`freqresp_<axis>.png` and `.svg`).
         #[arg(long, default_value = "out/freqresp")]
         out: PathBuf,
         /// No plot.
@@ -232,7 +232,7 @@ enum Cmd {
         /// As `identify --window-mm`: needed while the machine has no model.
         #[arg(long, allow_negative_numbers = true)]
         window_mm: Option<f32>,
-        /// The law's closed-loop bandwidth to set (axis.<a>.law.bandwidth_rad_s); the
+        /// The law's closed-loop bandwidth to set (`axis.<a>.law.bandwidth_rad_s`); the
         /// machine's when absent.
         #[arg(long, allow_negative_numbers = true)]
         bandwidth_rad_s: Option<f32>,
