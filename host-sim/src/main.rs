@@ -175,15 +175,8 @@ enum Command {
         /// host-sim/machines/gantry_flexible.toml).
         #[arg(long)]
         machine: Option<PathBuf>,
-        /// Also write the results as JSON to this file.
-        #[arg(long)]
-        json: Option<PathBuf>,
-        /// Output folder for the Bode plots.
-        #[arg(long, default_value = "out/freqresp")]
-        out: PathBuf,
-        /// Skip the plots.
-        #[arg(long)]
-        no_plots: bool,
+        #[command(flatten)]
+        output: host_sim::output::freqresp_plots::FreqRespOutput,
     },
     /// Each axis' output filters: notches placed from its measured resonances and the
     /// loop's bandwidth, accepted only when the loop measured with them on the running
@@ -335,12 +328,7 @@ fn main() -> ExitCode {
             write,
             json,
         }) => run_compensation(machine.as_deref(), write.as_deref(), json.as_deref()),
-        Some(Command::Freqresp {
-            machine,
-            json,
-            out,
-            no_plots,
-        }) => run_freqresp(machine.as_deref(), json.as_deref(), &out, no_plots),
+        Some(Command::Freqresp { machine, output }) => run_freqresp(machine.as_deref(), &output),
         Some(Command::Filters {
             machine,
             write,
@@ -615,22 +603,12 @@ fn run_vibration(machine: Option<&Path>, json: Option<&Path>) -> Result<()> {
 
 fn run_freqresp(
     machine: Option<&Path>,
-    json: Option<&Path>,
-    out: &Path,
-    no_plots: bool,
+    output: &host_sim::output::freqresp_plots::FreqRespOutput,
 ) -> Result<()> {
     let started = Instant::now();
     let r = host_sim::studies::freqresp::run(machine)?;
     print!("{}", host_sim::studies::freqresp::table(&r));
-    if let Some(j) = json {
-        write_json(j, &r)?;
-        println!("JSON: {}", j.display());
-    }
-    if !no_plots {
-        create_dir(out)?;
-        let n = host_sim::output::freqresp_plots::figures(out, &r)?;
-        println!("{n} figures (PNG + SVG) in {}", out.display());
-    }
+    output.write(&r)?;
     println!("finished in {:.1} s", started.elapsed().as_secs_f64());
     if !r.all_done() {
         bail!("not every axis was measured to the end");

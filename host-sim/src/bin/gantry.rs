@@ -211,15 +211,9 @@ enum Cmd {
         /// the machine has no model and so cannot arm to home).
         #[arg(long, allow_negative_numbers = true)]
         window_mm: Option<f32>,
-        /// Write the report as JSON to this file (`cargo sim freqresp --json`'s keys).
-        #[arg(long)]
-        json: Option<PathBuf>,
-        /// Where the Bode plot goes (`freqresp_<axis>.png` and `.svg`).
-        #[arg(long, default_value = "out/freqresp")]
-        out: PathBuf,
-        /// No plot.
-        #[arg(long)]
-        no_plots: bool,
+        /// The JSON (`cargo sim freqresp --json`'s keys) and the Bode plot.
+        #[command(flatten)]
+        output: host_sim::output::freqresp_plots::FreqRespOutput,
     },
     /// Tune an axis in one go: identify it (the model is accepted), measure its frequency
     /// response, take a rapid stop as the reference, set the friction feed-forward and an
@@ -564,16 +558,8 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
         Cmd::Freqresp {
             axis,
             window_mm,
-            json,
-            out,
-            no_plots,
-        } => {
-            let opts = FreqrespOpts {
-                json,
-                out: (!no_plots).then_some(out),
-            };
-            return freqresp(c, &axis, window_mm, &opts);
-        }
+            output,
+        } => return freqresp(c, &axis, window_mm, &output),
         Cmd::Settings { op } => settings(c, op)?,
         Cmd::Comp { op } => comp(c, op)?,
     }
@@ -974,33 +960,18 @@ fn identify<T: Transport>(
     Ok(ExitCode::SUCCESS)
 }
 
-/// Where `gantry freqresp` writes its report and plot.
-struct FreqrespOpts {
-    json: Option<PathBuf>,
-    /// `None`: no plot.
-    out: Option<PathBuf>,
-}
-
 /// `gantry freqresp AXIS`: measure, print the table, write the JSON and the plot; fails
 /// when the measurement did not finish.
 fn freqresp<T: Transport>(
     c: &mut Client<T>,
     axis: &str,
     window_mm: Option<f32>,
-    opts: &FreqrespOpts,
+    output: &host_sim::output::freqresp_plots::FreqRespOutput,
 ) -> Result<ExitCode> {
     let i = axis_index(axis)?;
     let r = cli::freqresp::measure(c, i, window_mm, "the machine over the link")?;
     print!("{}", host_sim::studies::freqresp::table(&r));
-    if let Some(j) = &opts.json {
-        write_json(j, &r)?;
-    }
-    if let Some(dir) = &opts.out {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
-        let n = host_sim::output::freqresp_plots::figures(dir, &r)?;
-        println!("{n} files in {}", dir.display());
-    }
+    output.write(&r)?;
     Ok(if r.all_done() {
         ExitCode::SUCCESS
     } else {

@@ -6,10 +6,42 @@
 
 use crate::output::plots::{axis_figures, bode_chart, bode_legend, err, AxisFigure};
 use crate::studies::freqresp::{AxisResponse, FreqRespReport, ModeJson};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Where a frequency-response report goes: the flags `cargo sim freqresp` and `gantry
+/// freqresp` share.
+#[derive(Clone, Debug, clap::Args)]
+pub struct FreqRespOutput {
+    /// Also write the report as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Where the Bode plots go (`freqresp_<axis>.png` and `.svg`).
+    #[arg(long, default_value = "out/freqresp")]
+    pub out: PathBuf,
+    /// No plots.
+    #[arg(long)]
+    pub no_plots: bool,
+}
+
+impl FreqRespOutput {
+    /// Write `r`'s JSON (when asked) and its Bode plots (unless `no_plots`), saying where.
+    pub fn write(&self, r: &FreqRespReport) -> Result<()> {
+        if let Some(j) = &self.json {
+            crate::output::report::write_json(j, r)?;
+            println!("JSON: {}", j.display());
+        }
+        if !self.no_plots {
+            std::fs::create_dir_all(&self.out)
+                .with_context(|| format!("cannot create {}", self.out.display()))?;
+            let n = figures(&self.out, r)?;
+            println!("{n} figures (PNG + SVG) in {}", self.out.display());
+        }
+        Ok(())
+    }
+}
 
 const MEASURED: RGBColor = RGBColor(31, 119, 180);
 const RIGID: RGBColor = RGBColor(127, 127, 127);
