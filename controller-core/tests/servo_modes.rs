@@ -477,6 +477,65 @@ fn a_frequency_response_from_idle_measures_one_axis_and_a_stop_ends_it() {
     assert!(r.servo().response_point().is_none());
 }
 
+/// The loop measurement runs only on the laws (from Idle, never from Disabled): the axis
+/// follows the procedure's travelling reference within the window while the others hold,
+/// the loop's points come from the top of the grid down, above the crossover and rolling
+/// off, and a stop ends it holding.
+#[test]
+fn a_loop_measurement_runs_on_the_laws_from_idle_only() {
+    let mut r = run([0.0; 3]);
+    let cmd = Command::MeasureLoop {
+        axis: Axis::Y,
+        window_mm: Some([-50.0, 50.0]),
+    };
+    assert_eq!(step(&mut r, &[cmd], 1), Some(CommandRefusal::WrongState));
+    step(&mut r, &[Command::Arm], 2_000);
+    assert_eq!(r.servo().state(), ServoState::Idle);
+    let held = r.world().state().map(|a| a.pos);
+    assert_eq!(step(&mut r, &[cmd], 1), None);
+    assert_eq!(r.servo().state(), ServoState::Identify);
+    // 4 s: the start (0.6 s settling) and the highest frequencies
+    let mut seen = Vec::new();
+    let (mut lo, mut hi, mut top_speed) = (f64::MAX, f64::MIN, 0.0f64);
+    for _ in 0..40_000 {
+        r.control_with(&[]);
+        if let Some((i, p)) = r.servo().response_point() {
+            if seen.last().map(|(j, _)| *j) != Some(i) {
+                seen.push((i, p));
+            }
+        }
+        r.finish_period();
+        let y = r.world().state()[1];
+        lo = lo.min(y.pos);
+        hi = hi.max(y.pos);
+        top_speed = top_speed.max(y.vel.abs());
+    }
+    assert_eq!(r.servo().state(), ServoState::Identify);
+    assert!(seen.len() >= 4, "{seen:?}");
+    for (k, (i, p)) in seen.iter().enumerate() {
+        assert_eq!(usize::from(*i), k);
+        // above the crossover (the laws' ~50 Hz): |L| < 1, falling with the frequency
+        assert!(p.magnitude() < 0.5, "{p:?}");
+        if k > 0 {
+            assert!(p.magnitude() > seen[k - 1].1.magnitude(), "{seen:?}");
+        }
+    }
+    assert!(seen[0].1.freq_hz > 390.0);
+    // travelling at 15 mm/s with the sine's few mm/s on it, inside the window
+    assert!(lo >= -45.5 && hi <= 45.5, "{lo}..{hi}");
+    assert!(hi - lo > 10.0 && top_speed < 25.0, "{lo}..{hi}, {top_speed}");
+    let now = r.world().state().map(|a| a.pos);
+    for i in [0, 2] {
+        assert!((now[i] - held[i]).abs() < 0.01, "axis {i}");
+    }
+    assert_eq!(step(&mut r, &[Command::Stop], 1), None);
+    assert_eq!(r.servo().state(), ServoState::Idle);
+    assert!(r.world().outputs_on());
+    let out = r.servo().response_outcome().expect("an outcome");
+    assert_eq!(out.axis, Axis::Y);
+    assert_eq!(usize::from(out.points), seen.len());
+}
+
 #[test]
 fn homing_on_the_index_latches_the_pulse_after_the_switch() {
     // X's switch closes at true -38.7 mm; its encoder gives an index every 5 mm (8000

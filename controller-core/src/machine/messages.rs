@@ -136,6 +136,15 @@ pub enum Request {
     /// Read axis 0/1/2's compensation in use from point `first` on: the chunk is in
     /// [`Status::last`] ([`Outcome::Comp`]).
     CompRead { axis: u8, first: u16 },
+    /// Measure axis 0/1/2's open loop on its laws (armed, holding: from Idle; a stepped
+    /// sine added to the laws' effort while the axis travels back and forth,
+    /// `servo::Command::MeasureLoop`: the identification's window and rules); as
+    /// [`Request::MeasureResponse`] otherwise: [`MachineState::Identify`] while it runs,
+    /// its points, `L(jω)`, read with [`Request::ResponseRead`].
+    MeasureLoop {
+        axis: u8,
+        window_mm: Option<[f32; 2]>,
+    },
 }
 
 /// A part of an axis' compensation in use, as [`Request::CompRead`] reads it (trims as

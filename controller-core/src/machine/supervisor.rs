@@ -873,9 +873,9 @@ where
                 }
                 None => Step::Done(refused("identify: axis must be 0, 1 or 2")),
             },
-            Request::MeasureResponse { .. } | Request::ResponseRead { .. } => {
-                self.response_request(r, cmds)
-            }
+            Request::MeasureResponse { .. }
+            | Request::MeasureLoop { .. }
+            | Request::ResponseRead { .. } => self.response_request(r, cmds),
             Request::Run => {
                 let Some(start) = self.servo.planner_start_mm() else {
                     return Step::Done(refused("run: arm the machine first (it must be idle)"));
@@ -999,6 +999,16 @@ where
                 // (the record drops the last measurement's points when the servo's new
                 // run sends its first: a refused request leaves them readable)
                 let _ = cmds.push(Command::MeasureResponse {
+                    axis,
+                    window_mm: *window_mm,
+                });
+                Step::Servo
+            }
+            Request::MeasureLoop { axis, window_mm } => {
+                let Some(axis) = Axis::from_index(usize::from(*axis)) else {
+                    return Step::Done(refused("loop: axis must be 0, 1 or 2"));
+                };
+                let _ = cmds.push(Command::MeasureLoop {
                     axis,
                     window_mm: *window_mm,
                 });

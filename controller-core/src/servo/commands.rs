@@ -46,6 +46,14 @@ pub enum Command {
         axis: Axis,
         window_mm: Option<[f32; 2]>,
     },
+    /// Measure `axis`' open loop (from Idle: the laws hold it; in Identify mode, the
+    /// window as for [`Command::Identify`]): the axis travels back and forth on its laws
+    /// while a stepped sine is added to their effort
+    /// ([`crate::sysid::frequency::loop_measure`]).
+    MeasureLoop {
+        axis: Axis,
+        window_mm: Option<[f32; 2]>,
+    },
 }
 
 /// Why a command was refused.

@@ -1,10 +1,13 @@
 //! The servo's identification mode: one axis runs an identification procedure (its own
 //! velocity loop and moves), the others hold their position with their laws when the
 //! machine was armed, or stay unpowered when identification started from Disabled (a
-//! machine whose laws have no model yet). Two procedures share the mode and its rules:
-//! the model identification ([`crate::sysid::Identifier`], `Command::Identify`) and the
+//! machine whose laws have no model yet). Three procedures share the mode and its rules:
+//! the model identification ([`crate::sysid::Identifier`], `Command::Identify`), the
 //! frequency-response measurement ([`crate::sysid::frequency::ResponseMeasurement`],
-//! `Command::MeasureResponse`).
+//! `Command::MeasureResponse`) and the loop measurement
+//! ([`crate::sysid::frequency::LoopMeasurement`], `Command::MeasureLoop`: the axis stays
+//! on its laws, following the procedure's reference, the sine added to their effort;
+//! from Idle only).
 //!
 //! The window is the axis' travel when homed, or the window the user confirmed; it is
 //! never larger than the travel. The torque cap is the configured one, never above the
@@ -17,7 +20,10 @@
 use super::commands::CommandRefusal;
 use super::travel::AxisTravel;
 use crate::axes::Axis;
-use crate::sysid::frequency::{ResponseConfig, ResponseMeasurement, ResponsePoint};
+use crate::sysid::frequency::{
+    LoopMeasurement, LoopReference, ResponseConfig, ResponseMeasurement, ResponseOutput,
+    ResponsePoint,
+};
 use crate::sysid::{
     AxisSample, Identifier, IdentifyConfig, IdentifyOutput, IdentifyPhase, IdentifyResult,
     IdentifyStatus,
@@ -46,12 +52,13 @@ impl Identification {
             status: run.last.status,
             result: match &run.procedure {
                 Procedure::Model(id) => id.result().copied(),
-                Procedure::Response(_) => None,
+                Procedure::Response(_) | Procedure::Loop(_) => None,
             },
         });
         self.outcome_kind = run.kind();
         self.response_points = match &run.procedure {
             Procedure::Response(m) => m.measured(),
+            Procedure::Loop(m) => m.measured(),
             Procedure::Model(_) => 0,
         };
     }
@@ -63,10 +70,11 @@ impl Identification {
             .filter(|_| self.outcome_kind == IdentifyKind::Model)
     }
 
-    /// How the last frequency response ended (`None` after a model identification).
+    /// How the last frequency response or loop measurement ended (`None` after a model
+    /// identification).
     pub(super) fn response_outcome(&self) -> Option<ResponseOutcome> {
         let o = self.outcome.as_ref()?;
-        (self.outcome_kind == IdentifyKind::Response).then_some(ResponseOutcome {
+        (self.outcome_kind != IdentifyKind::Model).then_some(ResponseOutcome {
             axis: o.axis,
             status: o.status,
             points: self.response_points,
@@ -81,6 +89,8 @@ pub enum IdentifyKind {
     Model,
     /// The frequency response from effort to encoder: `Command::MeasureResponse`.
     Response,
+    /// The open loop on the laws: `Command::MeasureLoop`.
+    Loop,
 }
 
 /// The procedure of a run (in place: nothing allocates; the run is the model
@@ -90,6 +100,7 @@ pub enum IdentifyKind {
 enum Procedure {
     Model(Identifier),
     Response(ResponseMeasurement),
+    Loop(LoopMeasurement),
 }
 
 /// An identification in progress.
@@ -162,6 +173,15 @@ impl IdentifyRun {
         };
         let rejected = CommandRefusal::IdentifyRejected { axis };
         let (procedure, phase) = match kind {
+            IdentifyKind::Loop if hold_others => (
+                Procedure::Loop(
+                    LoopMeasurement::new(&ResponseConfig::loop_from_identify(&cfg), pos_mm)
+                        .map_err(|_| rejected)?,
+                ),
+                IdentifyPhase::FrequencyResponse,
+            ),
+            // (the laws hold the axis: never from Disabled)
+            IdentifyKind::Loop => return Err(CommandRefusal::WrongState),
             IdentifyKind::Model => (
                 Procedure::Model(Identifier::new(&cfg, pos_mm).map_err(|_| rejected)?),
                 IdentifyPhase::FrictionPasses,
@@ -191,24 +211,13 @@ impl IdentifyRun {
         })
     }
 
-    /// One period: the measurement in, this period's effort out.
-    pub fn step(&mut self, sample: &AxisSample) -> IdentifyOutput {
+    /// One period: the measurement and the laws' effort on the axis (`law_mnm`, the
+    /// loop measurement's) in, this period's effort out.
+    pub fn step(&mut self, sample: &AxisSample, law_mnm: f32) -> IdentifyOutput {
         self.last = match &mut self.procedure {
             Procedure::Model(id) => id.step(sample),
-            Procedure::Response(m) => {
-                let o = m.step(sample);
-                IdentifyOutput {
-                    effort_mnm: o.effort_mnm,
-                    phase: match o.status {
-                        IdentifyStatus::Running => IdentifyPhase::FrequencyResponse,
-                        IdentifyStatus::Stopping(_) => IdentifyPhase::Stopping,
-                        IdentifyStatus::Done => IdentifyPhase::Done,
-                        IdentifyStatus::Aborted(_) => IdentifyPhase::Aborted,
-                    },
-                    progress: o.progress,
-                    status: o.status,
-                }
-            }
+            Procedure::Response(m) => stepped_sine_output(m.step(sample)),
+            Procedure::Loop(m) => stepped_sine_output(m.step(sample, law_mnm)),
         };
         self.last
     }
@@ -221,6 +230,16 @@ impl IdentifyRun {
         match self.procedure {
             Procedure::Model(_) => IdentifyKind::Model,
             Procedure::Response(_) => IdentifyKind::Response,
+            Procedure::Loop(_) => IdentifyKind::Loop,
+        }
+    }
+
+    /// The loop measurement's reference for the axis (`None`: the other procedures
+    /// drive the axis themselves, without a reference).
+    pub fn reference(&self) -> Option<LoopReference> {
+        match &self.procedure {
+            Procedure::Loop(m) => Some(m.reference()),
+            Procedure::Model(_) | Procedure::Response(_) => None,
         }
     }
 
@@ -232,15 +251,31 @@ impl IdentifyRun {
         )
     }
 
-    /// The frequency response's latest point and its index in the grid.
+    /// The frequency response's (or the loop's) latest point and its index in the grid.
     pub fn response_point(&self) -> Option<(u8, ResponsePoint)> {
         match &self.procedure {
             Procedure::Response(m) => m.last_point(),
+            Procedure::Loop(m) => m.last_point(),
             Procedure::Model(_) => None,
         }
     }
 
     fn axis_name(&self) -> Axis {
         Axis::ALL[self.axis.min(2)]
+    }
+}
+
+/// A stepped sine's period (frequency response or loop) as an identification's.
+fn stepped_sine_output(o: ResponseOutput) -> IdentifyOutput {
+    IdentifyOutput {
+        effort_mnm: o.effort_mnm,
+        phase: match o.status {
+            IdentifyStatus::Running => IdentifyPhase::FrequencyResponse,
+            IdentifyStatus::Stopping(_) => IdentifyPhase::Stopping,
+            IdentifyStatus::Done => IdentifyPhase::Done,
+            IdentifyStatus::Aborted(_) => IdentifyPhase::Aborted,
+        },
+        progress: o.progress,
+        status: o.status,
     }
 }

@@ -1,6 +1,7 @@
 //! The servo's identification periods: the identified axis' effort (the identifier's, the
-//! others holding or unpowered) and its reference (none: its law sees no error). How an
-//! identification starts and ends is in [`super::modes`], the run in [`super::identify`].
+//! others holding or unpowered) and its reference (none: its law sees no error; the loop
+//! measurement's own, which the law follows). How an identification starts and ends is
+//! in [`super::modes`], the run in [`super::identify`].
 
 use super::state::ServoState;
 use super::step::Servo;
@@ -33,7 +34,7 @@ impl<R: Real> Servo<R> {
             effort_applied_mnm: self.applied[i].to_f32(),
             fault: faulted,
         };
-        let out = run.step(&sample);
+        let out = run.step(&sample, u[i].to_f32());
         if !run.hold_others {
             u = Vec3::zero();
         }
@@ -58,15 +59,25 @@ impl<R: Real> Servo<R> {
         u
     }
 
-    /// The identified axis has no reference: its law sees no error.
+    /// The identified axis has no reference (its law sees no error), or the loop
+    /// measurement's.
     #[cold]
     #[inline(never)]
     pub(super) fn identify_reference(&self, reference: &mut RefSample<R>, meas: &Measured<R>) {
         if let Some(run) = &self.ident.run {
             let i = run.axis.min(AXES - 1);
-            reference.pos[i] = meas.pos[i];
-            reference.vel[i] = meas.vel[i];
-            reference.acc[i] = R::ZERO;
+            match run.reference() {
+                Some(r) => {
+                    reference.pos[i] = R::from_f32(r.pos_mm);
+                    reference.vel[i] = R::from_f32(r.vel_mm_s);
+                    reference.acc[i] = R::from_f32(r.acc_mm_s2);
+                }
+                None => {
+                    reference.pos[i] = meas.pos[i];
+                    reference.vel[i] = meas.vel[i];
+                    reference.acc[i] = R::ZERO;
+                }
+            }
         }
     }
 }

@@ -63,7 +63,8 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), CommandRefusal> {
         (
             Command::Identify { axis, window_mm } | Command::MeasureResponse { axis, window_mm },
             S::Disabled | S::Idle,
-        ) => {
+        )
+        | (Command::MeasureLoop { axis, window_mm }, S::Idle) => {
             needs_clear_inputs()?;
             if window_mm.is_none() {
                 homed(*axis)?;
@@ -76,9 +77,13 @@ pub fn check(s: &Snapshot, c: &Command) -> Result<(), CommandRefusal> {
         }
         (Command::Stop, S::Run | S::Jog | S::Homing | S::Identify | S::Idle) => Ok(()),
         (Command::LinkLost | Command::LinkUp, _) => Ok(()),
-        (Command::Arm | Command::Identify { .. } | Command::MeasureResponse { .. }, S::Fault) => {
-            Err(CommandRefusal::FaultLatched)
-        }
+        (
+            Command::Arm
+            | Command::Identify { .. }
+            | Command::MeasureResponse { .. }
+            | Command::MeasureLoop { .. },
+            S::Fault,
+        ) => Err(CommandRefusal::FaultLatched),
         _ => Err(CommandRefusal::WrongState),
     }
 }
@@ -217,6 +222,9 @@ impl<R: Real> Servo<R> {
             }
             Command::MeasureResponse { axis, window_mm } => {
                 return self.start_identify(IdentifyKind::Response, axis, window_mm, counts)
+            }
+            Command::MeasureLoop { axis, window_mm } => {
+                return self.start_identify(IdentifyKind::Loop, axis, window_mm, counts)
             }
             Command::Run => self.run_planner(),
             Command::Stop => self.stop(counts),
@@ -469,10 +477,13 @@ impl<R: Real> Servo<R> {
         if let Some(mut run) = self.ident.run.take() {
             if aborted && !run.finished() {
                 // a fault sample makes the identifier stop at once with zero effort
-                let _ = run.step(&AxisSample {
-                    fault: true,
-                    ..AxisSample::default()
-                });
+                let _ = run.step(
+                    &AxisSample {
+                        fault: true,
+                        ..AxisSample::default()
+                    },
+                    0.0,
+                );
             }
             self.ident.keep_outcome(&run);
         }

@@ -9,6 +9,7 @@ use crate::session::Command;
 use controller_core::machine::messages::MachineState;
 use controller_core::motion::shaper::ShaperKind;
 use egui::{Color32, RichText};
+use host_sim::cli::tune::report::loop_cell;
 use host_sim::cli::tune::{ShaperChoice, StopCheck, TuneReport, SETTLE_UM};
 use host_sim::cli::AXES;
 
@@ -288,20 +289,28 @@ fn result(ui: &mut egui::Ui, r: &TuneReport) {
                     ),
                 );
             }
+            for (k, l) in [("loop", &r.loop_without), ("loop with notches", &r.loop_with)] {
+                if let Some(l) = l {
+                    row(k, loop_cell(l));
+                }
+            }
             for n in &r.notches_placed {
                 row(
-                    "notch (not applied)",
+                    "notch",
                     format!(
                         "{:.2} Hz, width {:.2} Hz, depth {:.1} dB",
                         n.freq_hz, n.width_hz, n.depth_db
                     ),
                 );
             }
+            if !r.notch_verdict.is_empty() {
+                row("notches", r.notch_verdict.clone());
+            }
         });
     ui.label(
         RichText::new(
-            "Measured at the encoder (the tool moves more). Notches are placed, not applied: \
-             they need the loop's margins measured.",
+            "Measured at the encoder (the tool moves more). Notches are kept only when the \
+             loop measured with them has 6 dB of gain margin and 30° of phase margin.",
         )
         .weak(),
     );
@@ -352,6 +361,9 @@ mod tests {
             settings: Vec::new(),
             notches_placed: Vec::new(),
             in_band_resonances: 0,
+            loop_without: None,
+            loop_with: None,
+            notch_verdict: String::new(),
             full_acc_tolerance_mm: Some(0.1337),
             before: Some(stop(8.75, Some(48.0))),
             after: Some(stop(1.25, Some(0.0))),

@@ -217,9 +217,11 @@ enum Cmd {
     },
     /// Tune an axis in one go: identify it (the model is accepted), measure its frequency
     /// response, take a rapid stop as the reference, set the friction feed-forward and an
-    /// input shaper at the strongest resonance, take the stop again; put everything back
-    /// when the stop rings more than before. Nothing is saved (`settings save`).
-    /// Example: `gantry --sim --machine host-sim/machines/gantry_flexible.toml tune y`.
+    /// input shaper at the strongest resonance, measure the loop on the laws and keep the
+    /// notches placed from it only on its measured margins (6 dB, 30°), take the stop
+    /// again; put everything back when the stop rings more than before. Nothing is saved
+    /// (`settings save`).
+    /// Example: `gantry --sim --machine host-sim/machines/gantry_flexible.toml tune x`.
     Tune {
         /// x, y or z.
         axis: String,
@@ -234,13 +236,14 @@ enum Cmd {
         /// zvd, ei, 2hump_ei, 3hump_ei.
         #[arg(long, default_value = "auto")]
         shaper: String,
-        /// Measure and report; change no setting and run no stop.
+        /// Measure (the loop too, with the notches' prediction) and report; change no
+        /// setting and run no stop.
         #[arg(long)]
         dry_run: bool,
         /// Write the report as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
-        /// Where the stop's program goes.
+        /// Where the stop's program and the loop's Bode plot (`loop_<axis>.png`, `.svg`) go.
         #[arg(long, default_value = "out/tune")]
         out: PathBuf,
     },
@@ -546,6 +549,11 @@ fn command_on<T: Transport>(c: &mut Client<T>, command: Cmd, decimation: u32) ->
             };
             let r = cli::tune::tune(c, &o, &out)?;
             print!("{}", cli::tune::table(&r));
+            std::fs::create_dir_all(&out)?;
+            let n = host_sim::output::loop_plots::tune_figures(&out, &r)?;
+            if n > 0 {
+                println!("the loop's Bode plot (PNG + SVG) in {}", out.display());
+            }
             if let Some(j) = json {
                 write_json(&j, &r)?;
             }

@@ -4,10 +4,12 @@
 //! identification's window, torque cap and safe stops), the host reads the points over
 //! the link ([`Request::ResponseRead`]) and finds the resonances and anti-resonances
 //! with the code `cargo sim freqresp` runs ([`AxisResponse::of`],
-//! `sysid::frequency::find_modes`): the same table, JSON and Bode plot.
+//! `sysid::frequency::find_modes`): the same table, JSON and Bode plot. The loop on the
+//! laws ([`Request::MeasureLoop`], `gantry tune`'s filters) runs and reads the same way
+//! ([`measure_loop`]).
 
 use super::client::{expect_done, Client};
-use super::{driven_window, fault_text, get_f64, wait_with_progress, Transport, AXES};
+use super::{driven_window, fault_text, get_f64, ready, wait_with_progress, Transport, AXES};
 use crate::studies::freqresp::{status_text, AxisResponse, FreqRespReport};
 use anyhow::{bail, Result};
 use controller_core::machine::messages::{MachineState, Outcome, Request, ResponseState};
@@ -36,34 +38,88 @@ pub fn measure<T: Transport>(
             [get_f64(c, &key("min_mm"))?, get_f64(c, &key("max_mm"))?]
         }
     };
-    let p0 = c.status()?.period;
-    expect_done(
-        &format!("freqresp {name}"),
-        c.exec(Request::MeasureResponse {
+    let run = run_points(
+        c,
+        i,
+        Request::MeasureResponse {
             axis: i as u8,
             window_mm: window,
-        })?,
+        },
+        "frequency response",
     )?;
+    let response = AxisResponse::of(
+        &run.points,
+        run.status,
+        run.machine_time_s,
+        window_mm,
+        None,
+        None,
+    );
+    Ok(FreqRespReport {
+        machine: machine.to_string(),
+        axes: [(name.to_string(), response)].into_iter().collect(),
+    })
+}
+
+/// A stepped sine's run on the machine: its points, how it ended, how long it took.
+pub struct PointsRun {
+    pub points: FrequencyResponse,
+    /// `done`, or why it stopped (as `freqresp` reports it).
+    pub status: String,
+    pub machine_time_s: f64,
+}
+
+/// Axis `i`'s open loop on its laws (`L(jω)`, [`Request::MeasureLoop`]; see
+/// [`driven_window`] for `window_half_mm`): the machine armed (the laws hold the axis),
+/// the points as measured.
+pub fn measure_loop<T: Transport>(
+    c: &mut Client<T>,
+    i: usize,
+    window_half_mm: Option<f32>,
+) -> Result<PointsRun> {
+    let window = driven_window(c, i, window_half_mm, "tune")?;
+    ready(c, false)?;
+    run_points(
+        c,
+        i,
+        Request::MeasureLoop {
+            axis: i as u8,
+            window_mm: window,
+        },
+        "loop",
+    )
+}
+
+/// Start `request` (a stepped sine on axis `i`), wait for it, read its points.
+fn run_points<T: Transport>(
+    c: &mut Client<T>,
+    i: usize,
+    request: Request,
+    what: &str,
+) -> Result<PointsRun> {
+    let name = AXES[i];
+    let p0 = c.status()?.period;
+    expect_done(&format!("{what} {name}"), c.exec(request)?)?;
     let s = wait_with_progress(
         c,
         MachineState::Identify,
-        &format!("measuring {name}'s frequency response"),
+        &format!("measuring {name}'s {what}"),
     )?;
     let machine_time_s = f64::from(s.period.wrapping_sub(p0)) / f64::from(c.control_rate_hz());
-    let (frf, state) = read_points(c, i)?;
+    let (points, state) = read_points(c, i)?;
     let status = match state {
         ResponseState::Done => status_text(IdentifyStatus::Done),
         ResponseState::Aborted => format!(
             "aborted after {} points ({:?}, {})",
-            frf.len(),
+            points.len(),
             s.state,
             fault_text(&s)
         ),
     };
-    let response = AxisResponse::of(&frf, status, machine_time_s, window_mm, None, None);
-    Ok(FreqRespReport {
-        machine: machine.to_string(),
-        axes: [(name.to_string(), response)].into_iter().collect(),
+    Ok(PointsRun {
+        points,
+        status,
+        machine_time_s,
     })
 }
 

@@ -2,10 +2,13 @@
 //! `L = C·F·P` measured on the running machine, without the output filters and (when
 //! some were placed) with them, gain in dB and phase in degrees against frequency on a
 //! log axis, with the 0 dB and −180° lines the margins are read at, and the axis'
-//! measured resonances marked.
+//! measured resonances marked. `gantry tune`'s loop, measured on a machine over the link,
+//! is drawn the same way ([`tune_figures`]).
 
 use crate::output::plots::{axis_figures, bode_chart, bode_legend, err, AxisFigure};
+use crate::cli::tune::TuneReport;
 use crate::studies::filters::{AxisFilters, FiltersReport, LoopJson};
+use controller_core::filter::FilterConfig;
 use anyhow::Result;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -144,4 +147,33 @@ impl AxisFigure for AxisFilters {
 /// written.
 pub fn figures(dir: &Path, r: &FiltersReport) -> Result<usize> {
     axis_figures(dir, "loop", SIZE, &r.axes)
+}
+
+/// `gantry tune`'s loop without and with its notches into `dir` as `loop_<axis>.png` and
+/// `.svg` (none when the loop was not measured); the number of files written.
+pub fn tune_figures(dir: &Path, r: &TuneReport) -> Result<usize> {
+    let Some(without) = r.loop_without.clone() else {
+        return Ok(0);
+    };
+    let axis = AxisFilters {
+        resonances: r.response.resonances.clone(),
+        without,
+        placed: r
+            .notches_placed
+            .iter()
+            .map(|n| FilterConfig::Notch {
+                freq_hz: n.freq_hz,
+                width_hz: n.width_hz,
+                depth_db: n.depth_db,
+            })
+            .collect(),
+        near_bandwidth: u8::try_from(r.in_band_resonances).unwrap_or(u8::MAX),
+        with: r.loop_with.clone(),
+        verdict: r.notch_verdict.clone(),
+    };
+    let report = FiltersReport {
+        machine: "the machine over the link".into(),
+        axes: [(r.axis.clone(), axis)].into_iter().collect(),
+    };
+    figures(dir, &report)
 }

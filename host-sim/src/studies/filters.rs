@@ -107,9 +107,15 @@ pub struct FiltersReport {
     pub axes: BTreeMap<String, AxisFilters>,
 }
 
-fn loop_json(points: &[LoopPoint], failed: Vec<LoopFailure>) -> (LoopJson, Option<Margins>) {
-    let freqs: Vec<f32> = points.iter().map(|p| p.freq_hz).collect();
-    let gains: Vec<(f32, f32)> = points.iter().map(|p| p.gain).collect();
+/// A loop given as its points `(freq_hz, L)` in rising frequency, with the runs that
+/// failed: its JSON and its margins if it has them (the simulated study's and
+/// `gantry tune`'s, measured on a machine).
+pub fn loop_json(
+    points: &[(f32, (f32, f32))],
+    failed: Vec<(f32, String)>,
+) -> (LoopJson, Option<Margins>) {
+    let freqs: Vec<f32> = points.iter().map(|p| p.0).collect();
+    let gains: Vec<(f32, f32)> = points.iter().map(|p| p.1).collect();
     let m = margins_of_samples(&freqs, &gains);
     let json = LoopJson {
         margins: m.as_ref().ok().map(MarginsJson::from),
@@ -117,17 +123,14 @@ fn loop_json(points: &[LoopPoint], failed: Vec<LoopFailure>) -> (LoopJson, Optio
         points: points
             .iter()
             .zip(freqresp::unwrap_phases(
-                points
-                    .iter()
-                    .map(|p| f64::from(p.gain.1.atan2(p.gain.0).to_degrees())),
+                gains.iter().map(|g| f64::from(g.1.atan2(g.0).to_degrees())),
             ))
-            .map(|(p, phase)| {
-                let (re, im) = p.gain;
+            .map(|(&(f, (re, im)), phase)| {
                 let db = 20.0 * re.hypot(im).max(1e-30).log10();
-                [p.freq_hz, db, phase as f32]
+                [f, db, phase as f32]
             })
             .collect(),
-        failed: failed.into_iter().map(|f| (f.freq_hz, f.why)).collect(),
+        failed,
     };
     (json, m.ok())
 }
@@ -142,6 +145,14 @@ fn measured(
 ) -> Result<(LoopJson, Option<Margins>)> {
     let grid = loop_response::log_grid(GRID_LO_HZ, GRID_HI_HZ, GRID_POINTS);
     let (pts, failed) = loop_response::measure(base, axis, filters, &grid, inertia)?;
+    let pts: Vec<_> = pts
+        .iter()
+        .map(|p: &LoopPoint| (p.freq_hz, p.gain))
+        .collect();
+    let failed = failed
+        .into_iter()
+        .map(|f: LoopFailure| (f.freq_hz, f.why))
+        .collect();
     Ok(loop_json(&pts, failed))
 }
 
@@ -156,6 +167,15 @@ pub fn check(
     inertia: f64,
 ) -> Result<(LoopJson, String)> {
     let (with, m) = measured(base, axis, filters, inertia)?;
+    let verdict = verdict(m.as_ref(), &with.failed, GRID_POINTS);
+    Ok((with, verdict))
+}
+
+/// The verdict on a loop with filters: `accepted` when every one of its `runs` stayed in
+/// its jog (`failed` lists those that did not) and its margins pass `filter::accept`,
+/// else `refused: ...` with every reason (the margin short of its bound, the runs that
+/// faulted).
+pub fn verdict(m: Option<&Margins>, failed: &[(f32, String)], runs: usize) -> String {
     let mut why = Vec::new();
     match m {
         None => why.push("the loop has no margins".to_string()),
@@ -185,23 +205,21 @@ pub fn check(
             // (the same rule as `filter::accept`, every reason named)
             debug_assert_eq!(
                 why.is_empty(),
-                accept(&m, MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG).is_ok()
+                accept(m, MIN_GAIN_MARGIN_DB, MIN_PHASE_MARGIN_DEG).is_ok()
             );
         }
     }
-    if let Some((f, first)) = with.failed.first() {
+    if let Some((f, first)) = failed.first() {
         why.push(format!(
-            "{} of {} runs left the jog (at {f:.1} Hz: {first})",
-            with.failed.len(),
-            GRID_POINTS
+            "{} of {runs} runs left the jog (at {f:.1} Hz: {first})",
+            failed.len(),
         ));
     }
-    let verdict = if why.is_empty() {
+    if why.is_empty() {
         "accepted".to_string()
     } else {
         format!("refused: {}", why.join("; "))
-    };
-    Ok((with, verdict))
+    }
 }
 
 /// Place and check one axis' filters.

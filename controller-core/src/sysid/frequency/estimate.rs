@@ -196,6 +196,11 @@ impl Correlator {
         (self.n_u, self.n_d)
     }
 
+    /// The effort's bin `U` (the Hann-weighted sums: `N/4` times the amplitude's phasor).
+    pub(crate) fn effort_bin(&self) -> (f32, f32) {
+        (self.u_re.value(), self.u_im.value())
+    }
+
     /// Mean effort over the window, mN·m.
     pub(crate) fn mean_effort(&self) -> f32 {
         self.u_mean.value() / self.n_u.max(1) as f32

@@ -37,18 +37,25 @@
 //!   corrected), [`FrequencyResponse`];
 //! - [`measure`]: [`ResponseMeasurement`], the per-period state machine with its safety
 //!   rules (those of the model identification);
+//! - [`loop_measure`]: [`LoopMeasurement`], the same stepped sine added to the laws'
+//!   effort while they hold the axis on a travelling reference: the open loop `L(jω)`
+//!   the output filters are accepted on;
 //! - [`modes`]: [`find_modes`], the rigid-body line, resonances and anti-resonances.
 
 pub mod config;
 pub mod estimate;
 mod excitation;
+pub mod loop_measure;
 pub mod measure;
 pub mod modes;
 
 pub use config::{ResponseConfig, ResponseConfigError, MAX_POINTS, RESPONSE_DEFAULTS};
 pub use estimate::{FrequencyResponse, ResponsePoint};
+pub use loop_measure::{LoopMeasurement, LoopReference, LOOP_DEFAULTS};
 pub use measure::{ResponseMeasurement, ResponseOutput};
 pub use modes::{find_modes, Mode, ModeConfig, ModeError, ModeReport, RigidBody, MODE_DEFAULTS};
 
+#[cfg(test)]
+mod loop_tests;
 #[cfg(test)]
 mod tests;

@@ -14,30 +14,33 @@
 //!    Coulomb terms (`axis.<a>.feedforward.coulomb_*`), and an input shaper of the kind
 //!    asked for (`auto`: the first of [`AUTO_KINDS`] the machine's shaper history holds)
 //!    at the strongest measured resonance;
-//! 5. **verify**: the same stop again, twice. The machine counts a shaper's contour
+//! 5. **the loop and its filters** ([`notch`]): the loop on the laws measured on the
+//!    machine (`Request::MeasureLoop`), notches placed from the resonances at its
+//!    measured crossover, predicted on the measured loop, applied and the loop measured
+//!    again: kept only on its margins (6 dB, 30°);
+//! 6. **verify**: the same stop again, twice. The machine counts a shaper's contour
 //!    deviation inside the path tolerance (`planner.tolerance_mm`) and lowers the shaped
 //!    axis' acceleration when it takes more than half of it, so a gentler stop would ring
 //!    less with or without the shaper: the stop is taken once as the user will run it
 //!    (`after`) and once with the tolerance raised for that run to what keeps the full
 //!    acceleration (`after_full_acc`, the shaper's own effect at the acceleration of
 //!    `before`). When that one's tracking error peak after the stop is more than
-//!    [`WORSE_RATIO`] times the one before, everything step 4 set is put back and the
-//!    command fails.
+//!    [`WORSE_RATIO`] times the one before, everything steps 4 and 5 set is put back and
+//!    the command fails.
 //!
 //! Nothing is saved: `gantry settings save` keeps the result for the next boot. The model
 //! of step 1 stays accepted when step 4 is put back (it is `gantry identify --accept`'s).
 //!
-//! The report and its text: [`report`]; the stop, its program and capture: [`stop`].
+//! The report and its text: [`report`]; the stop, its program and capture: [`stop`]; the
+//! loop and the filters: [`notch`].
 //!
 //! Measured at the encoder: a tool-side sensor is what a machine lacks, so the figures are
 //! the motor's (the beam's swing shows there through the coupling; the tool moves more,
 //! `cargo sim vibration` measures it on a simulated machine).
 //!
-//! Not done here: the notches. `filter::place` places them from the measured resonances
-//! and the bandwidth, and the report lists them, but they are accepted only on the
-//! measured *loop*'s margins (`cargo sim filters` measures the loop on a simulated machine;
-//! the machine has no loop measurement over the link yet), so none is applied.
+//! A dry run measures the loop and places and predicts the notches, and applies nothing.
 
+pub mod notch;
 pub mod report;
 pub mod stop;
 
@@ -52,7 +55,6 @@ use super::{apply_settings, freqresp, get, identify, IdentifyJson, Transport, AX
 use crate::studies::freqresp::ModeJson;
 use crate::studies::vibration::{fitting_kinds, strongest};
 use anyhow::{anyhow, bail, Context, Result};
-use controller_core::filter::{place, FilterConfig, Resonance};
 use controller_core::motion::shaper::{ShaperConfig, ShaperKind};
 use std::path::Path;
 
@@ -125,14 +127,14 @@ pub fn tune<T: Transport>(c: &mut Client<T>, o: &TuneOptions, out: &Path) -> Res
             bail!("--bandwidth-rad-s must be a positive number, got {bw}");
         }
     }
-    eprintln!("1/5 identifying {name}");
+    eprintln!("1/6 identifying {name}");
     let id = identify(c, &[o.axis], !o.dry_run, o.window_half_mm)?
         .pop()
         .ok_or_else(|| anyhow!("identify reported nothing"))?;
     if id.status != "done" {
         bail!("identification of {name} did not finish: {}", id.status);
     }
-    eprintln!("2/5 measuring {name}'s frequency response");
+    eprintln!("2/6 measuring {name}'s frequency response");
     let fr = freqresp::measure(c, o.axis, o.window_half_mm, "the machine over the link")?;
     let response = fr
         .axes
@@ -153,8 +155,6 @@ pub fn tune<T: Transport>(c: &mut Client<T>, o: &TuneOptions, out: &Path) -> Res
             .with_context(|| format!("setting {bw_key} is not a number"))?,
     };
     let period_s = 1.0 / c.control_rate_hz() as f32;
-    let (notches_placed, in_band_resonances) =
-        notches(&response.resonances, bandwidth_rad_s, period_s)?;
     let mode = strongest(&response.resonances);
     let (shaper, shaper_refused) = choose_shaper(o.axis, o.shaper, mode.as_ref(), period_s);
     let settings = changes(name, &id, o, &shaper);
@@ -175,8 +175,11 @@ pub fn tune<T: Transport>(c: &mut Client<T>, o: &TuneOptions, out: &Path) -> Res
         }),
         shaper_refused,
         settings,
-        notches_placed,
-        in_band_resonances,
+        notches_placed: Vec::new(),
+        in_band_resonances: 0,
+        loop_without: None,
+        loop_with: None,
+        notch_verdict: String::new(),
         full_acc_tolerance_mm,
         before: None,
         after: None,
@@ -184,6 +187,9 @@ pub fn tune<T: Transport>(c: &mut Client<T>, o: &TuneOptions, out: &Path) -> Res
         outcome: String::new(),
     };
     if o.dry_run {
+        eprintln!("5/6 measuring {name}'s loop");
+        let n = notch::run(c, o.axis, o.window_half_mm, &r.response.resonances, false)?;
+        r.take_notches(n);
         r.outcome = "dry run".into();
         return Ok(r);
     }
@@ -202,7 +208,7 @@ fn verify<T: Transport>(
     let name = AXES[o.axis];
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create the folder {}", out.display()))?;
-    eprintln!("3/5 the rapid stop before");
+    eprintln!("3/6 the rapid stop before");
     let (from, to) = stretch(c, o.axis)?;
     let program = out.join(format!("tune_stop_{name}.ngc"));
     std::fs::write(&program, program_text(o.axis, from, to))
@@ -214,11 +220,15 @@ fn verify<T: Transport>(
         telemetry_period_s: o.telemetry_period_s,
     };
     let before = stop_check(c, &stop)?;
-    eprintln!("4/5 applying");
-    let previous = current(c, &r.settings)?;
+    eprintln!("4/6 applying");
+    let mut previous = current(c, &r.settings)?;
     switch_off(c)?;
     apply_settings(c, &r.settings)?;
-    eprintln!("5/5 the rapid stop after");
+    eprintln!("5/6 the loop and its filters");
+    let n = notch::run(c, o.axis, o.window_half_mm, &r.response.resonances, true)?;
+    previous.extend(n.previous.iter().cloned());
+    r.take_notches(n);
+    eprintln!("6/6 the rapid stop after");
     let after = stop_check(c, &stop);
     let full = match (&after, r.full_acc_tolerance_mm) {
         (Ok(_), Some(tol)) => full_acc_stop(c, &stop, tol),
@@ -252,37 +262,6 @@ fn judge(before: &StopCheck, full: &Result<StopCheck>) -> Option<String> {
         }),
         Err(e) => Some(format!("the verification failed: {e:#}")),
     }
-}
-
-/// The notches `filter::place` puts at `res` for the loop's bandwidth, and how many
-/// resonances are too close to it for any.
-fn notches(
-    res: &[ModeJson],
-    bandwidth_rad_s: f32,
-    period_s: f32,
-) -> Result<(Vec<NotchJson>, usize)> {
-    let modes: Vec<Resonance> = res.iter().map(ModeJson::resonance).collect();
-    let bw_hz = bandwidth_rad_s / core::f32::consts::TAU;
-    let p =
-        place(&modes, bw_hz, period_s, false).map_err(|e| anyhow!("placing the notches: {e:?}"))?;
-    let placed = p
-        .filters
-        .stages()
-        .iter()
-        .filter_map(|f| match *f {
-            FilterConfig::Notch {
-                freq_hz,
-                width_hz,
-                depth_db,
-            } => Some(NotchJson {
-                freq_hz,
-                width_hz,
-                depth_db,
-            }),
-            FilterConfig::LowPass { .. } => None,
-        })
-        .collect();
-    Ok((placed, usize::from(p.near_bandwidth)))
 }
 
 /// The shaper of `choice` at `mode` on `axis`, and the kinds the history refuses there.

@@ -1,12 +1,15 @@
 //! `gantry tune`'s report: what was measured and set, the stops before and after, as
 //! JSON (keys are public interface) and as text.
 
+use super::notch::NotchStep;
 use super::stop::{StopCheck, SETTLE_UM};
 use crate::cli::IdentifyJson;
+use crate::studies::filters::LoopJson;
 use crate::studies::freqresp::{AxisResponse, ModeJson};
+use controller_core::filter::FilterConfig;
 use serde::Serialize;
 
-/// A notch `filter::place` puts at a resonance (listed, not applied).
+/// A notch `filter::place` puts at a resonance.
 #[derive(Clone, Debug, Serialize)]
 pub struct NotchJson {
     pub freq_hz: f32,
@@ -34,12 +37,21 @@ pub struct TuneReport {
     pub shaper: Option<ShaperJson>,
     /// Kinds the machine's shaper history does not hold at that mode.
     pub shaper_refused: Vec<String>,
-    /// The settings step 4 set (key, value), in order.
+    /// The settings steps 4 and 5 set (key, value), in order (the filter stages only when
+    /// they were accepted).
     pub settings: Vec<(String, String)>,
+    /// The notches placed at the measured loop's crossover (applied when `notch_verdict`
+    /// is `accepted`).
     pub notches_placed: Vec<NotchJson>,
     /// Resonances too close to the bandwidth for a notch (`filter::Placement::
     /// near_bandwidth`, below 1.5× it): the shaper is their remedy.
     pub in_band_resonances: usize,
+    /// The loop on the laws measured on the machine before the notches and with them
+    /// (`cargo sim filters`' keys: margins, error, points, failed).
+    pub loop_without: Option<LoopJson>,
+    pub loop_with: Option<LoopJson>,
+    /// `accepted`, `none placed`, or why the notches were not kept.
+    pub notch_verdict: String,
     /// The path tolerance at which the shaped axis keeps its full acceleration, mm (the
     /// shaper's deviation takes half of it); `null` without a shaper.
     pub full_acc_tolerance_mm: Option<f32>,
@@ -51,6 +63,31 @@ pub struct TuneReport {
 }
 
 impl TuneReport {
+    /// The filters step's findings into the report.
+    pub fn take_notches(&mut self, n: NotchStep) {
+        self.notches_placed = n
+            .placed
+            .iter()
+            .filter_map(|f| match *f {
+                FilterConfig::Notch {
+                    freq_hz,
+                    width_hz,
+                    depth_db,
+                } => Some(NotchJson {
+                    freq_hz,
+                    width_hz,
+                    depth_db,
+                }),
+                FilterConfig::LowPass { .. } => None,
+            })
+            .collect();
+        self.in_band_resonances = n.near_bandwidth;
+        self.loop_without = n.without;
+        self.loop_with = n.with;
+        self.notch_verdict = n.verdict;
+        self.settings.extend(n.applied);
+    }
+
     /// The command's success: the settings are applied and verified.
     pub fn applied(&self) -> bool {
         self.outcome == "applied"
@@ -69,6 +106,28 @@ fn stop_cell(s: Option<&StopCheck>) -> String {
                 Some(m) => format!("within {SETTLE_UM} µm after {m:.1} ms"),
             },
             s.acc_mm_s2,
+        ),
+    }
+}
+
+/// A measured loop in words: its crossover and margins.
+pub fn loop_cell(l: &LoopJson) -> String {
+    let hz = |f: Option<f32>| f.map_or("-".into(), |f| format!("{f:.1} Hz"));
+    match (&l.margins, &l.error) {
+        (Some(m), _) => format!(
+            "{}crossover {}, phase margin {:.1}°, gain margins {:.1} dB (at {}) and {:.1} dB below; {} points",
+            if m.stable { "" } else { "UNSTABLE, " },
+            hz(m.gain_crossover_hz),
+            m.phase_margin_deg,
+            m.gain_margin_db,
+            hz(m.phase_crossover_hz),
+            m.lower_gain_margin_db,
+            l.points.len()
+        ),
+        (None, e) => format!(
+            "no margins ({}); {} points",
+            e.as_deref().unwrap_or("-"),
+            l.points.len()
         ),
     }
 }
@@ -101,11 +160,13 @@ pub fn table(r: &TuneReport) -> String {
         })
         .collect();
     t += &format!(
-        "  modes      {}\n  bandwidth  {} rad/s ({:.1} Hz); {} resonance(s) too close to it for a notch\n",
-        if modes.is_empty() { "none".into() } else { modes.join(", ") },
+        "  modes      {}\n  bandwidth  {} rad/s (the laws' setting)\n",
+        if modes.is_empty() {
+            "none".into()
+        } else {
+            modes.join(", ")
+        },
         r.bandwidth_rad_s,
-        r.bandwidth_rad_s / core::f32::consts::TAU,
-        r.in_band_resonances
     );
     t += &match &r.shaper {
         Some(s) => format!(
@@ -120,10 +181,21 @@ pub fn table(r: &TuneReport) -> String {
             r.shaper_refused.join(", ")
         );
     }
+    for (what, l) in [("loop", &r.loop_without), ("with notch", &r.loop_with)] {
+        if let Some(l) = l {
+            t += &format!("  {what:<10} {}\n", loop_cell(l));
+        }
+    }
     for n in &r.notches_placed {
         t += &format!(
-            "  notch      {:.2} Hz, width {:.2} Hz, depth {:.1} dB: placed, not applied (its margins need the loop measured)\n",
+            "  notch      {:.2} Hz, width {:.2} Hz, depth {:.1} dB\n",
             n.freq_hz, n.width_hz, n.depth_db
+        );
+    }
+    if !r.notch_verdict.is_empty() {
+        t += &format!(
+            "  notches    {}; {} resonance(s) within 1.5× the loop's crossover (the shaper's)\n",
+            r.notch_verdict, r.in_band_resonances
         );
     }
     for (k, v) in &r.settings {
