@@ -523,7 +523,10 @@ fn a_loop_measurement_runs_on_the_laws_from_idle_only() {
     assert!(seen[0].1.freq_hz > 390.0);
     // travelling at 15 mm/s with the sine's few mm/s on it, inside the window
     assert!(lo >= -45.5 && hi <= 45.5, "{lo}..{hi}");
-    assert!(hi - lo > 10.0 && top_speed < 25.0, "{lo}..{hi}, {top_speed}");
+    assert!(
+        hi - lo > 10.0 && top_speed < 25.0,
+        "{lo}..{hi}, {top_speed}"
+    );
     let now = r.world().state().map(|a| a.pos);
     for i in [0, 2] {
         assert!((now[i] - held[i]).abs() < 0.01, "axis {i}");

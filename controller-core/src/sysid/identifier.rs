@@ -36,7 +36,7 @@
 
 use super::config::{IdentifyConfig, IdentifyConfigError, ValidIdentifyConfig};
 use super::lsq::{LsError, LsSolution, NormalEquations};
-use super::velocity_loop::{Ramp, VelocityLoop};
+use super::velocity_loop::{Ramp, VelocityLoop, STOPPED_MM_S, STOP_HOLD_S};
 use crate::plant::AxisModel;
 use crate::Real;
 
@@ -52,6 +52,28 @@ pub struct AxisSample {
     pub effort_applied_mnm: f32,
     /// Any fault the servo's safety state machine holds (watchdog, amplifier, limit switch, estop...).
     pub fault: bool,
+}
+
+impl AxisSample {
+    /// The identifications' rules for stopping the effort at once, on this sample and the
+    /// effort `effort_mnm` it is checked with: the caller's fault flag, a non-finite
+    /// value, the position outside `[window_min_mm, window_max_mm]`, the speed above
+    /// `velocity_limit_mm_s` (`limits` in that order).
+    pub(crate) fn abort_reason(&self, effort_mnm: f32, limits: [f32; 3]) -> Option<AbortReason> {
+        let [lo, hi, vlim] = limits;
+        if self.fault {
+            Some(AbortReason::Fault)
+        } else if !(self.pos_mm.is_finite() && self.vel_mm_s.is_finite() && effort_mnm.is_finite())
+        {
+            Some(AbortReason::NonFiniteInput)
+        } else if !(self.pos_mm >= lo && self.pos_mm <= hi) {
+            Some(AbortReason::LeftWindow)
+        } else if !(self.vel_mm_s.abs() <= vlim) {
+            Some(AbortReason::VelocityLimit)
+        } else {
+            None
+        }
+    }
 }
 
 /// Which part of the procedure is running.
@@ -179,11 +201,6 @@ pub struct IdentifyResult {
 /// Weight-1 window duration: rows are weighted by their duration over 0.1 s (inverse
 /// variance weighting of a mean over `T` of white noise).
 const ROW_WEIGHT_REF_S: f32 = 0.1;
-/// At rest below this |velocity|, mm/s (a third of one count per period at 10 kHz and
-/// 0.625 µm; far above the PLL's noise of ~0.05 mm/s).
-const STOPPED_MM_S: f32 = 2.0;
-/// Time the axis must stay below [`STOPPED_MM_S`] to count as stopped, s.
-const STOP_HOLD_S: f32 = 0.02;
 /// Braking gives up (and zeroes the effort) after this long, s.
 const BRAKE_TIMEOUT_S: f32 = 1.0;
 /// A steady window shorter than this fraction of `steady_s` is not used as a friction row.
@@ -600,18 +617,10 @@ impl Identifier {
             return self.output(0.0);
         }
         self.k = self.k.saturating_add(1);
-        if m.fault {
-            return self.give_up(AbortReason::Fault);
-        }
-        if !(m.pos_mm.is_finite() && m.vel_mm_s.is_finite() && m.effort_applied_mnm.is_finite()) {
-            return self.give_up(AbortReason::NonFiniteInput);
-        }
         let c = self.s.c;
-        if !(m.pos_mm >= c.window_min_mm && m.pos_mm <= c.window_max_mm) {
-            return self.give_up(AbortReason::LeftWindow);
-        }
-        if !(m.vel_mm_s.abs() <= c.velocity_limit_mm_s) {
-            return self.give_up(AbortReason::VelocityLimit);
+        let limits = [c.window_min_mm, c.window_max_mm, c.velocity_limit_mm_s];
+        if let Some(r) = m.abort_reason(m.effort_applied_mnm, limits) {
+            return self.give_up(r);
         }
         self.win.add(m.effort_applied_mnm, m.vel_mm_s);
         if !matches!(self.stage, Stage::Braking(_)) {

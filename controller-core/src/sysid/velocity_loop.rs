@@ -1,4 +1,5 @@
-//! The identification's own velocity loop and setpoint ramp.
+//! The identification's own velocity loop and setpoint ramp, and when an axis counts as
+//! stopped ([`RestWatch`]).
 //!
 //! `u = Ĵ a_sp + f̂(v_sp) + kp (v_sp - v) + ki ∫(v_sp - v) dt`, clamped to the cap, with
 //! `kp = Ĵ ω`, `ki = kp ω/5`. The loop knows the inertia only as `Ĵ` (the guess, then the
@@ -12,6 +13,37 @@
 //! it further out, and is itself limited to the cap.
 
 use crate::Real;
+
+/// At rest below this |velocity|, mm/s (a third of one count per period at 10 kHz and
+/// 0.625 µm; far above the PLL's noise of ~0.05 mm/s).
+pub(crate) const STOPPED_MM_S: f32 = 2.0;
+/// Time the axis must stay below [`STOPPED_MM_S`] to count as stopped, s.
+pub(crate) const STOP_HOLD_S: f32 = 0.02;
+
+/// Whether an axis has come to rest: its ramp's setpoint at rest and its speed below
+/// [`STOPPED_MM_S`] for [`STOP_HOLD_S`] (the stepped sines' end and brake).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct RestWatch {
+    since: Option<u32>,
+}
+
+impl RestWatch {
+    /// Start over (a new stop).
+    pub(crate) fn reset(&mut self) {
+        self.since = None;
+    }
+
+    /// Period `k` (of `period_s`) with the ramp `ramp` and the measured `vel_mm_s`: true
+    /// once at rest long enough.
+    pub(crate) fn stopped(&mut self, ramp: &Ramp, vel_mm_s: f32, k: u32, period_s: f32) -> bool {
+        if !(ramp.reached() && ramp.v_mm_s == 0.0 && vel_mm_s.abs() < STOPPED_MM_S) {
+            self.since = None;
+            return false;
+        }
+        let since = *self.since.get_or_insert(k);
+        k.saturating_sub(since) as f32 * period_s >= STOP_HOLD_S
+    }
+}
 
 /// PI zero at `ω / PI_ZERO_RATIO` (see the module docs).
 pub const PI_ZERO_RATIO: f32 = 5.0;

@@ -5,11 +5,11 @@
 //! measured resonances marked. `gantry tune`'s loop, measured on a machine over the link,
 //! is drawn the same way ([`tune_figures`]).
 
-use crate::output::plots::{axis_figures, bode_chart, bode_legend, err, AxisFigure};
 use crate::cli::tune::TuneReport;
+use crate::output::plots::{axis_figures, bode_chart, bode_legend, err, AxisFigure};
 use crate::studies::filters::{AxisFilters, FiltersReport, LoopJson};
-use controller_core::filter::FilterConfig;
 use anyhow::Result;
+use controller_core::filter::FilterConfig;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;

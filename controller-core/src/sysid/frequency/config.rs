@@ -127,6 +127,12 @@ impl ResponseConfig {
     /// The defaults with the identification's period, window, cap, velocity limit and
     /// inertia guess: what the servo's measurement runs with.
     pub fn from_identify(c: &IdentifyConfig) -> Self {
+        Self::from_identify_over(c, &RESPONSE_DEFAULTS)
+    }
+
+    /// `defaults` with the identification's window, torque cap, speed limit and inertia
+    /// guess.
+    pub fn from_identify_over(c: &IdentifyConfig, defaults: &Self) -> Self {
         Self {
             period_s: c.period_s,
             window_min_mm: c.window_min_mm,
@@ -135,7 +141,7 @@ impl ResponseConfig {
             torque_cap_mnm: c.torque_cap_mnm,
             velocity_limit_mm_s: c.velocity_limit_mm_s,
             inertia_guess: c.inertia_guess,
-            ..RESPONSE_DEFAULTS
+            ..*defaults
         }
     }
 }

@@ -33,6 +33,10 @@
 pub use super::config::MAX_POINTS;
 use crate::Real;
 
+/// The inertia a stepped sine's first frequency measures is trusted within this factor
+/// of the guess.
+pub const INERTIA_RANGE: f32 = 25.0;
+
 /// One measured frequency: `H(j 2π freq_hz)`, mm/(mN·m).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -51,6 +55,16 @@ impl ResponsePoint {
     /// `20 log10 |H|` (re 1 mm/(mN·m)), dB.
     pub fn magnitude_db(&self) -> f32 {
         20.0 * libm::log10f(self.magnitude().max(f32::MIN_POSITIVE))
+    }
+
+    /// The inertia of a mass with this response, `1/(ω² |H|)` (mN·m/(mm/s²)), trusted
+    /// within [`INERTIA_RANGE`] of `guess` (the guess when it is not finite): above an
+    /// axis' modes its response is its motor side's.
+    pub fn mass_inertia(&self, guess: f32) -> f32 {
+        let w = 2.0 * core::f32::consts::PI * self.freq_hz;
+        let j = 1.0f32.div_or(w * w * self.magnitude(), guess);
+        // max/min, not clamp: clamp panics on crossed or NaN bounds
+        j.max(guess / INERTIA_RANGE).min(guess * INERTIA_RANGE)
     }
 
     /// `arg H`, degrees in (-180, 180].

@@ -37,6 +37,14 @@ impl Step {
         }
     }
 
+    /// Periods to settle at this frequency when at least `min_s` is needed (after a start
+    /// or a reversal), at least one.
+    pub(crate) fn settle_after(&self, min_s: f32, period_s: f32) -> u32 {
+        self.settle_periods
+            .max(libm::roundf(min_s / period_s) as u32)
+            .max(1)
+    }
+
     /// Time this frequency takes after a reversal (the longer settling), s.
     pub(crate) fn duration_s(&self, period_s: f32, reverse_settle_s: f32) -> f32 {
         (self.settle_periods as f32 * period_s).max(reverse_settle_s)

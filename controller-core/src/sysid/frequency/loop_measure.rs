@@ -31,7 +31,7 @@
 //! The reference itself never leaves the window's turn points.
 
 use super::super::identifier::{AbortReason, AxisSample, IdentifyStatus};
-use super::super::velocity_loop::Ramp;
+use super::super::velocity_loop::{Ramp, RestWatch};
 use super::config::{ResponseConfig, ResponseConfigError, ValidResponseConfig, RESPONSE_DEFAULTS};
 use super::estimate::{Correlator, ResponsePoint};
 use super::excitation::{Oscillator, Step};
@@ -69,28 +69,14 @@ pub const LOOP_DEFAULTS: ResponseConfig = ResponseConfig {
 
 /// Longest time the laws' effort may stay at the torque cap, s (the identification's).
 pub const SATURATION_LIMIT_S: f32 = 0.5;
-/// At rest below this |velocity|, mm/s, for [`STOP_HOLD_S`] (the identification's).
-const STOPPED_MM_S: f32 = 2.0;
-const STOP_HOLD_S: f32 = 0.02;
 /// Stopping gives up waiting after this long, s.
 const STOP_TIMEOUT_S: f32 = 1.0;
-/// The inertia the first frequency measures is trusted within this factor of the guess.
-const INERTIA_RANGE: f32 = 25.0;
 
 impl ResponseConfig {
     /// The loop measurement's configuration: the identification's window, torque cap,
     /// speed limit and inertia guess, [`LOOP_DEFAULTS`] for the rest.
     pub fn loop_from_identify(c: &IdentifyConfig) -> Self {
-        Self {
-            period_s: c.period_s,
-            window_min_mm: c.window_min_mm,
-            window_max_mm: c.window_max_mm,
-            edge_margin_mm: c.edge_margin_mm,
-            torque_cap_mnm: c.torque_cap_mnm,
-            velocity_limit_mm_s: c.velocity_limit_mm_s,
-            inertia_guess: c.inertia_guess,
-            ..LOOP_DEFAULTS
-        }
+        Self::from_identify_over(c, &LOOP_DEFAULTS)
     }
 }
 
@@ -143,7 +129,7 @@ pub struct LoopMeasurement {
     prev_pos_mm: f32,
     stage_since: u32,
     saturated_since: Option<u32>,
-    within_since: Option<u32>,
+    rest: RestWatch,
     last: Option<(u8, ResponsePoint)>,
     measured: u8,
 }
@@ -182,7 +168,7 @@ impl LoopMeasurement {
             prev_pos_mm: start_pos_mm,
             stage_since: 0,
             saturated_since: None,
-            within_since: None,
+            rest: RestWatch::default(),
             last: None,
             measured: 0,
         };
@@ -289,18 +275,10 @@ impl LoopMeasurement {
             return self.output(0.0);
         }
         self.k = self.k.saturating_add(1);
-        if m.fault {
-            return self.give_up(AbortReason::Fault);
-        }
-        if !(m.pos_mm.is_finite() && m.vel_mm_s.is_finite() && law_mnm.is_finite()) {
-            return self.give_up(AbortReason::NonFiniteInput);
-        }
         let c = self.s.c;
-        if !(m.pos_mm >= c.window_min_mm && m.pos_mm <= c.window_max_mm) {
-            return self.give_up(AbortReason::LeftWindow);
-        }
-        if !(m.vel_mm_s.abs() <= c.velocity_limit_mm_s) {
-            return self.give_up(AbortReason::VelocityLimit);
+        let limits = [c.window_min_mm, c.window_max_mm, c.velocity_limit_mm_s];
+        if let Some(r) = m.abort_reason(law_mnm, limits) {
+            return self.give_up(r);
         }
         if law_mnm.abs() >= c.torque_cap_mnm {
             let since = *self.saturated_since.get_or_insert(self.k);
@@ -351,7 +329,7 @@ impl LoopMeasurement {
             self.status = IdentifyStatus::Stopping(r);
         }
         self.stage_since = self.k;
-        self.within_since = None;
+        self.rest.reset();
         self.ramp.go(0.0, a, a);
     }
 
@@ -429,11 +407,7 @@ impl LoopMeasurement {
         }
         if self.point == 0 {
             if let Some(p) = self.v_corr.response(self.step.freq_hz, c.period_s) {
-                let w = 2.0 * core::f32::consts::PI * p.freq_hz;
-                let j = 1.0f32.div_or(w * w * p.magnitude(), c.inertia_guess);
-                let g = c.inertia_guess;
-                // max/min, not clamp: clamp panics on crossed or NaN bounds
-                self.j_est = j.max(g / INERTIA_RANGE).min(g * INERTIA_RANGE);
+                self.j_est = p.mass_inertia(c.inertia_guess);
             }
         }
     }
@@ -471,25 +445,16 @@ impl LoopMeasurement {
 
     /// Settle at the current frequency, at least `min_s` (after a start or a reversal).
     fn begin_point(&mut self, min_s: f32) {
-        let c = self.s.c;
-        self.osc.set_freq(self.step.freq_hz, c.period_s);
-        let settle = self
-            .step
-            .settle_periods
-            .max(libm::roundf(min_s / c.period_s) as u32);
+        let t = self.s.c.period_s;
+        self.osc.set_freq(self.step.freq_hz, t);
         self.stage = Stage::Settle {
-            left: settle.max(1),
+            left: self.step.settle_after(min_s, t),
         };
     }
 
-    /// The reference is at rest and the axis has stayed below [`STOPPED_MM_S`] for
-    /// [`STOP_HOLD_S`].
+    /// The setpoint is at rest and the axis has stayed so ([`RestWatch`]).
     fn is_stopped(&mut self, m: &AxisSample) -> bool {
-        if !(self.ramp.reached() && self.ramp.v_mm_s == 0.0 && m.vel_mm_s.abs() < STOPPED_MM_S) {
-            self.within_since = None;
-            return false;
-        }
-        let since = *self.within_since.get_or_insert(self.k);
-        self.elapsed_since(since) >= STOP_HOLD_S
+        self.rest
+            .stopped(&self.ramp, m.vel_mm_s, self.k, self.s.c.period_s)
     }
 }

@@ -14,7 +14,7 @@
 //! the input.
 
 use super::super::identifier::{AbortReason, AxisSample, IdentifyStatus};
-use super::super::velocity_loop::{Ramp, VelocityLoop};
+use super::super::velocity_loop::{Ramp, RestWatch, VelocityLoop};
 use super::config::{ResponseConfig, ResponseConfigError, ValidResponseConfig};
 use super::estimate::{Correlator, ResponsePoint};
 use super::excitation::{Oscillator, Step};
@@ -23,18 +23,12 @@ use crate::Real;
 /// `1 - 1/φ` (φ the golden ratio): the fraction of a count the travel advances per period
 /// (see [`ResponseMeasurement::new`]).
 const GOLDEN_FRACTION: f32 = 0.381_966;
-/// At rest below this |velocity|, mm/s (the model identification's).
-const STOPPED_MM_S: f32 = 2.0;
-/// Time the axis must stay below [`STOPPED_MM_S`] to count as stopped, s.
-const STOP_HOLD_S: f32 = 0.02;
 /// Braking gives up (and zeroes the effort) after this long, s.
 const BRAKE_TIMEOUT_S: f32 = 1.0;
 /// Longest time the effort may stay at the cap, s (the model identification's).
 const SATURATION_LIMIT_S: f32 = 0.5;
 /// Reaction allowance in the stopping distance, in time constants of the braking loop.
 const REACTION_BANDWIDTHS: f32 = 3.0;
-/// The inertia the first frequency measures is trusted within this factor of the guess.
-const INERTIA_RANGE: f32 = 25.0;
 /// Seed of the dither's generator (any non-zero value; fixed: runs repeat exactly).
 const DITHER_SEED: u32 = 0x9E37_79B9;
 
@@ -101,7 +95,7 @@ pub struct ResponseMeasurement {
     friction_mnm: [Option<f32>; 2],
     stage_since: u32,
     saturated_since: Option<u32>,
-    within_since: Option<u32>,
+    rest: RestWatch,
     /// The latest measured point and its index in the grid.
     last: Option<(u8, ResponsePoint)>,
     measured: u8,
@@ -180,7 +174,7 @@ impl ResponseMeasurement {
             friction_mnm: [None; 2],
             stage_since: 0,
             saturated_since: None,
-            within_since: None,
+            rest: RestWatch::default(),
             last: None,
             measured: 0,
             rng: DITHER_SEED,
@@ -272,7 +266,7 @@ impl ResponseMeasurement {
         self.stage = Stage::Braking(reason);
         self.status = IdentifyStatus::Stopping(reason);
         self.stage_since = self.k;
-        self.within_since = None;
+        self.rest.reset();
         self.pending = None;
         self.prev_in_window = false;
         self.vloop = VelocityLoop::new(
@@ -311,18 +305,10 @@ impl ResponseMeasurement {
             return self.output(0.0);
         }
         self.k = self.k.saturating_add(1);
-        if m.fault {
-            return self.give_up(AbortReason::Fault);
-        }
-        if !(m.pos_mm.is_finite() && m.vel_mm_s.is_finite() && m.effort_applied_mnm.is_finite()) {
-            return self.give_up(AbortReason::NonFiniteInput);
-        }
         let c = self.s.c;
-        if !(m.pos_mm >= c.window_min_mm && m.pos_mm <= c.window_max_mm) {
-            return self.give_up(AbortReason::LeftWindow);
-        }
-        if !(m.vel_mm_s.abs() <= c.velocity_limit_mm_s) {
-            return self.give_up(AbortReason::VelocityLimit);
+        let limits = [c.window_min_mm, c.window_max_mm, c.velocity_limit_mm_s];
+        if let Some(r) = m.abort_reason(m.effort_applied_mnm, limits) {
+            return self.give_up(r);
         }
         if !matches!(self.stage, Stage::Braking(_)) {
             let stop = m.pos_mm + m.vel_mm_s.sign() * self.stop_distance(m.vel_mm_s);
@@ -384,11 +370,7 @@ impl ResponseMeasurement {
                 // the amplitude's inertia from the first (highest) frequency: above the
                 // modes, the motor side's (at most the frame's share low, ~10 % on the
                 // gantry: a little less amplitude than planned)
-                let w = 2.0 * core::f32::consts::PI * p.freq_hz;
-                let j = 1.0f32.div_or(w * w * p.magnitude(), c.inertia_guess);
-                let g = c.inertia_guess;
-                // max/min, not clamp: clamp panics on crossed or NaN bounds
-                self.j_est = j.max(g / INERTIA_RANGE).min(g * INERTIA_RANGE);
+                self.j_est = p.mass_inertia(c.inertia_guess);
                 self.vloop.retune(self.j_est);
             }
         }
@@ -472,7 +454,7 @@ impl ResponseMeasurement {
             self.stage = Stage::FinalStop;
             self.ramp
                 .go(0.0, self.s.c.accel_mm_s2, self.s.c.accel_mm_s2);
-            self.within_since = None;
+            self.rest.reset();
             return;
         }
         self.step = Step::of(&self.s, self.point);
@@ -504,25 +486,16 @@ impl ResponseMeasurement {
 
     /// Settle at the current frequency, at least `min_s` (after a start or a reversal).
     fn begin_point(&mut self, min_s: f32) {
-        let c = self.s.c;
-        self.osc.set_freq(self.step.freq_hz, c.period_s);
-        let settle = self
-            .step
-            .settle_periods
-            .max(libm::roundf(min_s / c.period_s) as u32);
+        let t = self.s.c.period_s;
+        self.osc.set_freq(self.step.freq_hz, t);
         self.stage = Stage::Settle {
-            left: settle.max(1),
+            left: self.step.settle_after(min_s, t),
         };
     }
 
-    /// The setpoint is at rest and the axis has stayed below [`STOPPED_MM_S`] for
-    /// [`STOP_HOLD_S`].
+    /// The setpoint is at rest and the axis has stayed so ([`RestWatch`]).
     fn is_stopped(&mut self, m: &AxisSample) -> bool {
-        if !(self.ramp.reached() && self.ramp.v_mm_s == 0.0 && m.vel_mm_s.abs() < STOPPED_MM_S) {
-            self.within_since = None;
-            return false;
-        }
-        let since = *self.within_since.get_or_insert(self.k);
-        self.elapsed_since(since) >= STOP_HOLD_S
+        self.rest
+            .stopped(&self.ramp, m.vel_mm_s, self.k, self.s.c.period_s)
     }
 }
