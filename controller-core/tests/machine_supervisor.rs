@@ -1122,3 +1122,35 @@ fn a_compensation_transfer_refuses_bad_parts_and_commits_only_with_the_outputs_o
     assert!(is_refused_with(&o, "no table transfer under way"), "{o:?}");
     assert_eq!(m.status().comp, 0b001);
 }
+
+/// A loop measurement needs the laws holding the axis: from Disabled it is refused and
+/// nothing starts; a fourth axis is refused by name.
+#[test]
+fn a_loop_measurement_is_refused_by_name_off_the_laws_or_off_the_axes() {
+    let (mut m, mut w) = machine();
+    assert_eq!(m.servo().state(), ServoState::Disabled);
+    let o = outcome(
+        &mut m,
+        &mut w,
+        Request::MeasureLoop {
+            axis: 3,
+            window_mm: Some([-50.0, 50.0]),
+        },
+    );
+    assert!(is_refused_with(&o, "loop: axis must be 0, 1 or 2"), "{o:?}");
+    let o = outcome(
+        &mut m,
+        &mut w,
+        Request::MeasureLoop {
+            axis: 1,
+            window_mm: Some([-50.0, 50.0]),
+        },
+    );
+    assert!(
+        is_refused_with(&o, "not allowed in the current state"),
+        "{o:?}"
+    );
+    periods(&mut m, &mut w, 100);
+    assert_eq!(m.servo().state(), ServoState::Disabled);
+    assert!(m.servo().response_outcome().is_none());
+}
